@@ -1,0 +1,368 @@
+/* design.c: fast design matrix by shared cumulative wedge sweeps (see design.h and corner.h).
+ *
+ * Every node (e_i, e_j) of the sub-pixel grid needs, for each spot, two wedge integrals
+ * W(w, S) = int_0^S f(w cosh s) / cosh s ds (f = Q or P): one for the vertical line x = e_i
+ * (w = a |e_i - xk|, S = asinh(|e_j - yk| / |e_i - xk|)) and one for the horizontal line.
+ * For a given w these are prefix integrals of one integrand, so one sweep per distinct w serves
+ * all its targets, over all spots: on the paper's 9 x 9 grid the 81 spots share 9 column
+ * offsets, and the number of sweeps drops ninefold. Each sweep samples the integrand at m
+ * Chebyshev points per segment and integrates the interpolant in closed form (Clenshaw-Curtis
+ * style), so any target inside a segment costs one short Clenshaw sum, not a new quadrature.
+ *
+ * The sweep variable is E = e^s = tan T + sec T (so T = 2 atan E - pi/2): then cosh s =
+ * (E + 1/E)/2, ds = dE / E and W = int_1^E f(w (E + 1/E) / 2) * 2 / (1 + E^2) dE, and a target
+ * is E = (|v| + hypot(u, v)) / |u|: no exp, log or asinh anywhere in the hot loops. Segments are
+ * limited to a ratio e^seg_ds in E (the 1/cosh s scale) and to seg_dv in v = w cosh s (the
+ * period pi of the oscillating part of Q). Memory is bounded by doing spots in batches. */
+#include "design.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "airy.h"
+#include "corner.h"
+#include "radial.h"
+
+#define MAX_ORDER 64
+#define BATCH 256 /* spots per batch: bounds the node buffers at BATCH * (r+1)^2 * 32 bytes */
+
+fit_design_opts_t fit_design_opts_for_tol(double tol)
+{
+    /* calibrated against fit_box_integral on the reference scan positions at r = 7 for
+     * R = 1.34 um and R = 30 um (the harder one); `ips bench` prints the table */
+    fit_design_opts_t o = {.order = 16, .seg_dv = 2.0, .seg_ds = 0.5, .skip_tol = tol / 100};
+    if (tol >= 1e-3) o.order = 6;
+    else if (tol >= 1e-5) o.order = 8;
+    else if (tol >= 1e-7) o.order = 10;
+    else if (tol >= 1e-9) o.order = 12;
+    else if (tol >= 1e-11) o.order = 14;
+    else if (tol >= 1e-13) o.order = 16;
+    else o.order = 20;
+    return o;
+}
+
+/* ---- spectral cumulative integration of one sweep ---- */
+
+struct cheb {
+    int m;
+    double t[MAX_ORDER];                /* Chebyshev points of the first kind on [-1, 1] */
+    double cosm[MAX_ORDER][MAX_ORDER];  /* cos(pi j (k + 1/2) / m): the DCT */
+};
+
+struct segment {
+    double sa, sb, cq, cp;              /* ends in E; prefix integrals of Q and P at sa */
+    double Cq[MAX_ORDER + 1], Cp[MAX_ORDER + 1]; /* antiderivative coefficients (in E units) */
+};
+
+struct sweep {
+    int nseg, cap;
+    struct segment *seg;
+};
+
+/* Antiderivative (zero at t = -1) of sum_j c_j T_j, j < m, scaled by the half-length h. */
+static void antiderivative(const double *c, int m, double h, double *C)
+{
+    memset(C, 0, sizeof(double) * (size_t)(m + 1));
+    C[1] += c[0];                          /* int T0 = T1 */
+    if (m > 1) C[2] += c[1] / 4;           /* int T1 = T2 / 4 + const */
+    for (int j = 2; j < m; j++) {          /* int Tj = T(j+1)/(2(j+1)) - T(j-1)/(2(j-1)) */
+        C[j + 1] += c[j] / (2.0 * (j + 1));
+        C[j - 1] -= c[j] / (2.0 * (j - 1));
+    }
+    double at_minus1 = 0;
+    for (int j = 1; j <= m; j++) at_minus1 += (j % 2 ? -C[j] : C[j]);
+    C[0] = -at_minus1;
+    for (int j = 0; j <= m; j++) C[j] *= h;
+}
+
+/* Fills sw with segments covering E in [1, emax] for the line at scaled distance w > 0.
+ * Returns the number of radial evaluations, or (size_t)-1 when out of memory. */
+static size_t sweep_build(const struct cheb *ch, const fit_design_opts_t *o, double w, double emax,
+                          struct sweep *sw)
+{
+    int m = ch->m;
+    size_t evals = 0;
+    double E = 1, cq = 0, cp = 0, ratio = exp(o->seg_ds);
+    sw->nseg = 0;
+    while (E < emax) {
+        double next = E * ratio < emax ? E * ratio : emax;
+        /* v = w (E + 1/E)/2 may grow by at most seg_dv: solve E' + 1/E' = 2 vnext / w */
+        double vnext = w * 0.5 * (E + 1 / E) + o->seg_dv, c = vnext / w;
+        if (w * 0.5 * (next + 1 / next) > vnext) next = c + sqrt((c - 1) * (c + 1));
+        if (!(next > E)) next = emax; /* rounding guard */
+        if (sw->nseg == sw->cap) {
+            int cap = sw->cap ? 2 * sw->cap : 16;
+            struct segment *ns = realloc(sw->seg, sizeof *ns * (size_t)cap);
+            if (!ns) return (size_t)-1;
+            sw->seg = ns;
+            sw->cap = cap;
+        }
+        struct segment *g = &sw->seg[sw->nseg++];
+        double mid = 0.5 * (next + E), h = 0.5 * (next - E), fq[MAX_ORDER], fp[MAX_ORDER];
+        for (int k = 0; k < m; k++) {
+            double x = mid + h * ch->t[k], x2 = x * x + 1.0, q, p;
+            radial_eval(w * 0.5 * x2 / x, &q, &p); /* v = w cosh s = w (x + 1/x) / 2 */
+            fq[k] = q * 2.0 / x2;                  /* dT/dE = 2 / (1 + E^2) */
+            fp[k] = p * 2.0 / x2;
+        }
+        evals += (size_t)m;
+        double c1[MAX_ORDER] = {0}, c2[MAX_ORDER] = {0};
+        for (int j = 0; j < m; j++) {
+            double aq = 0, ap = 0;
+            for (int k = 0; k < m; k++) {
+                aq += fq[k] * ch->cosm[j][k];
+                ap += fp[k] * ch->cosm[j][k];
+            }
+            c1[j] = aq * 2.0 / m;
+            c2[j] = ap * 2.0 / m;
+        }
+        c1[0] /= 2;
+        c2[0] /= 2;
+        antiderivative(c1, m, h, g->Cq);
+        antiderivative(c2, m, h, g->Cp);
+        g->sa = E;
+        g->sb = next;
+        g->cq = cq;
+        g->cp = cp;
+        for (int j = 0; j <= m; j++) { /* T_j(1) = 1 */
+            cq += g->Cq[j];
+            cp += g->Cp[j];
+        }
+        E = next;
+    }
+    return evals;
+}
+
+static double cheb_sum(const double *c, int n, double t)
+{
+    double b1 = 0, b2 = 0, t2 = 2 * t;
+    for (int k = n; k >= 1; k--) {
+        double b0 = t2 * b1 + (c[k] - b2);
+        b2 = b1;
+        b1 = b0;
+    }
+    return t * b1 + (c[0] - b2);
+}
+
+/* Prefix integrals of Q (and of P when wp is not NULL) up to E = s (1 <= s <= the sweep's end). */
+static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, double *wp)
+{
+    int lo = 0, hi = sw->nseg - 1;
+    while (lo < hi) { /* the segment with sa <= s < sb */
+        int mid = (lo + hi + 1) / 2;
+        if (sw->seg[mid].sa <= s) lo = mid;
+        else hi = mid - 1;
+    }
+    const struct segment *g = &sw->seg[lo];
+    double h = 0.5 * (g->sb - g->sa), t = h > 0 ? (s - 0.5 * (g->sa + g->sb)) / h : 1.0;
+    if (t > 1) t = 1;
+    *wq = g->cq + cheb_sum(g->Cq, m, t);
+    if (wp) *wp = g->cp + cheb_sum(g->Cp, m, t);
+}
+
+/* ---- the design matrix ---- */
+
+struct line_pair {
+    double w;     /* a * distance from the spot to the line */
+    int k, l;     /* spot in the batch, line index */
+};
+
+static int cmp_pair(const void *p, const void *q)
+{
+    double a = ((const struct line_pair *)p)->w, b = ((const struct line_pair *)q)->w;
+    return (a > b) - (a < b);
+}
+
+struct work {
+    int r, n1;
+    const double *e;
+    double a;
+    const double *x, *y;      /* spot positions of the batch */
+    double *wq[2], *wp[2];    /* [k][node]: wedge values of the vertical [0] and horizontal [1] lines */
+    unsigned char *need, *skip; /* [k][node] wedges needed (1: Q, 2: Q and P), [k][cell] left out */
+    struct line_pair *pairs;
+    struct sweep sw;
+};
+
+/* Marks, for spot k of the batch, the cells left out and the nodes needed. */
+static void mark_cells(const fit_design_opts_t *o, struct work *wk, int k, fit_design_stats_t *st)
+{
+    int r = wk->r, n1 = wk->n1;
+    const double *e = wk->e;
+    unsigned char *need = wk->need + (size_t)k * n1 * n1, *skip = wk->skip + (size_t)k * r * r;
+    double xk = wk->x[k], yk = wk->y[k], limit = o->skip_tol * fit_airy_total(wk->a);
+    memset(need, 0, (size_t)n1 * n1);
+    for (int j = 0; j < r; j++)
+        for (int i = 0; i < r; i++) {
+            int left_out = 0;
+            if (limit > 0) {
+                double dx = e[i] - xk > xk - e[i + 1] ? e[i] - xk : xk - e[i + 1];
+                double dy = e[j] - yk > yk - e[j + 1] ? e[j] - yk : yk - e[j + 1];
+                dx = dx > 0 ? dx : 0;
+                dy = dy > 0 ? dy : 0;
+                double bound = (e[i + 1] - e[i]) * (e[j + 1] - e[j]) *
+                               fit_airy_envelope(wk->a, hypot(dx, dy));
+                if (bound < limit) {
+                    left_out = 1;
+                    st->skipped++;
+                    if (bound > st->max_skipped_bound) st->max_skipped_bound = bound;
+                }
+            }
+            skip[j * r + i] = (unsigned char)left_out;
+            if (left_out) continue;
+            /* 1: the node's Q wedges are needed; 2: its P wedges too (a cell holding the spot) */
+            unsigned char mark = (xk >= e[i] && xk <= e[i + 1] && yk >= e[j] && yk <= e[j + 1]) ? 2 : 1;
+            int nd[4] = {j * n1 + i, j * n1 + i + 1, (j + 1) * n1 + i, (j + 1) * n1 + i + 1};
+            for (int c = 0; c < 4; c++)
+                if (need[nd[c]] < mark) need[nd[c]] = mark;
+        }
+}
+
+/* All wedges of direction dir (0: vertical lines, targets along y; 1: horizontal) for the batch. */
+static int direction_pass(const struct cheb *ch, const fit_design_opts_t *o, struct work *wk,
+                          int nb, int dir, size_t *evals)
+{
+    int n1 = wk->n1, np = 0;
+    const double *across = dir ? wk->y : wk->x, *along = dir ? wk->x : wk->y;
+    for (int k = 0; k < nb; k++)
+        for (int l = 0; l < n1; l++) {
+            double w = wk->a * fabs(wk->e[l] - across[k]);
+            if (w < FIT_CORNER_TINY) continue; /* its nodes are axis corners */
+            wk->pairs[np++] = (struct line_pair){w, k, l};
+        }
+    qsort(wk->pairs, (size_t)np, sizeof *wk->pairs, cmp_pair);
+    for (int g0 = 0; g0 < np;) {
+        int g1 = g0;
+        while (g1 < np && wk->pairs[g1].w == wk->pairs[g0].w) g1++;
+        double w = wk->pairs[g0].w, smax = 0;
+        for (int pass = 0; pass < 2; pass++) {
+            for (int q = g0; q < g1; q++) {
+                int k = wk->pairs[q].k, l = wk->pairs[q].l;
+                const unsigned char *need = wk->need + (size_t)k * n1 * n1;
+                double dist = fabs(wk->e[l] - across[k]);
+                for (int m = 0; m < n1; m++) {
+                    int node = dir ? l * n1 + m : m * n1 + l;
+                    double other = fabs(wk->e[m] - along[k]);
+                    if (!need[node] || wk->a * other < FIT_CORNER_TINY) continue;
+                    double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
+                    if (pass == 0) {
+                        if (s > smax) smax = s;
+                    } else {
+                        size_t at = (size_t)k * n1 * n1 + (size_t)node;
+                        sweep_eval(&wk->sw, ch->m, s, &wk->wq[dir][at],
+                                   need[node] == 2 ? &wk->wp[dir][at] : NULL);
+                    }
+                }
+            }
+            if (pass == 0) {
+                if (smax <= 1) break;
+                size_t ev = sweep_build(ch, o, w, smax, &wk->sw);
+                if (ev == (size_t)-1) return -ENOMEM;
+                *evals += ev;
+            }
+        }
+        g0 = g1;
+    }
+    return 0;
+}
+
+/* Cells of spot k from its node values, into row (r*r). */
+static void assemble_row(struct work *wk, int k, double *row)
+{
+    int r = wk->r, n1 = wk->n1;
+    const double *e = wk->e;
+    double xk = wk->x[k], yk = wk->y[k], unit = 2 / (wk->a * wk->a);
+    size_t base = (size_t)k * n1 * n1;
+    const unsigned char *skip = wk->skip + (size_t)k * r * r;
+    for (int j = 0; j < r; j++)
+        for (int i = 0; i < r; i++) {
+            if (skip[j * r + i]) {
+                row[j * r + i] = 0;
+                continue;
+            }
+            double uu[2] = {e[i] - xk, e[i + 1] - xk}, vv[2] = {e[j] - yk, e[j + 1] - yk};
+            double fq[2][2], fp[2][2];
+            for (int b = 0; b < 2; b++)
+                for (int c = 0; c < 2; c++) {
+                    size_t node = base + (size_t)(j + b) * n1 + (size_t)(i + c);
+                    if (wk->a * fabs(uu[c]) < FIT_CORNER_TINY ||
+                        wk->a * fabs(vv[b]) < FIT_CORNER_TINY) {
+                        fq[b][c] = M_PI / 2; /* corner on an axis through the spot */
+                        fp[b][c] = 0;
+                    } else {
+                        fq[b][c] = wk->wq[0][node] + wk->wq[1][node];
+                        fp[b][c] = wk->wp[0][node] + wk->wp[1][node];
+                    }
+                }
+            row[j * r + i] = unit * corner_combine(uu, vv, fq, fp, NULL);
+        }
+}
+
+int fit_design_build(double R_um, double pitch, int r, const double *x, const double *y, size_t n,
+                     const fit_design_opts_t *opts, double *A, fit_design_stats_t *stats,
+                     err_t *err)
+{
+    if (!(R_um > 0) || !isfinite(R_um))
+        return err_set(err, -EINVAL, "spot radius must be a positive finite number (got %g)", R_um);
+    if (!(pitch > 0) || !isfinite(pitch))
+        return err_set(err, -EINVAL, "pixel pitch must be a positive finite number (got %g)", pitch);
+    if (r < 1 || r > 256) return err_set(err, -EINVAL, "r must be in 1..256 (got %d)", r);
+    for (size_t k = 0; k < n; k++)
+        if (!isfinite(x[k]) || !isfinite(y[k]))
+            return err_set(err, -EINVAL, "spot position %zu is not finite", k);
+    fit_design_opts_t o = opts ? *opts : fit_design_opts_for_tol(1e-12);
+    if (o.order < 2 || o.order > MAX_ORDER)
+        return err_set(err, -EINVAL, "quadrature order must be in 2..%d (got %d)", MAX_ORDER,
+                       o.order);
+    if (!(o.seg_dv > 0) || !(o.seg_ds > 0))
+        return err_set(err, -EINVAL, "segment spans must be positive");
+
+    fit_design_stats_t st = {.entries = n * (size_t)r * r};
+    int n1 = r + 1, rc = 0;
+    size_t nodes = (size_t)n1 * n1, batch = n < BATCH ? n : BATCH;
+    struct cheb *ch = malloc(sizeof *ch);
+    double *e = malloc(sizeof(double) * (size_t)n1);
+    struct work wk = {.r = r, .n1 = n1, .e = e, .a = fit_airy_a(R_um)};
+    double *buf = malloc(sizeof(double) * 4 * nodes * (batch ? batch : 1));
+    wk.need = malloc((nodes + (size_t)r * r) * (batch ? batch : 1));
+    wk.pairs = malloc(sizeof *wk.pairs * (size_t)n1 * (batch ? batch : 1));
+    if (!ch || !e || !buf || !wk.need || !wk.pairs) {
+        rc = err_set(err, -ENOMEM, "out of memory for the design matrix (r = %d)", r);
+        goto out;
+    }
+    wk.wq[0] = buf;
+    wk.wq[1] = buf + nodes * batch;
+    wk.wp[0] = buf + 2 * nodes * batch;
+    wk.wp[1] = buf + 3 * nodes * batch;
+    wk.skip = wk.need + nodes * batch;
+    ch->m = o.order;
+    for (int k = 0; k < ch->m; k++) {
+        ch->t[k] = cos(M_PI * (k + 0.5) / ch->m);
+        for (int j = 0; j < ch->m; j++) ch->cosm[j][k] = cos(M_PI * j * (k + 0.5) / ch->m);
+    }
+    for (int i = 0; i <= r; i++) e[i] = pitch * i / r; /* exact at 0 and at pitch */
+    for (size_t k0 = 0; k0 < n; k0 += batch) {
+        int nb = (int)(n - k0 < batch ? n - k0 : batch);
+        wk.x = x + k0;
+        wk.y = y + k0;
+        for (int k = 0; k < nb; k++) mark_cells(&o, &wk, k, &st);
+        for (int dir = 0; dir < 2 && rc == 0; dir++)
+            rc = direction_pass(ch, &o, &wk, nb, dir, &st.radial_evals);
+        if (rc) {
+            rc = err_set(err, rc, "out of memory for the design matrix (r = %d)", r);
+            goto out;
+        }
+        for (int k = 0; k < nb; k++) assemble_row(&wk, k, A + (k0 + (size_t)k) * r * r);
+    }
+out:
+    if (stats) *stats = st;
+    free(wk.sw.seg);
+    free(ch);
+    free(e);
+    free(buf);
+    free(wk.need);
+    free(wk.pairs);
+    return rc;
+}

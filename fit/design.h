@@ -1,0 +1,41 @@
+/* design.h: the design matrix of eq. 3, A[k][j*r+i] = integral of the unit-peak Airy centred at
+ * spot position k over sub-pixel (i, j) (column i, row j) of an r x r split of the pixel
+ * [0, pitch]^2. The model is then M_k = I0 * sum_ij S_ij A[k][j*r+i].
+ *
+ * Fast path: per spot, one cumulative sweep of corner wedges per sub-pixel edge line (corner.h)
+ * with composite Gauss-Legendre of a chosen order; cost grows like r^2 per spot, not r^4.
+ * Leave-out: sub-pixels whose rigorous bound (sub-pixel area times the Airy envelope at its
+ * nearest point, airy.h) is below skip_tol of the spot's whole flux are not integrated; they are
+ * set to 0 and counted, with the largest bound left out. Thread-safe; no I/O. */
+#ifndef IPSD_FIT_DESIGN_H
+#define IPSD_FIT_DESIGN_H
+
+#include <stddef.h>
+
+#include "err.h"
+
+typedef struct fit_design_opts {
+    int order;       /* Gauss-Legendre points per segment (the accuracy setting), 2..64 */
+    double seg_dv;   /* largest span of a*rho covered by one segment (resolves oscillations) */
+    double seg_ds;   /* largest span of the wedge variable s = asinh(tan t) per segment */
+    double skip_tol; /* leave out entries bounded below skip_tol * 4 pi / a^2; 0 keeps all */
+} fit_design_opts_t;
+
+typedef struct fit_design_stats {
+    size_t entries;            /* n * r * r */
+    size_t skipped;            /* entries left out by the envelope bound */
+    double max_skipped_bound;  /* largest bound of an entry left out (um^2), 0 if none */
+    size_t radial_evals;       /* evaluations of the radial function: the cost */
+} fit_design_stats_t;
+
+/* Options for a target accuracy: tol is the largest error of an entry relative to the largest
+ * entry of its row (as `ips bench` measures it); skip_tol = tol / 100. */
+fit_design_opts_t fit_design_opts_for_tol(double tol);
+
+/* Fills A (n x r*r, row-major, caller-allocated) for spots (x[k], y[k]). R_um > 0, pitch > 0,
+ * r >= 1. stats may be NULL. Returns 0 or -EINVAL / -ENOMEM with a message in err. */
+int fit_design_build(double R_um, double pitch, int r, const double *x, const double *y, size_t n,
+                     const fit_design_opts_t *opts, double *A, fit_design_stats_t *stats,
+                     err_t *err);
+
+#endif

@@ -1,0 +1,15 @@
+/* err.h: the error out-parameter every module uses: a fixed-size human message next to the
+ * negative int a function returns (like jansson's json_error_t). Callers may pass NULL. */
+#ifndef IPSD_ERR_H
+#define IPSD_ERR_H
+
+#include <stdarg.h>
+
+typedef struct err {
+    char msg[256]; /* one line, no trailing newline */
+} err_t;
+
+/* Formats into err->msg when err is not NULL; returns code so callers can `return err_set(...)`. */
+int err_set(err_t *err, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+
+#endif

@@ -1,0 +1,297 @@
+/* model.c: one r x r fit of the pixel response model (eq. 3) by weighted chi-square (eq. 4):
+ * point selection, design matrix, the linear global minimum (wls.c) and/or the paper's LM
+ * (lm.c), normalisation of S to mean 1 with uncertainties, and the trust status. */
+#include "model.h"
+
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "lm.h"
+#include "wls.h"
+
+#define COND_LIMIT 1e8     /* beyond: near-collinear columns, the map is noise-dominated */
+#define SIGNAL_SIGMAS 3.0  /* light must stand this many standard deviations above the noise */
+
+fit_options_t fit_options_default(void)
+{
+    return (fit_options_t){.noise = FIT_NOISE_PAPER, .method = FIT_LINEAR, .nonneg = 0,
+                           .design_tol = 1e-12};
+}
+
+const char *fit_status_name(unsigned flags)
+{
+    if (flags & FIT_NO_POINTS) {
+        if (flags & FIT_SATURATED) return "saturated";
+        if (flags & FIT_NONFINITE) return "nonfinite_input";
+        return "no_points";
+    }
+    if (flags & FIT_UNDERDETERMINED) return "underdetermined";
+    if (flags & FIT_NO_SIGNAL) return "no_signal";
+    if (flags & FIT_ILL_CONDITIONED) return "ill_conditioned";
+    if (flags & FIT_UNCONSTRAINED) return "unconstrained";
+    if (flags & FIT_LM_NOT_GLOBAL) return "lm_not_global";
+    if (flags & FIT_LM_NOT_CONVERGED) return "lm_not_converged";
+    if (flags & FIT_NONFINITE) return "nonfinite_input"; /* map fine, points left out */
+    if (flags & FIT_SATURATED) return "saturated";
+    return "ok";
+}
+
+static double now_ms(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
+}
+
+int fit_scan_check(const fit_scan_t *scan, err_t *err)
+{
+    if (!scan) return err_set(err, -EINVAL, "no scan");
+    if (scan->n && (!scan->x_um || !scan->y_um || !scan->signal_dn))
+        return err_set(err, -EINVAL, "scan arrays missing");
+    if (!(scan->pitch_um > 0) || !isfinite(scan->pitch_um))
+        return err_set(err, -EINVAL, "pitch_um must be a positive number (got %g)", scan->pitch_um);
+    if (!(scan->spot_radius_um > 0) || !isfinite(scan->spot_radius_um))
+        return err_set(err, -EINVAL, "spot_radius_um must be a positive number (got %g)",
+                       scan->spot_radius_um);
+    if (!(scan->gain_e_per_dn > 0) || !isfinite(scan->gain_e_per_dn))
+        return err_set(err, -EINVAL, "gain_e_per_dn must be a positive number (got %g)",
+                       scan->gain_e_per_dn);
+    if (!(scan->read_noise_e >= 0) || !isfinite(scan->read_noise_e))
+        return err_set(err, -EINVAL, "read_noise_e must be a non-negative number (got %g)",
+                       scan->read_noise_e);
+    if (!isfinite(scan->bias_dn)) return err_set(err, -EINVAL, "bias_dn must be a finite number");
+    if (scan->frames < 1)
+        return err_set(err, -EINVAL, "frames must be at least 1 (got %d)", scan->frames);
+    return 0;
+}
+
+/* The usable points of a scan: finite, below full scale. */
+struct points {
+    size_t n, *idx;
+    double *x, *y, *d, *sigma, *w; /* position, signal - bias, uncertainty, 1/sigma^2 */
+};
+
+static void points_free(struct points *p)
+{
+    free(p->idx);
+    free(p->x);
+    free(p->sigma);
+}
+
+static int points_select(const fit_scan_t *scan, fit_noise_t noise, struct points *p,
+                         fit_result_t *res)
+{
+    size_t n = scan->n ? scan->n : 1;
+    memset(p, 0, sizeof *p);
+    p->idx = malloc(sizeof(size_t) * n);
+    p->x = malloc(sizeof(double) * 3 * n);
+    p->sigma = malloc(sizeof(double) * 2 * n);
+    if (!p->idx || !p->x || !p->sigma) return -ENOMEM;
+    p->y = p->x + n;
+    p->d = p->y + n;
+    p->w = p->sigma + n;
+    /* sigma floor: the rounding of each frame to whole DN, variance 1/12 DN^2 (only reached
+     * with zero read noise at zero signal, where the models give 0) */
+    double floor = sqrt(1.0 / 12 / scan->frames);
+    for (size_t k = 0; k < scan->n; k++) {
+        double x = scan->x_um[k], y = scan->y_um[k], s = scan->signal_dn[k];
+        if (!isfinite(x) || !isfinite(y) || !isfinite(s)) {
+            res->n_nonfinite++;
+            continue;
+        }
+        if (scan->full_scale_dn > 0 && s >= scan->full_scale_dn) {
+            res->n_saturated++;
+            continue;
+        }
+        size_t q = p->n++;
+        p->idx[q] = k;
+        p->x[q] = x;
+        p->y[q] = y;
+        p->d[q] = s - scan->bias_dn;
+        p->sigma[q] = fmax(fit_noise_sigma(noise, scan, s), floor);
+        p->w[q] = 1 / (p->sigma[q] * p->sigma[q]);
+    }
+    if (res->n_nonfinite) res->flags |= FIT_NONFINITE;
+    if (res->n_saturated) res->flags |= FIT_SATURATED;
+    return 0;
+}
+
+/* S = T / mean(T) and its covariance through J = (I - S 1^T / m) / mean(T): the scale that LM
+ * cannot see (I0 against S) is fixed by the normalisation. */
+static void normalise(const double *T, const double *covT, size_t m, fit_result_t *res)
+{
+    double mean = 0, one_cov_one = 0;
+    for (size_t j = 0; j < m; j++) mean += T[j];
+    mean /= m;
+    double *rowsum = calloc(m, sizeof(double)); /* (Cov 1)_i */
+    for (size_t i = 0; i < m && rowsum; i++) {
+        for (size_t j = 0; j < m; j++) rowsum[i] += covT[i * m + j];
+        one_cov_one += rowsum[i];
+    }
+    res->I0 = mean;
+    res->I0_err = sqrt(fmax(one_cov_one, 0)) / m;
+    for (size_t i = 0; i < m; i++) {
+        double s = T[i] / mean;
+        /* Var(S_i) = [C_ii - 2 S_i (C 1)_i / m + S_i^2 (1^T C 1) / m^2] / mean^2 */
+        double v = covT[i * m + i] - 2 * s * (rowsum ? rowsum[i] : 0) / m +
+                   s * s * one_cov_one / ((double)m * m);
+        res->S[i] = s;
+        res->S_err[i] = sqrt(fmax(v, 0)) / fabs(mean);
+    }
+    free(rowsum);
+}
+
+/* The paper's LM from S = 1 (method lm/both); I0 starts at the best constant-map amplitude. */
+static int run_lm(const double *A, const struct points *p, size_t m, const fit_options_t *opts,
+                  double *T, fit_result_t *res)
+{
+    double *S = malloc(sizeof(double) * m), num = 0, den = 0;
+    if (!S) return -ENOMEM;
+    for (size_t k = 0; k < p->n; k++) {
+        double a1 = 0;
+        for (size_t j = 0; j < m; j++) a1 += A[k * m + j];
+        num += p->w[k] * p->d[k] * a1;
+        den += p->w[k] * a1 * a1;
+    }
+    double I0 = den > 0 ? num / den : 1;
+    for (size_t j = 0; j < m; j++) S[j] = 1;
+    lm_result_t lm;
+    int rc = lm_fit(A, p->sigma, p->d, p->n, m, S, &I0, &lm);
+    if (rc == 0) {
+        res->lm_chi2 = lm.chi2;
+        res->lm_iterations = lm.iterations;
+        if (!lm.converged) res->flags |= FIT_LM_NOT_CONVERGED;
+        /* LM must land on the global minimum of the linear problem (to 1e-6 relative) */
+        if (opts->method == FIT_BOTH && lm.chi2 > res->chi2 * (1 + 1e-6) + 1e-9)
+            res->flags |= FIT_LM_NOT_GLOBAL;
+        if (opts->method == FIT_LM) {
+            for (size_t j = 0; j < m; j++) T[j] = I0 * S[j];
+            res->chi2 = lm.chi2;
+        }
+    }
+    free(S);
+    return rc;
+}
+
+/* Solves for T = I0 S on the selected points and fills the result's statistics and map. */
+static int solve(const double *A, const struct points *p, int r, const fit_options_t *opts,
+                 fit_result_t *res)
+{
+    size_t m = (size_t)r * r, n = p->n;
+    double *T = malloc(sizeof(double) * m), *cov = malloc(sizeof(double) * m * m);
+    int rc = -ENOMEM;
+    if (!T || !cov) goto out;
+    wls_result_t w;
+    if ((rc = wls_solve(A, p->w, p->d, n, m, opts->nonneg, T, cov, &w))) goto out;
+    res->chi2 = w.chi2;
+    res->cond = w.rcond > 0 ? 1 / w.rcond : INFINITY;
+    if (opts->method != FIT_LINEAR && !opts->nonneg && (rc = run_lm(A, p, m, opts, T, res)))
+        goto out;
+    res->chi2_red = n > (size_t)res->params ? res->chi2 / (double)(n - (size_t)res->params) : NAN;
+    double N = (double)n, l = log(res->chi2 / N);
+    res->aic = N * l + 2 * res->params; /* AIC = N ln(chi2/N) + 2p */
+    res->bic = N * l + res->params * log(N); /* BIC = N ln(chi2/N) + p ln N */
+    if (res->cond > COND_LIMIT || w.rank < m) res->flags |= FIT_ILL_CONDITIONED;
+    res->S = malloc(sizeof(double) * m);
+    res->S_err = malloc(sizeof(double) * m);
+    if (!res->S || !res->S_err) {
+        rc = -ENOMEM;
+        goto out;
+    }
+    normalise(T, cov, m, res);
+    /* No light: without signal, S = T / mean(T) is a ratio of noises. Decided on the data, not on
+     * the fit (which an ill-conditioned problem makes uncertain anyway): the zero model's chi2
+     * sum w y^2 must exceed its noise-only expectation N by SIGNAL_SIGMAS sqrt(2N). */
+    double chi2_zero = 0;
+    for (size_t k = 0; k < n; k++) chi2_zero += p->w[k] * p->d[k] * p->d[k];
+    int no_signal = !(chi2_zero > N + SIGNAL_SIGMAS * sqrt(2 * N));
+    if (no_signal) res->flags |= FIT_NO_SIGNAL;
+    else if (!(res->I0 > 0) || !isfinite(res->I0)) res->flags |= FIT_ILL_CONDITIONED;
+    if (no_signal || !(res->I0 > 0) || !isfinite(res->I0)) { /* no meaningful normalisation */
+        free(res->S);
+        free(res->S_err);
+        res->S = res->S_err = NULL;
+    } else {
+        for (size_t j = 0; j < m; j++)
+            if (!(res->S_err[j] <= 1)) res->n_unconstrained++;
+        if (res->n_unconstrained) res->flags |= FIT_UNCONSTRAINED;
+    }
+    rc = 0;
+out:
+    free(T);
+    free(cov);
+    return rc;
+}
+
+/* model_dn: M_k + bias for every input point that was used, NaN for the others. */
+static int fill_model(const fit_scan_t *scan, const double *A, const struct points *p, int r,
+                      fit_result_t *res)
+{
+    size_t m = (size_t)r * r;
+    res->model_dn = malloc(sizeof(double) * (scan->n ? scan->n : 1));
+    if (!res->model_dn) return -ENOMEM;
+    for (size_t k = 0; k < scan->n; k++) res->model_dn[k] = NAN;
+    if (!res->S) return 0;
+    for (size_t q = 0; q < p->n; q++) {
+        double as = 0;
+        for (size_t j = 0; j < m; j++) as += A[q * m + j] * res->S[j];
+        res->model_dn[p->idx[q]] = res->I0 * as + scan->bias_dn;
+    }
+    return 0;
+}
+
+int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result_t *out,
+            err_t *err)
+{
+    memset(out, 0, sizeof *out);
+    out->r = r;
+    out->params = r * r + 1;
+    out->lm_chi2 = out->chi2 = out->chi2_red = out->aic = out->bic = NAN;
+    out->I0 = out->I0_err = out->cond = NAN;
+    fit_options_t o = opts ? *opts : fit_options_default();
+    if (r < 1 || r > 32) return err_set(err, -EINVAL, "r must be between 1 and 32 (got %d)", r);
+    int rc = fit_scan_check(scan, err);
+    if (rc) return rc;
+    struct points p;
+    double *A = NULL, t0 = now_ms();
+    if ((rc = points_select(scan, o.noise, &p, out))) goto out;
+    if (p.n == 0) out->flags |= FIT_NO_POINTS;
+    else if ((size_t)out->params > p.n) out->flags |= FIT_UNDERDETERMINED;
+    out->n_used = p.n;
+    if (!(out->flags & (FIT_NO_POINTS | FIT_UNDERDETERMINED))) {
+        size_t m = (size_t)r * r;
+        if (!(A = malloc(sizeof(double) * p.n * m))) {
+            rc = -ENOMEM;
+            goto out;
+        }
+        fit_design_opts_t d = fit_design_opts_for_tol(o.design_tol > 0 ? o.design_tol : 1e-12);
+        rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, r, p.x, p.y, p.n, &d, A,
+                              &out->design, err);
+        if (rc) goto out;
+        double t1 = now_ms();
+        out->design_ms = t1 - t0;
+        if ((rc = solve(A, &p, r, &o, out))) goto out;
+        out->solve_ms = now_ms() - t1;
+    }
+    rc = fill_model(scan, A, &p, r, out);
+out:
+    if (rc == -ENOMEM) err_set(err, rc, "out of memory fitting r = %d", r);
+    else if (rc == -EDOM) err_set(err, rc, "the linear algebra failed for r = %d", r);
+    if (rc) fit_result_free(out);
+    points_free(&p);
+    free(A);
+    return rc;
+}
+
+void fit_result_free(fit_result_t *res)
+{
+    if (!res) return;
+    free(res->S);
+    free(res->S_err);
+    free(res->model_dn);
+    res->S = res->S_err = res->model_dn = NULL;
+}

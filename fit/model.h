@@ -1,0 +1,115 @@
+/* model.h: fitting the paper's pixel response model M_k = I0 sum_ij S_ij A_kij (eq. 3) to a scan
+ * by weighted chi-square (eq. 4), model selection over r (AIC, BIC), and the F-test of a nested
+ * edge model. Thread-safe, no I/O; results own their arrays (free with the matching _free).
+ *
+ * Methods: `linear` solves the weighted linear least-squares problem in T = I0 S (the model is
+ * linear in T; numerics note 1) by SVD: the global minimum, fast, with the condition number.
+ * `lm` is the paper's Levenberg-Marquardt (GSL gsl_multifit_nlinear) from S = 1; `both` runs LM
+ * and flags when it stops above the global minimum. S is normalised to mean 1, I0 = mean(T). */
+#ifndef IPSD_FIT_MODEL_H
+#define IPSD_FIT_MODEL_H
+
+#include <stddef.h>
+
+#include "design.h"
+#include "err.h"
+#include "noise.h"
+#include "scan.h"
+
+/* Status flags of a fit: any flag but FIT_SATURATED / FIT_NONFINITE (points left out, counted)
+ * means the map must not be trusted as it is. */
+enum fit_flag {
+    FIT_UNDERDETERMINED = 1 << 0, /* r*r + 1 parameters > usable points: no map */
+    FIT_UNCONSTRAINED = 1 << 1,   /* some sub-pixels' 1-sigma error exceeds the mean sensitivity */
+    FIT_ILL_CONDITIONED = 1 << 2, /* near-collinear columns: cond > 1e8 (no map if mean T <= 0) */
+    FIT_NONFINITE = 1 << 3,       /* points with non-finite position or signal were left out */
+    FIT_SATURATED = 1 << 4,       /* points at or above full scale were left out */
+    FIT_NO_SIGNAL = 1 << 5,       /* data consistent with no light (3 sigma): no map */
+    FIT_LM_NOT_GLOBAL = 1 << 6,   /* LM stopped with chi2 above the linear global minimum */
+    FIT_LM_NOT_CONVERGED = 1 << 7,/* LM hit its iteration limit */
+    FIT_NO_POINTS = 1 << 8,       /* no usable point at all */
+};
+
+typedef enum fit_method { FIT_LINEAR = 0, FIT_LM = 1, FIT_BOTH = 2 } fit_method_t;
+
+typedef struct fit_options {
+    fit_noise_t noise;
+    fit_method_t method;
+    int nonneg;                /* constrain S_ij >= 0 (Lawson-Hanson NNLS on the linear path) */
+    double design_tol;         /* design-matrix accuracy (design.h), default 1e-12 */
+} fit_options_t;
+
+fit_options_t fit_options_default(void);
+
+typedef struct fit_result {
+    int r;
+    int params;                /* r*r + 1, as the paper counts (the S_ij and I0) */
+    size_t n_used;             /* points used (N of AIC/BIC) */
+    size_t n_saturated, n_nonfinite, n_unconstrained;
+    unsigned flags;            /* enum fit_flag */
+    double chi2, chi2_red;     /* chi2_red = chi2 / (n_used - params) */
+    double aic, bic;           /* N ln(chi2/N) + 2p, N ln(chi2/N) + p ln N */
+    double I0, I0_err;         /* DN per unit-peak-Airy flux (um^-2) */
+    double *S, *S_err;         /* r*r, row-major y then x (index j*r + i); NULL without a map */
+    double *model_dn;          /* n: fitted model M_k + bias for every input point (NaN if
+                                  left out or no map) */
+    double cond;               /* 2-norm condition number of the weighted design matrix */
+    double lm_chi2;            /* LM's chi2 (method lm/both), else NaN */
+    int lm_iterations;
+    fit_design_stats_t design; /* leave-out statistics of the design matrix */
+    double design_ms, solve_ms;/* cost of this fit */
+} fit_result_t;
+
+/* The primary status word of flags: "ok", or the most severe condition, in this order:
+ * "saturated" / "nonfinite_input" / "no_points" (no usable point; the first two when all were
+ * left out for that reason), "underdetermined", "no_signal", "ill_conditioned", "unconstrained",
+ * "lm_not_global", "lm_not_converged", then "nonfinite_input" and "saturated" again for a good
+ * map from which such points were left out (counted in the result). Static string. */
+const char *fit_status_name(unsigned flags);
+
+/* Checks the sensor constants of a scan (positive pitch, radius, gain, frames; finite bias;
+ * non-negative read noise). Returns 0 or -EINVAL naming the field. */
+int fit_scan_check(const fit_scan_t *scan, err_t *err);
+
+/* Fits the r x r model. Returns 0 with a result (check its flags), or -EINVAL for bad arguments
+ * (r outside 1..32, non-positive pitch/radius/gain/frames), -ENOMEM. */
+int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result_t *out,
+            err_t *err);
+
+void fit_result_free(fit_result_t *res);
+
+typedef struct fit_sweep {
+    int r_min, r_max;
+    fit_result_t *fits;        /* r_max - r_min + 1 results */
+    int best_aic, best_bic;    /* r of the smallest AIC / BIC among fits with a map; 0 if none */
+} fit_sweep_t;
+
+/* Fits r = r_min..r_max and picks the best r by AIC and by BIC. */
+int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_options_t *opts,
+                  fit_sweep_t *out, err_t *err);
+
+void fit_sweep_free(fit_sweep_t *sw);
+
+/* Edges of the F-test's null model: each sub-pixel touching a named edge keeps its own S_ij,
+ * all others share one S0 (the paper: top, left, bottom; y downward, row 0 is the top). */
+enum fit_edge { FIT_EDGE_TOP = 1, FIT_EDGE_LEFT = 2, FIT_EDGE_BOTTOM = 4, FIT_EDGE_RIGHT = 8 };
+
+/* Parses "top,left,bottom" into a mask; returns 0 or -EINVAL naming the bad word in err. */
+int fit_edges_parse(const char *list, unsigned *mask, err_t *err);
+
+typedef struct fit_ftest {
+    int r;
+    unsigned edges;
+    double chi2_h0, chi2_h1;
+    int params_h0, params_h1;  /* p0 = edge sub-pixels + S0 + I0; p1 = r*r + 1 */
+    size_t n;
+    double F;                  /* ((chi2_0 - chi2_1)/chi2_1) ((N - p1)/(p1 - p0)), eq. 6 */
+    double p_value;            /* upper tail of F(p1 - p0, N - p1) */
+    unsigned flags;            /* fit flags of H1 and H0 combined */
+} fit_ftest_t;
+
+/* The F-test of the paper for an r x r map. Needs N > p1 > p0. */
+int fit_ftest_run(const fit_scan_t *scan, int r, unsigned edges, const fit_options_t *opts,
+                  fit_ftest_t *out, err_t *err);
+
+#endif

@@ -1,0 +1,24 @@
+/* wls.h (internal to fit/): weighted linear least squares, the exact global minimum of the
+ * chi-square of eq. 4 for a model linear in its parameters (numerics note 1), optionally with
+ * non-negative parameters. */
+#ifndef IPSD_FIT_WLS_H
+#define IPSD_FIT_WLS_H
+
+#include <stddef.h>
+
+typedef struct wls_result {
+    double chi2;    /* sum of squared weighted residuals at the minimum */
+    double rcond;   /* reciprocal 2-norm condition number of the (column-balanced) weighted matrix */
+    size_t rank;    /* numerical rank used */
+    size_t n_bound; /* parameters held at 0 by the non-negativity constraint */
+} wls_result_t;
+
+/* Minimises sum_k w_k (y_k - sum_j X_kj c_j)^2 over c (m parameters, n >= m points), X row-major
+ * n x m. c (m) and cov (m x m, row-major, (X^T W X)^-1, unscaled) are caller-allocated; cov may
+ * be NULL. nonneg: c_j >= 0 by Lawson-Hanson active sets (GSL has no NNLS); the covariance is
+ * then that of the free parameters, with zero rows/columns for those held at 0.
+ * Returns 0, -ENOMEM, or -EDOM when GSL fails. */
+int wls_solve(const double *X, const double *w, const double *y, size_t n, size_t m, int nonneg,
+              double *c, double *cov, wls_result_t *res);
+
+#endif

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# deps.sh: installs the Debian 12 packages ipsd needs that are missing (apt-get, as root or via
+# sudo). Idempotent: does nothing when everything is there. Sourced by run.sh and test.sh.
+set -euo pipefail
+
+IPSD_PACKAGES=(
+    build-essential cmake pkg-config        # the build
+    libgsl-dev libjansson-dev               # fit/ and JSON
+    libsqlite3-dev sqlite3                  # storage/ (and the sqlite3 shell, tests/docs use it)
+    libmicrohttpd-dev                       # api/
+    libcamera-dev                           # instrument/ libcamera backend (optional at build)
+    curl wrk python3                        # HTTP tests, load benchmark, test scripts
+)
+
+missing=()
+for p in "${IPSD_PACKAGES[@]}"; do
+    status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+    [[ "$status" == "install ok installed" ]] || missing+=("$p")
+done
+
+if ((${#missing[@]})); then
+    echo "ipsd: installing missing Debian packages: ${missing[*]}"
+    if [[ $(id -u) -eq 0 ]]; then SUDO=(); elif command -v sudo >/dev/null; then SUDO=(sudo); else
+        echo "ipsd: need root (or sudo) to run: apt-get install ${missing[*]}" >&2
+        exit 1
+    fi
+    export DEBIAN_FRONTEND=noninteractive
+    "${SUDO[@]}" apt-get update -qq
+    "${SUDO[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

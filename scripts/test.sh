@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# test.sh: installs what is missing, builds ipsd twice (optimised, and with AddressSanitizer +
+# UndefinedBehaviorSanitizer) and runs every test in both builds. Exit status 0 when all pass.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+scripts/deps.sh
+
+scripts/build.sh build
+scripts/build.sh build-asan -DIPSD_SANITIZE=ON
+
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
+export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+echo "== tests (optimised build)"
+ctest --test-dir build --output-on-failure -j2
+echo "== tests (AddressSanitizer + UBSan build)"
+ctest --test-dir build-asan --output-on-failure -j2

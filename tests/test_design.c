@@ -1,0 +1,102 @@
+/* test_design.c: the fast design matrix against the accurate box integral (an independent
+ * algorithm: polar rays, adaptive Gauss-Kronrod) for the reference scan positions at every r of
+ * the sweep and for the extreme spots, conservation (each row sums to the whole-pixel box),
+ * spots on sub-pixel edges and corners, and the leave-out rule's bound. */
+#include <errno.h>
+#include <gsl/gsl_errno.h>
+#include <stdlib.h>
+
+#include "airy.h"
+#include "box.h"
+#include "check.h"
+#include "design.h"
+
+/* Largest |A - box| relative to the largest entry of the row, over all rows. */
+static double design_error(double R, int r, const double *x, const double *y, int n, double tol,
+                           fit_design_stats_t *st)
+{
+    double *A = malloc(sizeof(double) * n * r * r), worst = 0;
+    fit_design_opts_t o = fit_design_opts_for_tol(tol);
+    CHECK(fit_design_build(R, 6.0, r, x, y, (size_t)n, &o, A, st, NULL) == 0);
+    for (int k = 0; k < n; k++) {
+        double rowmax = 0, err = 0;
+        for (int c = 0; c < r * r; c++) {
+            fit_rect_t b = {6.0 * (c % r) / r, 6.0 * (c % r + 1) / r, 6.0 * (c / r) / r,
+                            6.0 * (c / r + 1) / r};
+            double v, e;
+            fit_box_integral(R, &b, x[k], y[k], 1e-13, &v, &e, NULL);
+            rowmax = fmax(rowmax, v);
+            err = fmax(err, fabs(A[k * r * r + c] - v));
+        }
+        worst = fmax(worst, err / rowmax);
+    }
+    free(A);
+    return worst;
+}
+
+static void grid(double *x, double *y, int ng, double x0, double step)
+{
+    for (int q = 0; q < ng * ng; q++) {
+        x[q] = x0 + step * (q % ng);
+        y[q] = x0 + step * (q / ng);
+    }
+}
+
+int main(void)
+{
+    gsl_set_error_handler_off();
+    double x[81], y[81];
+    grid(x, y, 9, 0.6, 0.6); /* the paper's 9 x 9 positions inside the pixel */
+    fit_design_stats_t st;
+    for (int r = 1; r <= 8; r++) CHECK(design_error(1.34, r, x, y, 81, 1e-12, &st) < 1e-12);
+    CHECK(design_error(1.34, 7, x, y, 81, 1e-9, &st) < 1e-9);
+    CHECK(design_error(30, 7, x, y, 81, 1e-12, &st) < 1e-11);
+    CHECK(design_error(0.05, 7, x, y, 81, 1e-10, &st) < 1e-10);
+    /* spots exactly on sub-pixel edges and corners (e = 6 i / r) */
+    double xe[4] = {0, 3, 6, 1.5}, ye[4] = {0, 3, 1.5, 6};
+    CHECK(design_error(1.34, 4, xe, ye, 4, 1e-12, &st) < 1e-12);
+    CHECK(design_error(0.3, 4, xe, ye, 4, 1e-12, &st) < 1e-12);
+    /* spots outside the pixel: every entry is a difference of tail fluxes, a little less
+     * precise relative to the (small) row */
+    double xo[3] = {-2, 8, 3}, yo[3] = {7, -1, -0.75};
+    CHECK(design_error(1.34, 4, xo, yo, 3, 1e-12, &st) < 1e-11);
+
+    /* conservation: each row sums to the box integral of the whole pixel */
+    double A[81 * 64];
+    fit_design_opts_t o = fit_design_opts_for_tol(1e-12);
+    CHECK(fit_design_build(1.34, 6.0, 8, x, y, 81, &o, A, &st, NULL) == 0);
+    for (int k = 0; k < 81; k++) {
+        double sum = 0, v, e;
+        for (int c = 0; c < 64; c++) sum += A[k * 64 + c];
+        fit_rect_t pix = {0, 6, 0, 6};
+        fit_box_integral(1.34, &pix, x[k], y[k], 1e-14, &v, &e, NULL);
+        CHECK_NEAR(sum, v, 1e-12, 0);
+    }
+    CHECK(st.skipped == 0 && st.entries == 81 * 64);
+
+    /* leave-out: a tiny spot with a loose skip tolerance leaves out far sub-pixels; every one of
+     * them is truly below the reported largest bound, and the rest stay accurate */
+    o.skip_tol = 1e-3;
+    CHECK(fit_design_build(0.05, 6.0, 8, x, y, 81, &o, A, &st, NULL) == 0);
+    CHECK(st.skipped > 1000 && st.max_skipped_bound > 0);
+    CHECK(st.max_skipped_bound < 1e-3 * fit_airy_total(fit_airy_a(0.05)));
+    int bound_holds = 1;
+    for (int k = 0; k < 81; k++)
+        for (int c = 0; c < 64; c++) {
+            fit_rect_t b = {0.75 * (c % 8), 0.75 * (c % 8 + 1), 0.75 * (c / 8), 0.75 * (c / 8 + 1)};
+            double v, e;
+            fit_box_integral(0.05, &b, x[k], y[k], 1e-12, &v, &e, NULL);
+            if (A[k * 64 + c] == 0) bound_holds &= v <= st.max_skipped_bound;
+            else CHECK_NEAR(A[k * 64 + c], v, 1e-6, 1e-14);
+        }
+    CHECK(bound_holds);
+
+    /* bad arguments */
+    err_t err;
+    CHECK(fit_design_build(0, 6, 3, x, y, 81, NULL, A, NULL, &err) == -EINVAL);
+    CHECK(fit_design_build(1, -6, 3, x, y, 81, NULL, A, NULL, &err) == -EINVAL);
+    CHECK(fit_design_build(1, 6, 0, x, y, 81, NULL, A, NULL, &err) == -EINVAL);
+    x[5] = NAN;
+    CHECK(fit_design_build(1, 6, 3, x, y, 81, NULL, A, NULL, &err) == -EINVAL);
+    CHECK_DONE();
+}
