@@ -300,9 +300,34 @@ static void assemble_row(struct work *wk, int k, double *row)
         }
 }
 
-int fit_design_build(double R_um, double pitch, int r, const double *x, const double *y, size_t n,
-                     const fit_design_opts_t *opts, double *A, fit_design_stats_t *stats,
-                     err_t *err)
+/* Node and pair buffers for batches of up to `batch` spots (freed by the caller). */
+static int work_alloc(struct work *wk, size_t batch)
+{
+    size_t nodes = (size_t)wk->n1 * wk->n1, cells = (size_t)wk->r * wk->r;
+    double *buf = malloc(sizeof(double) * 4 * nodes * batch);
+    wk->need = malloc((nodes + cells) * batch);
+    wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch);
+    wk->wq[0] = buf;
+    if (!buf || !wk->need || !wk->pairs) return -ENOMEM;
+    wk->wq[1] = buf + nodes * batch;
+    wk->wp[0] = buf + 2 * nodes * batch;
+    wk->wp[1] = buf + 3 * nodes * batch;
+    wk->skip = wk->need + nodes * batch;
+    return 0;
+}
+
+/* Chebyshev points of the first kind and the DCT matrix for m points per segment. */
+static void cheb_init(struct cheb *ch, int m)
+{
+    ch->m = m;
+    for (int k = 0; k < m; k++) {
+        ch->t[k] = cos(M_PI * (k + 0.5) / m);
+        for (int j = 0; j < m; j++) ch->cosm[j][k] = cos(M_PI * j * (k + 0.5) / m);
+    }
+}
+
+static int check_args(double R_um, double pitch, int r, const double *x, const double *y,
+                      size_t n, const fit_design_opts_t *o, err_t *err)
 {
     if (!(R_um > 0) || !isfinite(R_um))
         return err_set(err, -EINVAL, "spot radius must be a positive finite number (got %g)", R_um);
@@ -312,36 +337,32 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
     for (size_t k = 0; k < n; k++)
         if (!isfinite(x[k]) || !isfinite(y[k]))
             return err_set(err, -EINVAL, "spot position %zu is not finite", k);
-    fit_design_opts_t o = opts ? *opts : fit_design_opts_for_tol(1e-12);
-    if (o.order < 2 || o.order > MAX_ORDER)
+    if (o->order < 2 || o->order > MAX_ORDER)
         return err_set(err, -EINVAL, "quadrature order must be in 2..%d (got %d)", MAX_ORDER,
-                       o.order);
-    if (!(o.seg_dv > 0) || !(o.seg_ds > 0))
+                       o->order);
+    if (!(o->seg_dv > 0) || !(o->seg_ds > 0))
         return err_set(err, -EINVAL, "segment spans must be positive");
+    return 0;
+}
 
+int fit_design_build(double R_um, double pitch, int r, const double *x, const double *y, size_t n,
+                     const fit_design_opts_t *opts, double *A, fit_design_stats_t *stats,
+                     err_t *err)
+{
+    fit_design_opts_t o = opts ? *opts : fit_design_opts_for_tol(1e-12);
+    int rc = check_args(R_um, pitch, r, x, y, n, &o, err);
+    if (rc) return rc;
     fit_design_stats_t st = {.entries = n * (size_t)r * r};
-    int n1 = r + 1, rc = 0;
-    size_t nodes = (size_t)n1 * n1, batch = n < BATCH ? n : BATCH;
+    size_t batch = n < BATCH ? n : BATCH;
+    struct work wk = {.r = r, .n1 = r + 1, .a = fit_airy_a(R_um)};
     struct cheb *ch = malloc(sizeof *ch);
-    double *e = malloc(sizeof(double) * (size_t)n1);
-    struct work wk = {.r = r, .n1 = n1, .e = e, .a = fit_airy_a(R_um)};
-    double *buf = malloc(sizeof(double) * 4 * nodes * (batch ? batch : 1));
-    wk.need = malloc((nodes + (size_t)r * r) * (batch ? batch : 1));
-    wk.pairs = malloc(sizeof *wk.pairs * (size_t)n1 * (batch ? batch : 1));
-    if (!ch || !e || !buf || !wk.need || !wk.pairs) {
+    double *e = malloc(sizeof(double) * (size_t)(r + 1));
+    wk.e = e;
+    if (!ch || !e || work_alloc(&wk, batch ? batch : 1)) {
         rc = err_set(err, -ENOMEM, "out of memory for the design matrix (r = %d)", r);
         goto out;
     }
-    wk.wq[0] = buf;
-    wk.wq[1] = buf + nodes * batch;
-    wk.wp[0] = buf + 2 * nodes * batch;
-    wk.wp[1] = buf + 3 * nodes * batch;
-    wk.skip = wk.need + nodes * batch;
-    ch->m = o.order;
-    for (int k = 0; k < ch->m; k++) {
-        ch->t[k] = cos(M_PI * (k + 0.5) / ch->m);
-        for (int j = 0; j < ch->m; j++) ch->cosm[j][k] = cos(M_PI * j * (k + 0.5) / ch->m);
-    }
+    cheb_init(ch, o.order);
     for (int i = 0; i <= r; i++) e[i] = pitch * i / r; /* exact at 0 and at pitch */
     for (size_t k0 = 0; k0 < n; k0 += batch) {
         int nb = (int)(n - k0 < batch ? n - k0 : batch);
@@ -361,7 +382,7 @@ out:
     free(wk.sw.seg);
     free(ch);
     free(e);
-    free(buf);
+    free(wk.wq[0]);
     free(wk.need);
     free(wk.pairs);
     return rc;

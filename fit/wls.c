@@ -63,82 +63,106 @@ static void neg_gradient(const double *X, const double *w, const double *y, size
     }
 }
 
-/* Lawson-Hanson NNLS. passive[j] marks free parameters; on return c >= 0. */
+struct nnls_work {
+    unsigned char *passive; /* free parameters */
+    size_t *cols;           /* their indices */
+    double *g, *z, *zc, *cv;
+};
+
+/* Lists the passive set into cols; returns its size. */
+static size_t passive_cols(const struct nnls_work *nw, size_t m)
+{
+    size_t np = 0;
+    for (size_t j = 0; j < m; j++)
+        if (nw->passive[j]) nw->cols[np++] = j;
+    return np;
+}
+
+/* Lawson-Hanson inner loop: solve on the passive set; while some free parameter would turn
+ * negative, step back to the boundary and release the parameters that reach it. */
+static int nnls_inner(const double *X, const double *w, const double *y, size_t n, size_t m,
+                      double *c, struct nnls_work *nw, wls_result_t *res)
+{
+    for (int inner = 0; inner < 3 * (int)m + 10; inner++) {
+        size_t np = passive_cols(nw, m);
+        int rc = solve_cols(X, w, y, n, m, nw->cols, np, nw->zc, nw->cv, &res->chi2, &res->rcond,
+                            &res->rank);
+        if (rc) return rc;
+        memset(nw->z, 0, sizeof(double) * m);
+        for (size_t q = 0; q < np; q++) nw->z[nw->cols[q]] = nw->zc[q];
+        double alpha = 2;
+        for (size_t q = 0; q < np; q++) {
+            size_t j = nw->cols[q];
+            if (nw->z[j] <= 0) alpha = fmin(alpha, c[j] / (c[j] - nw->z[j]));
+        }
+        if (alpha > 1) { /* all free parameters positive: accept */
+            memcpy(c, nw->z, sizeof(double) * m);
+            return 0;
+        }
+        for (size_t j = 0; j < m; j++) {
+            c[j] += alpha * (nw->z[j] - c[j]);
+            if (nw->passive[j] && c[j] <= 1e-300) nw->passive[j] = 0, c[j] = 0;
+        }
+    }
+    return 0;
+}
+
+/* Final statistics and covariance on the passive set (zero rows for parameters at 0). */
+static int nnls_finish(const double *X, const double *w, const double *y, size_t n, size_t m,
+                       double *c, double *cov, struct nnls_work *nw, wls_result_t *res)
+{
+    size_t np = passive_cols(nw, m);
+    memset(c, 0, sizeof(double) * m);
+    if (cov) memset(cov, 0, sizeof(double) * m * m);
+    res->n_bound = m - np;
+    if (!np) {
+        res->chi2 = 0;
+        for (size_t k = 0; k < n; k++) res->chi2 += w[k] * y[k] * y[k];
+        return 0;
+    }
+    int rc = solve_cols(X, w, y, n, m, nw->cols, np, nw->zc, nw->cv, &res->chi2, &res->rcond,
+                        &res->rank);
+    for (size_t q = 0; q < np && !rc; q++) {
+        c[nw->cols[q]] = nw->zc[q] > 0 ? nw->zc[q] : 0;
+        if (cov)
+            for (size_t p = 0; p < np; p++) cov[nw->cols[q] * m + nw->cols[p]] = nw->cv[q * np + p];
+    }
+    return rc;
+}
+
+/* Lawson-Hanson NNLS: add the parameter with the largest positive gradient to the free set
+ * until the KKT conditions hold (no held parameter wants to grow). */
 static int nnls(const double *X, const double *w, const double *y, size_t n, size_t m, double *c,
                 double *cov, wls_result_t *res)
 {
-    int rc = 0;
-    unsigned char *passive = calloc(m, 1);
-    size_t *cols = malloc(sizeof(size_t) * m);
-    double *g = malloc(sizeof(double) * m), *z = malloc(sizeof(double) * m);
-    double *zc = malloc(sizeof(double) * m), *cv = malloc(sizeof(double) * m * m);
-    if (!passive || !cols || !g || !z || !zc || !cv) {
-        rc = -ENOMEM;
-        goto out;
-    }
+    int rc = -ENOMEM;
+    struct nnls_work nw = {.passive = calloc(m, 1), .cols = malloc(sizeof(size_t) * m),
+                           .g = malloc(sizeof(double) * m), .z = malloc(sizeof(double) * m),
+                           .zc = malloc(sizeof(double) * m), .cv = malloc(sizeof(double) * m * m)};
+    if (!nw.passive || !nw.cols || !nw.g || !nw.z || !nw.zc || !nw.cv) goto out;
     memset(c, 0, sizeof(double) * m);
-    double chi2 = 0, rcond = 1, gmax_tol = 0;
-    size_t rank = 0, np = 0;
-    for (int outer = 0; outer < 3 * (int)m + 10; outer++) {
-        neg_gradient(X, w, y, n, m, c, g);
+    double gtol = 0;
+    rc = 0;
+    for (int outer = 0; outer < 3 * (int)m + 10 && !rc; outer++) {
+        neg_gradient(X, w, y, n, m, c, nw.g);
         double gmax = 0, gscale = 0;
         size_t jmax = m;
-        for (size_t j = 0; j < m; j++) gscale = fmax(gscale, fabs(g[j]));
-        if (outer == 0) gmax_tol = 1e-12 * gscale;
+        for (size_t j = 0; j < m; j++) gscale = fmax(gscale, fabs(nw.g[j]));
+        if (outer == 0) gtol = 1e-12 * gscale;
         for (size_t j = 0; j < m; j++)
-            if (!passive[j] && g[j] > gmax) gmax = g[j], jmax = j;
-        if (jmax == m || gmax <= gmax_tol) break; /* KKT conditions hold */
-        passive[jmax] = 1;
-        for (int inner = 0; inner < 3 * (int)m + 10; inner++) {
-            np = 0;
-            for (size_t j = 0; j < m; j++)
-                if (passive[j]) cols[np++] = j;
-            if ((rc = solve_cols(X, w, y, n, m, cols, np, zc, cv, &chi2, &rcond, &rank))) goto out;
-            memset(z, 0, sizeof(double) * m);
-            for (size_t q = 0; q < np; q++) z[cols[q]] = zc[q];
-            double alpha = 2;
-            for (size_t q = 0; q < np; q++) {
-                size_t j = cols[q];
-                if (z[j] <= 0) alpha = fmin(alpha, c[j] / (c[j] - z[j]));
-            }
-            if (alpha > 1) { /* all free parameters positive: accept */
-                memcpy(c, z, sizeof(double) * m);
-                break;
-            }
-            for (size_t j = 0; j < m; j++) { /* step back to the boundary, drop what hits it */
-                c[j] += alpha * (z[j] - c[j]);
-                if (passive[j] && c[j] <= 1e-300) passive[j] = 0, c[j] = 0;
-            }
-        }
+            if (!nw.passive[j] && nw.g[j] > gmax) gmax = nw.g[j], jmax = j;
+        if (jmax == m || gmax <= gtol) break; /* KKT conditions hold */
+        nw.passive[jmax] = 1;
+        rc = nnls_inner(X, w, y, n, m, c, &nw, res);
     }
-    /* final statistics on the passive set */
-    np = 0;
-    for (size_t j = 0; j < m; j++)
-        if (passive[j]) cols[np++] = j;
-    memset(c, 0, sizeof(double) * m);
-    if (cov) memset(cov, 0, sizeof(double) * m * m);
-    if (np) {
-        if ((rc = solve_cols(X, w, y, n, m, cols, np, zc, cv, &chi2, &rcond, &rank))) goto out;
-        for (size_t q = 0; q < np; q++) {
-            c[cols[q]] = zc[q] > 0 ? zc[q] : 0;
-            if (cov)
-                for (size_t p = 0; p < np; p++) cov[cols[q] * m + cols[p]] = cv[q * np + p];
-        }
-    } else {
-        chi2 = 0;
-        for (size_t k = 0; k < n; k++) chi2 += w[k] * y[k] * y[k];
-    }
-    res->chi2 = chi2;
-    res->rcond = rcond;
-    res->rank = rank;
-    res->n_bound = m - np;
+    if (!rc) rc = nnls_finish(X, w, y, n, m, c, cov, &nw, res);
 out:
-    free(passive);
-    free(cols);
-    free(g);
-    free(z);
-    free(zc);
-    free(cv);
+    free(nw.passive);
+    free(nw.cols);
+    free(nw.g);
+    free(nw.z);
+    free(nw.zc);
+    free(nw.cv);
     return rc;
 }
 
