@@ -1,6 +1,8 @@
 /* wiener.h: the paper's baseline, Wiener deconvolution of a scan raster (a regular grid of spot
  * positions) by the Airy kernel sampled on the same grid, returned on the scan grid and
- * normalised to mean 1. Thread-safe, no I/O. */
+ * normalised to mean 1. The raster is extended by mirroring at its edges (Neumann boundary),
+ * not by zeros: the Airy kernel decays only like distance^-3, so a zero border would be a jump
+ * no blur can produce and the filter would ring. Thread-safe, no I/O. */
 #ifndef IPSD_FIT_WIENER_H
 #define IPSD_FIT_WIENER_H
 
