@@ -1,0 +1,27 @@
+/* cliutil.h: what every `ips` command shares: the one-line error convention (exit 2 for bad
+ * input, 1 for other failures), strict number parsing that names the argument, and the clock. */
+#ifndef IPSD_CLI_CLIUTIL_H
+#define IPSD_CLI_CLIUTIL_H
+
+#define CLI_EXIT_FAILURE 1 /* the tool failed (out of memory, I/O) */
+#define CLI_EXIT_USAGE 2   /* bad input: arguments, options, files */
+
+/* Prints "ips CMD: message" as one line on stderr (newlines in the message become spaces) and
+ * returns code, so commands can `return cli_fail(...)`. */
+int cli_fail(int code, const char *cmd, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+
+/* Exit code for a negative error code from a library: 1 for -ENOMEM and -EIO, else 2 (the
+ * libraries return -EINVAL and the like for input they cannot use). */
+int cli_exit_code(int rc);
+
+/* Parses all of text as a finite double. Returns 0, or -EINVAL (not a number, trailing text,
+ * empty, overflow, NaN or infinity). */
+int cli_parse_double(const char *text, double *v);
+
+/* Parses all of text as a decimal int. Returns 0 or -EINVAL. */
+int cli_parse_int(const char *text, int *v);
+
+/* CLOCK_MONOTONIC in milliseconds. */
+double cli_now_ms(void);
+
+#endif

@@ -1,0 +1,334 @@
+/* cmd_bench.c: `ips bench [--quick] [--json]`: figures, never pass/fail.
+ * (a) Design-matrix accuracy against run time: on the reference scan positions (9 x 9 spots at
+ *     0.6 um steps in a 6 um pixel) at r = 7, the fast design matrix (fit/design.h) at several
+ *     quadrature settings against a reference built by adaptive quadrature (fit_box_integral at
+ *     rel_tol 1e-14): the largest error relative to the largest entry of its row (the measure of
+ *     fit_design_opts_for_tol), the largest relative error of an integrated entry, the median
+ *     build time, and the cost in radial evaluations; also for extreme spots (R = 30, 0.05 um).
+ * (b) The full job on the reference scan (bench_scan.h, generated from the reference file):
+ *     sweep r = 1..8, F-test at r = 7 (top, left, bottom) and Wiener, min and median wall time
+ *     over repeated runs on one core (this program is single-threaded), and the LM sweep. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bench_scan.h"
+#include "box.h"
+#include "cliutil.h"
+#include "commands.h"
+#include "design.h"
+#include "json_out.h"
+#include "model.h"
+#include "wiener.h"
+
+#define BENCH_R 7           /* the paper's r */
+#define REF_TOL 1e-14       /* accuracy of the reference matrix */
+#define MAX_RUNS 100000     /* cap on timed repetitions of one measurement */
+
+static const char usage[] =
+    "usage: ips bench [--quick] [--json]\n"
+    "  Design-matrix accuracy against run time, and the time of the full fit of the reference\n"
+    "  scan (sweep r = 1..8, F-test, Wiener). --quick: fewer repetitions. --json: machine-\n"
+    "  readable output.\n";
+
+/* Accuracy settings of the table: a target tolerance and the quadrature order it stands for;
+ * the segment spans come from fit_design_opts_for_tol(tol). */
+static const struct {
+    double tol;
+    int order;
+} settings[] = {{1e-3, 6},   {1e-5, 8},   {1e-7, 10}, {1e-9, 12},
+                {1e-11, 14}, {1e-13, 16}, {1e-15, 20}};
+#define N_SETTINGS (sizeof settings / sizeof settings[0])
+
+/* Spot radii: the paper's, and two extremes at a few settings (indices into settings). */
+static const struct {
+    double R;
+    int first, step;
+} radii[] = {{1.34, 0, 1}, {30.0, 1, 2}, {0.05, 1, 2}};
+
+struct design_row {
+    double R, tol;
+    fit_design_opts_t o;
+    double row_err, entry_err, median_ms, ref_bound;
+    int runs;
+    fit_design_stats_t st;
+};
+
+struct job_times {
+    int runs, lm_runs;
+    double total_min, total_median, sweep, ftest, wiener, lm_sweep;
+    int best_aic;
+    double F, p_value;
+};
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median of n values (reorders v). */
+static double median(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* The reference matrix for spot radius R by adaptive quadrature; *bound gets the largest error
+ * bound relative to its row's largest entry. */
+static int reference_matrix(double R, double *A, double *bound, err_t *err)
+{
+    const fit_scan_t *s = &bench_scan;
+    size_t m = BENCH_R * BENCH_R;
+    double h = s->pitch_um / BENCH_R;
+    *bound = 0;
+    for (size_t k = 0; k < s->n; k++) {
+        double row_max = 0, row_bound = 0;
+        for (int j = 0; j < BENCH_R; j++)
+            for (int i = 0; i < BENCH_R; i++) {
+                fit_rect_t rect = {i * h, (i + 1) * h, j * h, (j + 1) * h};
+                double v, b;
+                int rc = fit_box_integral(R, &rect, s->x_um[k], s->y_um[k], REF_TOL, &v, &b, err);
+                if (rc < 0 && rc != -ERANGE) return rc; /* -ERANGE: the bound says how good */
+                A[k * m + (size_t)j * BENCH_R + i] = v;
+                row_max = fmax(row_max, fabs(v));
+                row_bound = fmax(row_bound, b);
+            }
+        *bound = fmax(*bound, row_bound / row_max);
+    }
+    return 0;
+}
+
+/* Errors of A against the reference: per row relative to the row's largest entry, and per
+ * integrated (non-zero) entry. */
+static void matrix_errors(const double *A, const double *ref, size_t n, size_t m,
+                          struct design_row *row)
+{
+    row->row_err = row->entry_err = 0;
+    for (size_t k = 0; k < n; k++) {
+        double row_max = 0, worst = 0;
+        for (size_t j = 0; j < m; j++) {
+            double e = fabs(A[k * m + j] - ref[k * m + j]);
+            row_max = fmax(row_max, fabs(ref[k * m + j]));
+            worst = fmax(worst, e);
+            if (A[k * m + j] != 0 && ref[k * m + j] != 0)
+                row->entry_err = fmax(row->entry_err, e / fabs(ref[k * m + j]));
+        }
+        row->row_err = fmax(row->row_err, worst / row_max);
+    }
+}
+
+/* Builds the matrix with row->o repeatedly (at least target_ms in all) and measures it. */
+static int time_design(const double *ref, double target_ms, double *A, double *times,
+                       struct design_row *row, err_t *err)
+{
+    const fit_scan_t *s = &bench_scan;
+    size_t m = BENCH_R * BENCH_R;
+    double spent = 0;
+    int runs = 0;
+    while (runs < MAX_RUNS && (runs < 3 || spent < target_ms)) {
+        double t = cli_now_ms();
+        int rc = fit_design_build(row->R, s->pitch_um, BENCH_R, s->x_um, s->y_um, s->n, &row->o,
+                                  A, &row->st, err);
+        if (rc) return rc;
+        times[runs] = cli_now_ms() - t;
+        spent += times[runs++];
+    }
+    row->runs = runs;
+    row->median_ms = median(times, runs);
+    matrix_errors(A, ref, s->n, m, row);
+    return 0;
+}
+
+/* Fills rows (room for N_SETTINGS per radius) and sets *n_rows. */
+static int bench_design(int quick, struct design_row *rows, int *n_rows, err_t *err)
+{
+    size_t nm = bench_scan.n * BENCH_R * BENCH_R;
+    double *ref = malloc(sizeof(double) * nm), *A = malloc(sizeof(double) * nm);
+    double *times = malloc(sizeof(double) * MAX_RUNS);
+    int rc = 0;
+    *n_rows = 0;
+    if (!ref || !A || !times) {
+        rc = err_set(err, -ENOMEM, "out of memory");
+        goto out;
+    }
+    for (size_t ri = 0; ri < sizeof radii / sizeof radii[0]; ri++) {
+        double bound;
+        if ((rc = reference_matrix(radii[ri].R, ref, &bound, err))) goto out;
+        for (size_t si = (size_t)radii[ri].first; si < N_SETTINGS; si += (size_t)radii[ri].step) {
+            struct design_row *row = &rows[(*n_rows)++];
+            *row = (struct design_row){.R = radii[ri].R, .tol = settings[si].tol,
+                                       .ref_bound = bound};
+            row->o = fit_design_opts_for_tol(settings[si].tol);
+            row->o.order = settings[si].order;
+            if ((rc = time_design(ref, quick ? 10 : 50, A, times, row, err))) goto out;
+        }
+    }
+out:
+    free(ref);
+    free(A);
+    free(times);
+    return rc;
+}
+
+/* One full job on the reference scan; ms[0..2] = sweep, F-test, Wiener. */
+static int job_once(fit_method_t method, int full, double ms[3], struct job_times *jt,
+                    err_t *err)
+{
+    fit_options_t o = fit_options_default();
+    o.method = method;
+    o.design_tol = 1e-12;
+    fit_sweep_t sw;
+    fit_ftest_t ft;
+    fit_wiener_t w;
+    double t0 = cli_now_ms();
+    int rc = fit_sweep_run(&bench_scan, 1, 8, &o, &sw, err);
+    if (rc) return rc;
+    double t1 = cli_now_ms();
+    jt->best_aic = sw.best_aic;
+    fit_sweep_free(&sw);
+    ms[0] = t1 - t0;
+    if (!full) return 0;
+    rc = fit_ftest_run(&bench_scan, BENCH_R, FIT_EDGE_TOP | FIT_EDGE_LEFT | FIT_EDGE_BOTTOM, &o,
+                       &ft, err);
+    if (rc) return rc;
+    double t2 = cli_now_ms();
+    jt->F = ft.F;
+    jt->p_value = ft.p_value;
+    if ((rc = fit_wiener_run(&bench_scan, 0, &w, err))) return rc;
+    ms[2] = cli_now_ms() - t2;
+    ms[1] = t2 - t1;
+    fit_wiener_free(&w);
+    return 0;
+}
+
+static int bench_job(int quick, struct job_times *jt, err_t *err)
+{
+    int runs = quick ? 5 : 20, lm_runs = quick ? 1 : 3, rc = 0;
+    double *t = malloc(sizeof(double) * 4 * (size_t)runs), ms[3];
+    if (!t) return err_set(err, -ENOMEM, "out of memory");
+    double *total = t, *sweep = t + runs, *ftest = t + 2 * runs, *wiener = t + 3 * runs;
+    jt->runs = runs;
+    jt->lm_runs = lm_runs;
+    jt->total_min = INFINITY;
+    for (int i = 0; i < runs; i++) {
+        double t0 = cli_now_ms();
+        if ((rc = job_once(FIT_LINEAR, 1, ms, jt, err))) goto out;
+        total[i] = cli_now_ms() - t0;
+        jt->total_min = fmin(jt->total_min, total[i]);
+        sweep[i] = ms[0], ftest[i] = ms[1], wiener[i] = ms[2];
+    }
+    jt->total_median = median(total, runs);
+    jt->sweep = median(sweep, runs);
+    jt->ftest = median(ftest, runs);
+    jt->wiener = median(wiener, runs);
+    struct job_times lm = *jt;
+    for (int i = 0; i < lm_runs; i++) {
+        if ((rc = job_once(FIT_LM, 0, ms, &lm, err))) goto out;
+        total[i] = ms[0];
+    }
+    jt->lm_sweep = median(total, lm_runs);
+out:
+    free(t);
+    return rc;
+}
+
+/* ---- output ---- */
+
+/* Whether the measured row error meets the setting's tolerance, as far as the reference can
+ * tell. */
+static const char *tol_verdict(const struct design_row *r)
+{
+    if (r->row_err <= r->tol) return "ok";
+    return r->row_err <= r->ref_bound ? "reference-limited" : "ABOVE TOL";
+}
+
+static void print_table(const struct design_row *rows, int n, const struct job_times *jt)
+{
+    printf("Design matrix of the reference scan positions (%zu spots, 9 x 9 at 0.6 um steps, "
+           "pitch %g um), r = %d,\nagainst adaptive quadrature at rel_tol %g "
+           "(errors relative to the row's largest entry, and per integrated entry)\n\n",
+           bench_scan.n, bench_scan.pitch_um, BENCH_R, REF_TOL);
+    printf("%7s %7s %5s %6s %5s  %10s %10s  %9s %6s  %12s %7s  %8s  %s\n", "R um", "tol",
+           "order", "seg_dv", "seg_ds", "row err", "entry err", "median ms", "runs",
+           "radial evals", "skipped", "ref bound", "row err vs tol");
+    for (int i = 0; i < n; i++) {
+        const struct design_row *r = &rows[i];
+        printf("%7g %7.0e %5d %6g %5g  %10.2e %10.2e  %9.4f %6d  %12zu %7zu  %8.1e  %s\n", r->R,
+               r->tol, r->o.order, r->o.seg_dv, r->o.seg_ds, r->row_err, r->entry_err,
+               r->median_ms, r->runs, r->st.radial_evals, r->st.skipped, r->ref_bound,
+               tol_verdict(r));
+    }
+    printf("(\"reference-limited\": the error is within the reference's own bound, so the\n"
+           " comparison cannot resolve the setting's accuracy)\n");
+    printf("\nFull job on the reference scan (%zu points): sweep r = 1..8 (linear, paper sigma, "
+           "design tol 1e-12),\nF-test at r = %d (top,left,bottom), Wiener; %d runs, one core\n",
+           bench_scan.n, BENCH_R, jt->runs);
+    printf("  total   min %8.3f ms   median %8.3f ms   (target <= 20 ms)\n", jt->total_min,
+           jt->total_median);
+    printf("  sweep   median %8.3f ms\n  F-test  median %8.3f ms\n  Wiener  median %8.3f ms\n",
+           jt->sweep, jt->ftest, jt->wiener);
+    printf("  (best r by AIC %d; F = %.4f, p = %.3g)\n", jt->best_aic, jt->F, jt->p_value);
+    printf("  LM sweep (method lm, same settings): median %.3f ms over %d run%s\n", jt->lm_sweep,
+           jt->lm_runs, jt->lm_runs == 1 ? "" : "s");
+}
+
+static json_t *bench_json(const struct design_row *rows, int n, const struct job_times *jt)
+{
+    json_t *design = json_array();
+    for (int i = 0; i < n; i++) {
+        const struct design_row *r = &rows[i];
+        json_array_append_new(
+            design,
+            json_pack("{s:o, s:i, s:o, s:i, s:o, s:o, s:o, s:o, s:o, s:o, s:i, s:I, s:I, s:o}",
+                      "R_um", json_out_num(r->R), "r", BENCH_R, "tol", json_out_num(r->tol),
+                      "order", r->o.order, "seg_dv", json_out_num(r->o.seg_dv), "seg_ds",
+                      json_out_num(r->o.seg_ds), "skip_tol", json_out_num(r->o.skip_tol),
+                      "max_row_rel_err", json_out_num(r->row_err), "max_entry_rel_err",
+                      json_out_num(r->entry_err), "median_ms", json_out_num(r->median_ms),
+                      "runs", r->runs, "radial_evals", (json_int_t)r->st.radial_evals,
+                      "skipped", (json_int_t)r->st.skipped, "ref_bound",
+                      json_out_num(r->ref_bound)));
+        json_object_set_new(json_array_get(design, (size_t)i), "verdict",
+                            json_string(tol_verdict(r)));
+    }
+    json_t *job = json_pack(
+        "{s:i, s:{s:o, s:o}, s:{s:o, s:o, s:o}, s:o, s:i, s:i, s:o, s:o}", "runs", jt->runs,
+        "total_ms", "min", json_out_num(jt->total_min), "median", json_out_num(jt->total_median),
+        "phases_median_ms", "sweep", json_out_num(jt->sweep), "ftest", json_out_num(jt->ftest),
+        "wiener", json_out_num(jt->wiener), "lm_sweep_ms", json_out_num(jt->lm_sweep), "lm_runs",
+        jt->lm_runs, "best_r_aic", jt->best_aic, "F", json_out_num(jt->F), "p_value",
+        json_out_num(jt->p_value));
+    return json_pack("{s:o, s:o}", "design", design, "job", job);
+}
+
+int cmd_bench(int argc, char **argv)
+{
+    int quick = 0, as_json = 0;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--quick") == 0) quick = 1;
+        else if (strcmp(argv[i], "--json") == 0) as_json = 1;
+        else if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+            fputs(usage, stdout);
+            return 0;
+        } else
+            return cli_fail(CLI_EXIT_USAGE, "bench", "unknown argument '%s' (see ips bench --help)",
+                            argv[i]);
+    }
+    struct design_row rows[N_SETTINGS * sizeof radii / sizeof radii[0]];
+    struct job_times jt = {0};
+    int n_rows, rc;
+    err_t err;
+    if ((rc = bench_design(quick, rows, &n_rows, &err)) || (rc = bench_job(quick, &jt, &err)))
+        return cli_fail(CLI_EXIT_FAILURE, "bench", "%s", err.msg);
+    if (!as_json) {
+        print_table(rows, n_rows, &jt);
+        return 0;
+    }
+    json_t *root = bench_json(rows, n_rows, &jt);
+    rc = root ? json_out_print(root, stdout) : -ENOMEM;
+    json_decref(root);
+    return rc ? cli_fail(CLI_EXIT_FAILURE, "bench", "writing the output failed") : 0;
+}

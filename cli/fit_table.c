@@ -1,0 +1,74 @@
+/* fit_table.c: `ips fit --table`, the report a person reads (the JSON is for programs). */
+#include "fit_table.h"
+
+#include <math.h>
+
+/* A map as rows of numbers (S +- S_err) next to a shaded picture (darker = less sensitive). */
+static void print_map(FILE *f, const double *S, const double *err, int r)
+{
+    static const char *shade[] = {"\u2588\u2588", "\u2593\u2593", "\u2592\u2592", "\u2591\u2591",
+                                  "  "};
+    double lo = INFINITY, hi = -INFINITY;
+    for (int c = 0; c < r * r; c++) lo = fmin(lo, S[c]), hi = fmax(hi, S[c]);
+    for (int j = 0; j < r; j++) {
+        fprintf(f, "    ");
+        for (int i = 0; i < r; i++) fprintf(f, " %6.3f", S[j * r + i]);
+        fprintf(f, "    ");
+        for (int i = 0; i < r; i++) {
+            double t = hi > lo ? (S[j * r + i] - lo) / (hi - lo) : 1;
+            fprintf(f, "%s", shade[(int)fmin(4, floor(t * 5))]);
+        }
+        if (err) {
+            double e = 0;
+            for (int i = 0; i < r; i++) e = fmax(e, err[j * r + i]);
+            fprintf(f, "   (max 1-sigma %.3f)", e);
+        }
+        fprintf(f, "\n");
+    }
+    fprintf(f, "    shading: %.3f (dark) .. %.3f (light); row 0 is the top edge\n", lo, hi);
+}
+
+static void print_sweep(FILE *f, const fit_sweep_t *sw)
+{
+    fprintf(f, "   r  params        chi2   chi2/dof         AIC         BIC        cond  status\n");
+    for (int r = sw->r_min; r <= sw->r_max; r++) {
+        const fit_result_t *x = &sw->fits[r - sw->r_min];
+        fprintf(f, "  %2d  %6d  %10.4g  %9.4g  %10.3f%s %10.3f%s  %10.3g  %s\n", r, x->params,
+                x->chi2, x->chi2_red, x->aic, r == sw->best_aic ? "*" : " ", x->bic,
+                r == sw->best_bic ? "*" : " ", x->cond, fit_status_name(x->flags));
+    }
+    fprintf(f, "  (* best by AIC / BIC)\n");
+}
+
+void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fit_sweep_t *sw,
+                     const fit_ftest_t *ftest, const fit_wiener_t *wiener, double total_ms)
+{
+    const fit_result_t *first = &sw->fits[0];
+    fprintf(f, "%s: %zu points (%zu used), pitch %g um, spot radius %g um, %d frames\n", path,
+            scan->n, first->n_used, scan->pitch_um, scan->spot_radius_um, scan->frames);
+    fprintf(f, "\nModel selection (weighted chi-square, eq. 4; AIC/BIC with p = r*r + 1)\n");
+    print_sweep(f, sw);
+    int best = sw->best_bic ? sw->best_bic : sw->best_aic;
+    if (best) {
+        const fit_result_t *b = &sw->fits[best - sw->r_min];
+        fprintf(f, "\nIPS map, r = %d (best BIC), mean 1; I0 = %.6g +- %.2g DN/um^2\n", best,
+                b->I0, b->I0_err);
+        print_map(f, b->S, b->S_err, best);
+    } else {
+        fprintf(f, "\nNo fit produced a map.\n");
+    }
+    if (ftest) {
+        fprintf(f, "\nF-test at r = %d: H0 (edge sub-pixels free, the rest one S0) p0 = %d, "
+                   "H1 p1 = %d\n", ftest->r, ftest->params_h0, ftest->params_h1);
+        fprintf(f, "  chi2_H0 = %.6g  chi2_H1 = %.6g  F = %.4f  p = %.3g  -> %s\n",
+                ftest->chi2_h0, ftest->chi2_h1, ftest->F, ftest->p_value,
+                ftest->p_value < 0.05 ? "the structure in the centre is significant"
+                                      : "no significant structure in the centre");
+    }
+    if (wiener) {
+        fprintf(f, "\nWiener deconvolution baseline on the %d x %d scan grid (nsr %.3g):\n",
+                wiener->nx, wiener->ny, wiener->nsr);
+        if (wiener->nx == wiener->ny) print_map(f, wiener->S, NULL, wiener->nx);
+    }
+    fprintf(f, "\nTotal time %.2f ms\n", total_ms);
+}

@@ -1,0 +1,15 @@
+/* fit_table.h: the human-readable report of `ips fit --table`: the model-selection table,
+ * the best map as numbers and as a shaded picture, the F-test and the Wiener baseline. */
+#ifndef IPSD_CLI_FIT_TABLE_H
+#define IPSD_CLI_FIT_TABLE_H
+
+#include <stdio.h>
+
+#include "model.h"
+#include "wiener.h"
+
+/* Prints the report to f. ftest and wiener may be NULL (not asked). total_ms: the run time. */
+void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fit_sweep_t *sw,
+                     const fit_ftest_t *ftest, const fit_wiener_t *wiener, double total_ms);
+
+#endif

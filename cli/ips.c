@@ -1,0 +1,50 @@
+/* ips.c: the `ips` command-line tool over fit/ and instrument/: dispatch to the commands of
+ * commands.h. */
+#include <stdio.h>
+#include <string.h>
+
+#include <gsl/gsl_errno.h>
+
+#include "cliutil.h"
+#include "commands.h"
+
+static const struct command {
+    const char *name;
+    int (*run)(int argc, char **argv);
+    const char *summary;
+} commands[] = {
+    {"fit", cmd_fit, "fit a scan file: model selection over r, the map, F-test, Wiener"},
+    {"box", cmd_box, "integral of the unit-peak Airy spot over a rectangle, with error bound"},
+    {"bench", cmd_bench, "design-matrix accuracy against run time, and the speed of a full fit"},
+    {"simulate", cmd_simulate, "a scan by the simulated bench, written as a scan file"},
+};
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: ips COMMAND [ARGS]   (ips COMMAND --help for its options)\n\n"
+               "Intra-pixel sensitivity maps by the method of Mahato et al.\n\ncommands:\n");
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(f, "  %-9s %s\n", commands[i].name, commands[i].summary);
+    fprintf(f, "\nExit status: 0 success, 1 failure, 2 bad input (one line on stderr).\n");
+}
+
+int main(int argc, char **argv)
+{
+    gsl_set_error_handler_off();
+    if (argc < 2) {
+        usage(stderr);
+        return CLI_EXIT_USAGE;
+    }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 ||
+        strcmp(argv[1], "help") == 0) {
+        usage(stdout);
+        return 0;
+    }
+    if (strcmp(argv[1], "--version") == 0) {
+        printf("ips %s\n", IPSD_VERSION);
+        return 0;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (strcmp(argv[1], commands[i].name) == 0) return commands[i].run(argc - 1, argv + 1);
+    return cli_fail(CLI_EXIT_USAGE, NULL, "unknown command '%s' (see ips --help)", argv[1]);
+}

@@ -1,0 +1,11 @@
+# Tests of the scan-file module (instrument/scanfile) and of the `ips` command-line tool.
+ipsd_add_test(test_scanfile ipsinstr)
+
+if(TARGET ips)
+    add_test(NAME test_cli
+             COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_cli.sh $<TARGET_FILE:ips>
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+    add_test(NAME test_cli_bench
+             COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_cli.sh $<TARGET_FILE:ips> bench
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+endif()
