@@ -91,6 +91,21 @@ int main(void)
         }
     CHECK(bound_holds);
 
+    /* a uniform map with the spot deep inside a large pixel collects the whole-plane flux but
+     * for the tail beyond the pixel, which lies between the flux outside the circumscribed and
+     * the inscribed disc of the centred square: total Q(a L sqrt 2) and total Q(a L) */
+    for (int r = 1; r <= 3; r++) {
+        double xc = 150, yc = 150, row[9], sum = 0, a = fit_airy_a(1.34), qi, qo, p;
+        fit_design_opts_t od = fit_design_opts_for_tol(1e-12);
+        CHECK(fit_design_build(1.34, 300, r, &xc, &yc, 1, &od, row, NULL, NULL) == 0);
+        for (int c = 0; c < r * r; c++) sum += row[c];
+        fit_radial(a * 150, &qi, &p);
+        fit_radial(a * 150 * sqrt(2), &qo, &p);
+        double total = fit_airy_total(a);
+        CHECK(total - sum <= total * qi * (1 + 1e-9) && total - sum >= total * qo * (1 - 1e-9));
+        CHECK_NEAR(sum, total, 2e-3, 0); /* the tail beyond 150 um is ~ 2/(pi a 150) = 1.5e-3 */
+    }
+
     /* bad arguments */
     err_t err;
     CHECK(fit_design_build(0, 6, 3, x, y, 81, NULL, A, NULL, &err) == -EINVAL);
