@@ -1,0 +1,417 @@
+/* storage.c: opening the database (pragmas, forward migrations), the per-connection statement
+ * cache, error mapping, transactions, the clock and the little-endian BLOB codecs that the other
+ * files of storage/ share (storage_int.h). */
+#include "storage_int.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define STG_BUSY_TIMEOUT_MS 5000
+
+static const char *const state_names[] = {"queued", "running", "done", "failed", "cancelled"};
+
+int storage_schema_version(void) { return stg_n_migrations; }
+
+const char *storage_state_name(int state)
+{
+    if (state < 0 || state > STORAGE_CANCELLED) return NULL;
+    return state_names[state];
+}
+
+int storage_state_parse(const char *name, storage_state_t *out)
+{
+    for (int i = 0; name && i <= STORAGE_CANCELLED; i++) {
+        if (strcmp(name, state_names[i]) == 0) {
+            *out = (storage_state_t)i;
+            return 0;
+        }
+    }
+    return -EINVAL;
+}
+
+/* ---- errors and statements ---------------------------------------------------------------- */
+
+int stg_error(storage_t *st, int rc, err_t *err, const char *what)
+{
+    const char *msg = st && st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc);
+    int code;
+    switch (rc & 0xff) {
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED: code = -EBUSY; break;
+    case SQLITE_NOMEM: code = -ENOMEM; break;
+    case SQLITE_FULL: code = -ENOSPC; break;
+    case SQLITE_CONSTRAINT:
+        if (rc == SQLITE_CONSTRAINT_UNIQUE || rc == SQLITE_CONSTRAINT_PRIMARYKEY)
+            code = -EEXIST;
+        else if (rc == SQLITE_CONSTRAINT_FOREIGNKEY)
+            code = -ENOENT;
+        else
+            code = -EINVAL;
+        break;
+    default: code = -EIO;
+    }
+    return err_set(err, code, "%s: %s", what, msg);
+}
+
+int stg_stmt(storage_t *st, enum stg_id id, sqlite3_stmt **out, err_t *err)
+{
+    *out = NULL;
+    if (!st->stmt[id]) {
+        int rc = sqlite3_prepare_v3(st->db, stg_sql[id], -1, SQLITE_PREPARE_PERSISTENT,
+                                    &st->stmt[id], NULL);
+        if (rc != SQLITE_OK) {
+            st->stmt[id] = NULL;
+            return stg_error(st, rc, err, "preparing a statement");
+        }
+    }
+    *out = st->stmt[id];
+    return 0;
+}
+
+void stg_reset(sqlite3_stmt *s)
+{
+    /* reset returns the error of the last step, which the caller has handled already */
+    (void)sqlite3_reset(s);
+    (void)sqlite3_clear_bindings(s);
+}
+
+void stg_bind_int(sqlite3_stmt *s, int i, int64_t v, int *rc)
+{
+    if (*rc == SQLITE_OK) *rc = sqlite3_bind_int64(s, i, v);
+}
+
+void stg_bind_id(sqlite3_stmt *s, int i, int64_t v, int *rc)
+{
+    if (*rc == SQLITE_OK) *rc = v ? sqlite3_bind_int64(s, i, v) : sqlite3_bind_null(s, i);
+}
+
+void stg_bind_double(sqlite3_stmt *s, int i, double v, int *rc)
+{
+    if (*rc == SQLITE_OK) *rc = isnan(v) ? sqlite3_bind_null(s, i) : sqlite3_bind_double(s, i, v);
+}
+
+void stg_bind_text(sqlite3_stmt *s, int i, const char *v, int *rc)
+{
+    if (*rc == SQLITE_OK)
+        *rc = v ? sqlite3_bind_text(s, i, v, -1, SQLITE_TRANSIENT) : sqlite3_bind_null(s, i);
+}
+
+void stg_bind_blob(sqlite3_stmt *s, int i, const void *v, size_t n, int *rc)
+{
+    if (*rc == SQLITE_OK) *rc = sqlite3_bind_blob64(s, i, v, n, SQLITE_TRANSIENT);
+}
+
+double stg_col_double(sqlite3_stmt *s, int i)
+{
+    return sqlite3_column_type(s, i) == SQLITE_NULL ? NAN : sqlite3_column_double(s, i);
+}
+
+int64_t stg_col_id(sqlite3_stmt *s, int i)
+{
+    return sqlite3_column_type(s, i) == SQLITE_NULL ? 0 : sqlite3_column_int64(s, i);
+}
+
+char *stg_col_text(sqlite3_stmt *s, int i, int *oom)
+{
+    if (sqlite3_column_type(s, i) == SQLITE_NULL) return NULL;
+    const unsigned char *t = sqlite3_column_text(s, i);
+    char *copy = t ? strdup((const char *)t) : NULL;
+    if (!copy) *oom = 1;
+    return copy;
+}
+
+int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
+{
+    int rc = sqlite3_step(s);
+    int ret = rc == SQLITE_DONE ? 0 : stg_error(st, rc, err, what);
+    stg_reset(s);
+    return ret;
+}
+
+int stg_row(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
+{
+    int rc = sqlite3_step(s);
+    if (rc == SQLITE_ROW) return 0;
+    if (rc == SQLITE_DONE) return -ENOENT;
+    return stg_error(st, rc, err, what);
+}
+
+int stg_count(storage_t *st, sqlite3_stmt *s, int rc, int64_t *total, err_t *err,
+              const char *what)
+{
+    int ret = rc == SQLITE_OK ? stg_row(st, s, err, what) : stg_error(st, rc, err, what);
+    if (ret == 0) *total = sqlite3_column_int64(s, 0);
+    stg_reset(s);
+    return ret == -ENOENT ? err_set(err, -EIO, "%s: no row", what) : ret;
+}
+
+int stg_collect(storage_t *st, sqlite3_stmt *s, size_t size, stg_reader_fn read, void **items,
+                size_t *n, err_t *err, const char *what)
+{
+    size_t cap = 0;
+    int rc, ret = 0;
+    while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+        if (*n == cap) {
+            size_t ncap = cap ? 2 * cap : 16;
+            void *grown = realloc(*items, ncap * size);
+            if (!grown) {
+                ret = err_set(err, -ENOMEM, "%s: out of memory", what);
+                break;
+            }
+            *items = grown;
+            cap = ncap;
+        }
+        if ((ret = read(s, (char *)*items + *n * size))) {
+            err_set(err, ret, "%s: %s", what,
+                    ret == -ENOMEM ? "out of memory" : "a stored BLOB has the wrong size");
+            break;
+        }
+        (*n)++;
+    }
+    if (ret == 0 && rc != SQLITE_DONE) ret = stg_error(st, rc, err, what);
+    stg_reset(s);
+    return ret;
+}
+
+/* ---- transactions ------------------------------------------------------------------------- */
+
+static int run_fixed(storage_t *st, enum stg_id id, err_t *err, const char *what)
+{
+    sqlite3_stmt *s;
+    int ret = stg_stmt(st, id, &s, err);
+    return ret ? ret : stg_run(st, s, err, what);
+}
+
+int stg_begin_write(storage_t *st, err_t *err)
+{
+    return run_fixed(st, STG_BEGIN_WRITE, err, "starting a write transaction");
+}
+
+int stg_begin_read(storage_t *st, err_t *err)
+{
+    return run_fixed(st, STG_BEGIN_READ, err, "starting a read transaction");
+}
+
+int stg_commit(storage_t *st, err_t *err)
+{
+    int ret = run_fixed(st, STG_COMMIT, err, "committing");
+    if (ret) stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
+    return ret;
+}
+
+void stg_rollback(storage_t *st)
+{
+    if (sqlite3_get_autocommit(st->db)) return; /* no transaction (SQLite may have ended it) */
+    /* a failed ROLLBACK leaves nothing to do but report; the connection rolls back on close */
+    (void)run_fixed(st, STG_ROLLBACK, NULL, "rolling back");
+}
+
+/* ---- clock -------------------------------------------------------------------------------- */
+
+void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx)
+{
+    st->clock = fn;
+    st->clock_ctx = ctx;
+}
+
+int64_t storage_now_ms(storage_t *st)
+{
+    if (st->clock) return st->clock(st->clock_ctx);
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
+int storage_set_busy_timeout(storage_t *st, int ms, err_t *err)
+{
+    if (!st || ms < 0) return err_set(err, -EINVAL, "busy timeout: need a handle and ms >= 0");
+    int rc = sqlite3_busy_timeout(st->db, ms);
+    return rc == SQLITE_OK ? 0 : stg_error(st, rc, err, "setting the busy timeout");
+}
+
+/* ---- BLOB codecs: little-endian whatever the host (docs/schema.md) ------------------------ */
+
+unsigned char *stg_blob_from_f64(const double *v, size_t n)
+{
+    unsigned char *b = malloc(n ? n * 8 : 1);
+    for (size_t i = 0; b && i < n; i++) {
+        uint64_t u;
+        memcpy(&u, &v[i], 8);
+        for (int k = 0; k < 8; k++) b[8 * i + k] = (unsigned char)(u >> (8 * k));
+    }
+    return b;
+}
+
+unsigned char *stg_blob_from_u16(const uint16_t *v, size_t n)
+{
+    unsigned char *b = malloc(n ? n * 2 : 1);
+    for (size_t i = 0; b && i < n; i++) {
+        b[2 * i] = (unsigned char)(v[i] & 0xff);
+        b[2 * i + 1] = (unsigned char)(v[i] >> 8);
+    }
+    return b;
+}
+
+double stg_f64_le(const unsigned char *p)
+{
+    uint64_t u = 0;
+    for (int k = 0; k < 8; k++) u |= (uint64_t)p[k] << (8 * k);
+    double d;
+    memcpy(&d, &u, 8);
+    return d;
+}
+
+double *stg_f64_from_blob(const void *blob, size_t bytes, size_t n, int *bad)
+{
+    *bad = bytes != n * 8 || (n && !blob);
+    if (*bad) return NULL;
+    double *v = malloc(n ? n * sizeof *v : 1);
+    for (size_t i = 0; v && i < n; i++) v[i] = stg_f64_le((const unsigned char *)blob + 8 * i);
+    return v;
+}
+
+uint16_t *stg_u16_from_blob(const void *blob, size_t bytes, size_t n, int *bad)
+{
+    *bad = bytes != n * 2 || (n && !blob);
+    if (*bad) return NULL;
+    const unsigned char *p = blob;
+    uint16_t *v = malloc(n ? n * sizeof *v : 1);
+    for (size_t i = 0; v && i < n; i++) v[i] = (uint16_t)(p[2 * i] | (p[2 * i + 1] << 8));
+    return v;
+}
+
+/* ---- open, migrate, close ----------------------------------------------------------------- */
+
+static int user_version(storage_t *st, int *v, err_t *err)
+{
+    sqlite3_stmt *s;
+    int ret = stg_stmt(st, STG_USER_VERSION, &s, err);
+    if (ret) return ret;
+    ret = stg_row(st, s, err, "reading user_version");
+    if (ret == 0) *v = sqlite3_column_int(s, 0);
+    stg_reset(s);
+    return ret == -ENOENT ? err_set(err, -EIO, "reading user_version: no row") : ret;
+}
+
+/* Applies migration `to` (bringing to - 1 to to) unless another connection did it meanwhile. */
+static int migrate_one(storage_t *st, int to, err_t *err)
+{
+    int ret = stg_begin_write(st, err), v = -1;
+    if (ret) return ret;
+    if ((ret = user_version(st, &v, err))) goto out;
+    if (v > stg_n_migrations)
+        ret = err_set(err, -ENOTSUP, "schema version %d appeared meanwhile, newer than %d", v,
+                      stg_n_migrations);
+    if (ret || v >= to) goto out; /* done by another process between our check and our lock */
+    char *msg = NULL;
+    int rc = sqlite3_exec(st->db, stg_migrations[to - 1], NULL, NULL, &msg);
+    if (rc != SQLITE_OK) {
+        ret = err_set(err, -EIO, "migration %d: %s", to, msg ? msg : sqlite3_errstr(rc));
+        sqlite3_free(msg);
+        goto out;
+    }
+    if ((ret = user_version(st, &v, err))) goto out;
+    if (v != to) ret = err_set(err, -EIO, "migration %d left user_version %d", to, v);
+out:
+    if (ret) {
+        stg_rollback(st);
+        return ret;
+    }
+    return stg_commit(st, err);
+}
+
+/* Refuses a schema this code does not know; *v gets the file's version. Only reads. */
+static int check_version(storage_t *st, const char *path, int *v_out, err_t *err)
+{
+    int v, ret = user_version(st, &v, err);
+    if (ret) {
+        err_t inner = {{0}};
+        if (err) memcpy(&inner, err, sizeof inner);
+        return err_set(err, ret, "database %s: %s", path, inner.msg);
+    }
+    if (v > stg_n_migrations)
+        return err_set(err, -ENOTSUP,
+                       "database %s has schema version %d, newer than this ipsd knows (%d): "
+                       "use a newer ipsd",
+                       path, v, stg_n_migrations);
+    if (v < 0) return err_set(err, -EIO, "database %s has a negative schema version %d", path, v);
+    *v_out = v;
+    return 0;
+}
+
+static int migrate(storage_t *st, int v, err_t *err)
+{
+    int ret = 0;
+    for (int to = v + 1; to <= stg_n_migrations; to++)
+        if ((ret = migrate_one(st, to, err))) return ret;
+    return 0;
+}
+
+/* Runs a constant pragma and checks the single-row answer when want is not NULL. */
+static int pragma(storage_t *st, const char *sql, const char *want, err_t *err)
+{
+    sqlite3_stmt *s = NULL;
+    int rc = sqlite3_prepare_v2(st->db, sql, -1, &s, NULL);
+    if (rc != SQLITE_OK) return stg_error(st, rc, err, sql);
+    rc = sqlite3_step(s);
+    int ret = 0;
+    if (rc != SQLITE_ROW && rc != SQLITE_DONE) {
+        ret = stg_error(st, rc, err, sql);
+    } else if (want) {
+        const char *got = rc == SQLITE_ROW ? (const char *)sqlite3_column_text(s, 0) : NULL;
+        if (!got || strcmp(got, want) != 0)
+            ret = err_set(err, -EIO, "%s: got '%s', need '%s'", sql, got ? got : "nothing", want);
+    }
+    sqlite3_finalize(s);
+    return ret;
+}
+
+int storage_open(const char *path, storage_t **out, err_t *err)
+{
+    if (!out) return err_set(err, -EINVAL, "storage_open: out is NULL");
+    *out = NULL;
+    if (!path || !*path) return err_set(err, -EINVAL, "storage_open: no database path");
+    storage_t *st = calloc(1, sizeof *st);
+    if (!st) return err_set(err, -ENOMEM, "storage_open: out of memory");
+    int ret = 0;
+    /* multi-thread mode: one handle per thread (storage.h) */
+    int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX;
+    int rc = sqlite3_open_v2(path, &st->db, flags, NULL);
+    if (rc != SQLITE_OK) {
+        ret = err_set(err, rc == SQLITE_NOMEM ? -ENOMEM : -EIO, "cannot open database %s: %s",
+                      path, st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc));
+        goto out;
+    }
+    if ((rc = sqlite3_extended_result_codes(st->db, 1)) != SQLITE_OK ||
+        (rc = sqlite3_busy_timeout(st->db, STG_BUSY_TIMEOUT_MS)) != SQLITE_OK) {
+        ret = stg_error(st, rc, err, path);
+        goto out;
+    }
+    /* the version check comes first: a database we refuse is not even switched to WAL */
+    int v = 0;
+    if ((ret = pragma(st, "PRAGMA foreign_keys = ON", NULL, err)) ||
+        (ret = pragma(st, "PRAGMA foreign_keys", "1", err)) ||
+        (ret = check_version(st, path, &v, err)) ||
+        (ret = pragma(st, "PRAGMA journal_mode = WAL", "wal", err)) ||
+        (ret = pragma(st, "PRAGMA synchronous = FULL", NULL, err)))
+        goto out;
+    ret = migrate(st, v, err);
+out:
+    if (ret) {
+        storage_close(st);
+        return ret;
+    }
+    *out = st;
+    return 0;
+}
+
+void storage_close(storage_t *st)
+{
+    if (!st) return;
+    for (int i = 0; i < STG_N; i++) sqlite3_finalize(st->stmt[i]);
+    sqlite3_close_v2(st->db); /* NULL is a no-op; frees once nothing is pending */
+    free(st);
+}

@@ -1,0 +1,344 @@
+/* storage.h: the ipsd database (SQLite): sensors, scans and their frames, the job queue, fit
+ * results and the lab's calibration database of IPS maps. Every SQL statement of the project lives
+ * in storage/; the schema and its BLOB layouts are documented in docs/schema.md.
+ *
+ * Threading: one storage_t per thread. A handle is its own SQLite connection (opened in
+ * multi-thread mode) and must not be used by two threads at once; any number of handles (threads
+ * or processes) may share one database file. The database runs in WAL mode, so readers never
+ * block the writer nor each other; write transactions start with BEGIN IMMEDIATE and wait up to
+ * the busy timeout (5000 ms by default) for another writer, then fail with -EBUSY.
+ *
+ * Durability: every function that writes commits before it returns (synchronous = FULL), and a
+ * function either writes everything it says or nothing. storage_frame_put stores a scan point and
+ * the scan's progress in one transaction, so a crash loses at most the point in flight.
+ *
+ * Errors: functions return 0 or a negative errno and, when err is not NULL, a one-line message:
+ * -EINVAL bad arguments (the message names the field), -ENOENT unknown id, -EEXIST duplicate,
+ * -EBUSY database locked longer than the busy timeout, -ECANCELED the job/scan was cancelled,
+ * -ESTALE the job is not in the state the call needs, -ENOTSUP database newer than this code,
+ * -ENOMEM, -EIO any other SQLite failure (with sqlite3_errmsg in the message).
+ *
+ * Ownership: structs filled by storage_*_get / _current / _claim own their strings and arrays;
+ * release them with the matching storage_*_free (which accepts a zeroed or already freed struct
+ * and zeroes it). Lists own their items; release with storage_*_list_free. Structs passed IN are
+ * only read; storage copies what it keeps.
+ *
+ * Units: micrometres (_um), microseconds (_us), DN (digital numbers), electrons (_e); times are
+ * milliseconds since the Unix epoch (UTC), 0 meaning "not yet". Maps are r*r float64, row-major
+ * y then x (index j*r + i for column i, row j). Ids are > 0; 0 means "none". */
+#ifndef IPSD_STORAGE_H
+#define IPSD_STORAGE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "err.h"
+
+typedef struct storage storage_t;
+
+/* The schema version this code creates and understands (PRAGMA user_version). */
+int storage_schema_version(void);
+
+/* Opens (creating the file if needed, not its directory) the database at path, switches it to WAL,
+ * turns foreign keys on, and applies the forward migrations from the file's user_version to the
+ * latest, each in its own transaction. A database with a newer user_version than this code knows
+ * is refused with -ENOTSUP and left untouched. *out is owned by the caller: storage_close it. */
+int storage_open(const char *path, storage_t **out, err_t *err);
+
+/* Closes the connection and frees the handle. Accepts NULL; cannot fail. */
+void storage_close(storage_t *st);
+
+/* How long a write waits for another writer before -EBUSY (default 5000 ms). */
+int storage_set_busy_timeout(storage_t *st, int ms, err_t *err);
+
+/* The clock that stamps created/started/finished/heartbeat times: returns ms since the epoch.
+ * Default (fn NULL): CLOCK_REALTIME. Tests and simulations may install their own. */
+typedef int64_t (*storage_clock_fn)(void *ctx);
+void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx);
+int64_t storage_now_ms(storage_t *st);
+
+/* States of scans and jobs; stored as their names ("queued", "running", "done", "failed",
+ * "cancelled"). STORAGE_ANY in a filter means "any". */
+typedef enum storage_state {
+    STORAGE_QUEUED = 0,
+    STORAGE_RUNNING = 1,
+    STORAGE_DONE = 2,
+    STORAGE_FAILED = 3,
+    STORAGE_CANCELLED = 4,
+} storage_state_t;
+#define STORAGE_ANY (-1)
+
+/* Static name of a state, or NULL when out of range. */
+const char *storage_state_name(int state);
+/* Parses a state name; -EINVAL for an unknown one. */
+int storage_state_parse(const char *name, storage_state_t *out);
+
+/* ---- sensors ------------------------------------------------------------------------------ */
+
+typedef struct storage_sensor {
+    int64_t id;
+    char *model, *serial;    /* non-empty; (model, serial) is unique */
+    int n_cols, n_rows;      /* array size in pixels */
+    double pitch_um;
+    double gain_e_per_dn;    /* G */
+    double read_noise_e;     /* read noise, electrons */
+    double bias_dn;          /* B: ADC offset */
+    double full_scale_dn;    /* ADC full scale (saturation) */
+    int64_t created_ms;      /* set by storage */
+} storage_sensor_t;
+
+typedef struct storage_sensor_list {
+    storage_sensor_t *items;
+    size_t n;
+    int64_t total;           /* rows matching (all sensors) */
+} storage_sensor_list_t;
+
+/* Stores a sensor (id and created_ms of s are ignored); *id gets the new id. -EEXIST when the
+ * model/serial pair exists already. */
+int storage_sensor_create(storage_t *st, const storage_sensor_t *s, int64_t *id, err_t *err);
+/* Fills *out (caller frees with storage_sensor_free); -ENOENT for an unknown id. */
+int storage_sensor_get(storage_t *st, int64_t id, storage_sensor_t *out, err_t *err);
+/* Looks a sensor up by model and serial; -ENOENT when there is none. */
+int storage_sensor_find(storage_t *st, const char *model, const char *serial,
+                        storage_sensor_t *out, err_t *err);
+/* All sensors, by id. Caller frees with storage_sensor_list_free. */
+int storage_sensor_list(storage_t *st, storage_sensor_list_t *out, err_t *err);
+void storage_sensor_free(storage_sensor_t *s);
+void storage_sensor_list_free(storage_sensor_list_t *l);
+
+/* ---- scans -------------------------------------------------------------------------------- */
+
+/* A raster scan around one pixel of interest (POI). The sub-frame read at every point is
+ * sub_px x sub_px pixels centred on the POI (sub_px odd): sub-frame pixel (i, j) is sensor pixel
+ * (poi_col - h + i, poi_row - h + j) with h = (sub_px - 1) / 2. Pixels of the sub-frame are named
+ * by their offset (dcol, drow) = (i - h, j - h) from the POI, so (0, 0) is the POI itself. */
+typedef struct storage_scan {
+    int64_t id, sensor_id;
+    int poi_col, poi_row;    /* POI in sensor coordinates (column, row) */
+    double wavelength_um, na, spot_radius_um; /* optics; R of eq. 1 */
+    int area_px;             /* the raster covers area_px x area_px pixels around the POI */
+    double step_um;          /* raster step */
+    int sub_px;              /* m: sub-frame m x m, odd */
+    int frames;              /* k: sub-frames captured per point */
+    double exposure_us;      /* nominal exposure (each point records its own) */
+    int points_total;        /* raster points (set by the caller who plans the raster) */
+    /* set by storage */
+    storage_state_t state;
+    int points_done;         /* points stored (storage_frame_put keeps it) */
+    char *error;             /* NULL unless failed */
+    int64_t created_ms, started_ms, finished_ms;
+} storage_scan_t;
+
+typedef struct storage_scan_list {
+    storage_scan_t *items;
+    size_t n;
+    int64_t total;           /* rows matching the filter, whatever limit/offset */
+} storage_scan_list_t;
+
+/* Stores a scan in state queued (id, state, progress, error and times of sc are ignored).
+ * -ENOENT for an unknown sensor, -EINVAL for settings out of range or a sub-frame that does not
+ * fit on the sensor. */
+int storage_scan_create(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t *err);
+/* Creates the scan and enqueues its scan job (params_json, linked to the scan) in ONE
+ * transaction: either both exist afterwards or neither. */
+int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *params_json,
+                        int64_t *scan_id, int64_t *job_id, err_t *err);
+int storage_scan_get(storage_t *st, int64_t id, storage_scan_t *out, err_t *err);
+/* Scans newest first, filtered by sensor (0: any) and state (STORAGE_ANY: any); limit <= 0: no
+ * limit. out->total counts every match. Caller frees with storage_scan_list_free. */
+int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, int offset,
+                      storage_scan_list_t *out, err_t *err);
+/* Sets the state (and the error text, NULL to clear). Entering running stamps started_ms the
+ * first time; entering done/failed/cancelled stamps finished_ms. -ENOENT for an unknown scan. */
+int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, const char *error,
+                           err_t *err);
+void storage_scan_free(storage_scan_t *sc);
+void storage_scan_list_free(storage_scan_list_t *l);
+
+/* ---- frames: one row per scan point ------------------------------------------------------- */
+
+typedef struct storage_frame {
+    int64_t scan_id;
+    int point_index;         /* 0 .. points_total - 1, in raster order */
+    double stage_x_um, stage_y_um, stage_z_um; /* stage position at this point */
+    double exposure_us;
+    int frames, sub_px;      /* k and m; must equal the scan's */
+    uint16_t *raw;           /* k*m*m raw sub-frames, frame after frame, each row-major y then x */
+    double *mean;            /* m*m mean of the k sub-frames (DN), row-major y then x */
+    int64_t captured_ms;     /* set by storage */
+} storage_frame_t;
+
+/* Stores one point and advances the scan's points_done, in one transaction. The scan must be
+ * running: -ECANCELED when it was cancelled, -ESTALE in any other state. -EEXIST when the point
+ * is stored already (the stored row is left as it was), -EINVAL for an index out of range or
+ * non-finite positions. */
+int storage_frame_put(storage_t *st, const storage_frame_t *f, err_t *err);
+/* One point's frames; caller frees with storage_frame_free. -ENOENT when not stored. */
+int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_frame_t *out,
+                      err_t *err);
+/* For resume: *last = highest stored point index (-1 when none) and *count = points stored.
+ * The scan writer stores points in raster order, so it resumes at *last + 1 (and count ==
+ * last + 1 says nothing is missing). -ENOENT for an unknown scan. */
+int storage_frame_last(storage_t *st, int64_t scan_id, int *last, int *count, err_t *err);
+void storage_frame_free(storage_frame_t *f);
+
+/* The response of one sub-frame pixel across all stored points of a scan, in point order: what
+ * the fit needs. Arrays of n, owned (storage_raster_free). */
+typedef struct storage_raster {
+    size_t n;
+    int *point_index;
+    double *stage_x_um, *stage_y_um;
+    double *exposure_us;
+    double *mean_dn;         /* the pixel's value in the point's mean frame */
+} storage_raster_t;
+
+/* Pixel (dcol, drow) relative to the POI, each in [-h, h] (see storage_scan_t). */
+int storage_frame_raster(storage_t *st, int64_t scan_id, int dcol, int drow,
+                         storage_raster_t *out, err_t *err);
+void storage_raster_free(storage_raster_t *r);
+
+/* ---- jobs --------------------------------------------------------------------------------- */
+
+typedef enum storage_job_kind { STORAGE_JOB_SCAN = 0, STORAGE_JOB_FIT = 1 } storage_job_kind_t;
+
+/* "scan" / "fit" (static), NULL when out of range; parse gives -EINVAL for unknown names. */
+const char *storage_job_kind_name(int kind);
+int storage_job_kind_parse(const char *name, storage_job_kind_t *out);
+
+typedef struct storage_job {
+    int64_t id;
+    storage_job_kind_t kind;
+    char *params;            /* JSON text */
+    storage_state_t state;
+    double progress;         /* 0..1 */
+    int points_done;
+    char *error;             /* NULL unless failed */
+    int attempts;            /* times claimed */
+    int64_t heartbeat_ms, created_ms, started_ms, finished_ms;
+    int64_t scan_id, fit_id; /* links, 0 = none */
+} storage_job_t;
+
+typedef struct storage_job_list {
+    storage_job_t *items;
+    size_t n;
+    int64_t total;
+} storage_job_list_t;
+
+/* Queues a job (params_json must be valid JSON, else -EINVAL); scan_id links it to a scan (0:
+ * none). The row is committed when this returns; *id gets its id. */
+int storage_job_enqueue(storage_t *st, storage_job_kind_t kind, const char *params_json,
+                        int64_t scan_id, int64_t *id, err_t *err);
+/* Atomically takes the oldest queued job of the kind: running, attempts + 1, heartbeat and
+ * started_ms stamped. Returns 0 with the job in *out (caller frees with storage_job_free), or 0
+ * with out->id == 0 when none is queued. Two handles never get the same job. */
+int storage_job_claim(storage_t *st, storage_job_kind_t kind, storage_job_t *out, err_t *err);
+/* A running job reports it is alive: heartbeat, progress (0..1) and points done. -ECANCELED
+ * when the job was cancelled (the worker should stop), -ESTALE when it is no longer running for
+ * another reason (e.g. requeued as stale), -ENOENT for an unknown job. */
+int storage_job_heartbeat(storage_t *st, int64_t id, double progress, int points_done,
+                          err_t *err);
+/* Ends a running job as STORAGE_DONE (progress 1) or STORAGE_FAILED (with error text).
+ * -ECANCELED / -ESTALE / -ENOENT as storage_job_heartbeat; the job is then left as it is. */
+int storage_job_finish(storage_t *st, int64_t id, storage_state_t state, const char *error,
+                       err_t *err);
+/* Cancels a queued or running job; *changed = 1 if it did, 0 if the job had already ended.
+ * Cancelling a scan job also cancels its scan if that is queued or running (same transaction),
+ * so the scan writer's next storage_frame_put returns -ECANCELED. -ENOENT for an unknown job. */
+int storage_job_cancel(storage_t *st, int64_t id, int *changed, err_t *err);
+int storage_job_get(storage_t *st, int64_t id, storage_job_t *out, err_t *err);
+/* Jobs newest first, filtered by kind and state (STORAGE_ANY: any) and scan (0: any). */
+int storage_job_list(storage_t *st, int kind, int state, int64_t scan_id, int limit, int offset,
+                     storage_job_list_t *out, err_t *err);
+/* For start-up after a crash: every running job whose heartbeat is at least stale_ms old (0:
+ * every running job) goes back to queued, unless it has been claimed max_attempts times already
+ * (max_attempts > 0), in which case it fails with an "abandoned" error. Counts in *requeued and
+ * *failed (either may be NULL). Scans are not touched: the scan job's worker resumes its scan. */
+int storage_job_requeue_stale(storage_t *st, int64_t stale_ms, int max_attempts, int *requeued,
+                              int *failed, err_t *err);
+void storage_job_free(storage_job_t *j);
+void storage_job_list_free(storage_job_list_t *l);
+
+/* ---- fits and calibrations ---------------------------------------------------------------- */
+
+typedef struct storage_fit {
+    int64_t id, scan_id;
+    int dcol, drow;          /* fitted sub-frame pixel, relative to the POI */
+    char *noise_model;       /* "paper", "shot+read" (fit_noise_name) */
+    int best_r_aic, best_r_bic; /* 0: none */
+    double f_value, p_value; /* F-test; NaN when there was none */
+    char *result;            /* the whole fit result, JSON text */
+    int64_t created_ms;
+} storage_fit_t;
+
+typedef struct storage_fit_list {
+    storage_fit_t *items;
+    size_t n;
+    int64_t total;
+} storage_fit_list_t;
+
+/* One IPS map of one sensor pixel with its provenance. */
+typedef struct storage_calib {
+    int64_t id, sensor_id;
+    int pixel_col, pixel_row; /* sensor coordinates */
+    int r;                   /* map is r x r, 1..64 */
+    double *S, *S_err;       /* r*r each, row-major y then x, S mean 1 */
+    double I0, chi2_red;     /* NaN: unknown */
+    char *status;            /* fit status word ("ok", ...) */
+    int64_t scan_id, fit_id; /* provenance, 0: none */
+    char *noise_model;
+    double wavelength_um, na, spot_radius_um; /* optics of the scan; NaN: unknown */
+    char *software_version;  /* NULL on input: this build's IPSD_VERSION */
+    int64_t created_ms;      /* set by storage */
+    int64_t superseded_by;   /* 0: current; else the id of the newer calibration */
+} storage_calib_t;
+
+typedef struct storage_calib_list {
+    storage_calib_t *items;
+    size_t n;
+    int64_t total;
+} storage_calib_list_t;
+
+/* Stores a fit (id/created_ms ignored). If calib is not NULL, stores it too as the new current
+ * calibration of its pixel, with fit_id set to the new fit (and scan_id to the fit's when 0).
+ * If job_id > 0, links that job to the fit. All in one transaction. *fit_id / *calib_id (either
+ * may be NULL) get the new ids. */
+int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                    int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err);
+int storage_fit_get(storage_t *st, int64_t id, storage_fit_t *out, err_t *err);
+/* Fits of one scan, newest first. */
+int storage_fit_list(storage_t *st, int64_t scan_id, int limit, int offset, storage_fit_list_t *out,
+                     err_t *err);
+void storage_fit_free(storage_fit_t *f);
+void storage_fit_list_free(storage_fit_list_t *l);
+
+/* Stores a calibration as the current one of its sensor pixel; the previous current one (if any)
+ * gets superseded_by = the new id in the same transaction and stays queryable. -ENOENT for an
+ * unknown sensor/scan/fit, -EINVAL for a pixel outside the sensor or a bad map. */
+int storage_calib_put(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err);
+int storage_calib_get(storage_t *st, int64_t id, storage_calib_t *out, err_t *err);
+/* The current calibration of a sensor pixel; -ENOENT when it has none. */
+int storage_calib_current(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
+                          storage_calib_t *out, err_t *err);
+/* Every calibration of a sensor pixel, newest first (the current one first). */
+int storage_calib_history(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
+                          storage_calib_list_t *out, err_t *err);
+
+typedef struct storage_calib_filter {
+    int64_t sensor_id;       /* 0: any */
+    const char *model;       /* sensor model; NULL: any */
+    int col_min, col_max;    /* inclusive pixel range; -1: unbounded */
+    int row_min, row_max;
+    int64_t since_ms;        /* created at or after; 0: any */
+    const char *status;      /* NULL: any */
+    int current_only;        /* 1: leave out superseded calibrations */
+} storage_calib_filter_t;
+
+/* A filter that matches everything (current_only = 0). */
+storage_calib_filter_t storage_calib_filter_default(void);
+/* Calibrations across sensors, newest first, with out->total counting every match. */
+int storage_calib_search(storage_t *st, const storage_calib_filter_t *f, int limit, int offset,
+                         storage_calib_list_t *out, err_t *err);
+void storage_calib_free(storage_calib_t *c);
+void storage_calib_list_free(storage_calib_list_t *l);
+
+#endif

@@ -1,0 +1,468 @@
+/* storage_calib.c: fit results and the lab's calibration database of IPS maps: storing a fit with
+ * its calibration, superseding the current calibration of a sensor pixel in the same transaction,
+ * and reading the current map, a pixel's history and searches across sensors. */
+#include "storage_int.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifndef IPSD_VERSION
+#define IPSD_VERSION "unknown"
+#endif
+
+/* ---- fits --------------------------------------------------------------------------------- */
+
+void storage_fit_free(storage_fit_t *f)
+{
+    if (!f) return;
+    free(f->noise_model);
+    free(f->result);
+    memset(f, 0, sizeof *f);
+}
+
+void storage_fit_list_free(storage_fit_list_t *l)
+{
+    if (!l) return;
+    for (size_t i = 0; i < l->n; i++) storage_fit_free(&l->items[i]);
+    free(l->items);
+    memset(l, 0, sizeof *l);
+}
+
+static int read_fit(sqlite3_stmt *s, void *item)
+{
+    storage_fit_t *o = item;
+    int oom = 0;
+    memset(o, 0, sizeof *o);
+    o->id = sqlite3_column_int64(s, 0);
+    o->scan_id = sqlite3_column_int64(s, 1);
+    o->dcol = sqlite3_column_int(s, 2);
+    o->drow = sqlite3_column_int(s, 3);
+    o->noise_model = stg_col_text(s, 4, &oom);
+    o->best_r_aic = (int)stg_col_id(s, 5);
+    o->best_r_bic = (int)stg_col_id(s, 6);
+    o->f_value = stg_col_double(s, 7);
+    o->p_value = stg_col_double(s, 8);
+    o->result = stg_col_text(s, 9, &oom);
+    o->created_ms = stg_col_id(s, 10);
+    if (oom) storage_fit_free(o);
+    return oom ? -ENOMEM : 0;
+}
+
+/* Inside the caller's write transaction. */
+static int fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *err)
+{
+    storage_scan_t sc;
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!f->noise_model || !*f->noise_model) return err_set(err, -EINVAL, "fit noise_model: empty");
+    if (!f->result) return err_set(err, -EINVAL, "fit result: NULL");
+    if (f->best_r_aic < 0 || f->best_r_bic < 0)
+        return err_set(err, -EINVAL, "fit best_r: need >= 0 (0: none)");
+    if ((ret = stg_scan_load(st, f->scan_id, &sc, err))) return ret;
+    int h = (sc.sub_px - 1) / 2;
+    storage_scan_free(&sc);
+    if (abs(f->dcol) > h || abs(f->drow) > h)
+        return err_set(err, -EINVAL, "fit pixel: (%d, %d) is outside scan %lld's sub-frame "
+                       "(offsets -%d..%d)", f->dcol, f->drow, (long long)f->scan_id, h, h);
+    if ((ret = stg_stmt(st, STG_FIT_INSERT, &q, err))) return ret;
+    stg_bind_int(q, 1, f->scan_id, &rc);
+    stg_bind_int(q, 2, f->dcol, &rc);
+    stg_bind_int(q, 3, f->drow, &rc);
+    stg_bind_text(q, 4, f->noise_model, &rc);
+    stg_bind_id(q, 5, f->best_r_aic, &rc);
+    stg_bind_id(q, 6, f->best_r_bic, &rc);
+    stg_bind_double(q, 7, f->f_value, &rc);
+    stg_bind_double(q, 8, f->p_value, &rc);
+    stg_bind_text(q, 9, f->result, &rc);
+    stg_bind_int(q, 10, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "storing a fit");
+    }
+    ret = stg_run(st, q, err, "storing a fit");
+    if (ret == -EINVAL) return err_set(err, ret, "fit result: not valid JSON text");
+    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
+    return ret;
+}
+
+static int link_job(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_JOB_SET_FIT, &q, err))) return ret;
+    stg_bind_int(q, 1, job_id, &rc);
+    stg_bind_int(q, 2, fit_id, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "linking the job to its fit");
+    }
+    if ((ret = stg_run(st, q, err, "linking the job to its fit"))) return ret;
+    if (sqlite3_changes(st->db) == 0)
+        return err_set(err, -ENOENT, "job %lld does not exist", (long long)job_id);
+    return 0;
+}
+
+static int calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err);
+
+int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                    int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err)
+{
+    int64_t fid = 0, cid = 0;
+    if (!st || !fit) return err_set(err, -EINVAL, "fit put: NULL argument");
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    if ((ret = fit_insert(st, fit, &fid, err))) goto out;
+    if (job_id > 0 && (ret = link_job(st, job_id, fid, err))) goto out;
+    if (calib) {
+        storage_calib_t c = *calib; /* shallow: only the two ids change */
+        c.fit_id = fid;
+        if (!c.scan_id) c.scan_id = fit->scan_id;
+        ret = calib_insert(st, &c, &cid, err);
+    }
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        return ret;
+    }
+    if (fit_id) *fit_id = fid;
+    if (calib_id) *calib_id = cid;
+    return 0;
+}
+
+int storage_fit_get(storage_t *st, int64_t id, storage_fit_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "fit get: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_FIT_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a fit")
+                          : stg_error(st, rc, err, "reading a fit");
+    if (ret == 0 && read_fit(q, out)) ret = err_set(err, -ENOMEM, "fit get: out of memory");
+    stg_reset(q);
+    return ret == -ENOENT ? err_set(err, ret, "fit %lld does not exist", (long long)id) : ret;
+}
+
+int storage_fit_list(storage_t *st, int64_t scan_id, int limit, int offset, storage_fit_list_t *out,
+                     err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "fit list: NULL argument");
+    memset(out, 0, sizeof *out);
+    if (offset < 0) return err_set(err, -EINVAL, "fit list offset: %d, need >= 0", offset);
+    if ((ret = stg_begin_read(st, err))) return ret;
+    if ((ret = stg_stmt(st, STG_FIT_COUNT, &q, err))) goto out;
+    stg_bind_int(q, 1, scan_id, &rc);
+    if ((ret = stg_count(st, q, rc, &out->total, err, "counting fits"))) goto out;
+    if ((ret = stg_stmt(st, STG_FIT_LIST, &q, err))) goto out;
+    stg_bind_int(q, 1, scan_id, &rc);
+    stg_bind_int(q, 2, limit > 0 ? limit : -1, &rc);
+    stg_bind_int(q, 3, offset, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "listing fits");
+        goto out;
+    }
+    ret = stg_collect(st, q, sizeof *out->items, read_fit, (void **)&out->items, &out->n, err,
+                      "listing fits");
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        storage_fit_list_free(out);
+    }
+    return ret;
+}
+
+/* ---- calibrations ------------------------------------------------------------------------- */
+
+void storage_calib_free(storage_calib_t *c)
+{
+    if (!c) return;
+    free(c->S);
+    free(c->S_err);
+    free(c->status);
+    free(c->noise_model);
+    free(c->software_version);
+    memset(c, 0, sizeof *c);
+}
+
+void storage_calib_list_free(storage_calib_list_t *l)
+{
+    if (!l) return;
+    for (size_t i = 0; i < l->n; i++) storage_calib_free(&l->items[i]);
+    free(l->items);
+    memset(l, 0, sizeof *l);
+}
+
+storage_calib_filter_t storage_calib_filter_default(void)
+{
+    return (storage_calib_filter_t){.col_min = -1, .col_max = -1, .row_min = -1, .row_max = -1};
+}
+
+/* Reads a STG_CALIB_COLS row; 0, -ENOMEM, or -EIO for a map BLOB of the wrong size. */
+static int read_calib(sqlite3_stmt *s, void *item)
+{
+    storage_calib_t *o = item;
+    int oom = 0, bad_s = 0, bad_e = 0;
+    memset(o, 0, sizeof *o);
+    o->id = sqlite3_column_int64(s, 0);
+    o->sensor_id = sqlite3_column_int64(s, 1);
+    o->pixel_col = sqlite3_column_int(s, 2);
+    o->pixel_row = sqlite3_column_int(s, 3);
+    o->r = sqlite3_column_int(s, 4);
+    size_t n = (size_t)o->r * (size_t)o->r;
+    o->S = stg_f64_from_blob(sqlite3_column_blob(s, 5), (size_t)sqlite3_column_bytes(s, 5), n,
+                             &bad_s);
+    o->S_err = stg_f64_from_blob(sqlite3_column_blob(s, 6), (size_t)sqlite3_column_bytes(s, 6), n,
+                                 &bad_e);
+    o->I0 = stg_col_double(s, 7);
+    o->chi2_red = stg_col_double(s, 8);
+    o->status = stg_col_text(s, 9, &oom);
+    o->scan_id = stg_col_id(s, 10);
+    o->fit_id = stg_col_id(s, 11);
+    o->noise_model = stg_col_text(s, 12, &oom);
+    o->wavelength_um = stg_col_double(s, 13);
+    o->na = stg_col_double(s, 14);
+    o->spot_radius_um = stg_col_double(s, 15);
+    o->software_version = stg_col_text(s, 16, &oom);
+    o->created_ms = stg_col_id(s, 17);
+    o->superseded_by = stg_col_id(s, 18);
+    int ret = bad_s || bad_e ? -EIO : (oom || !o->S || !o->S_err) ? -ENOMEM : 0;
+    if (ret) storage_calib_free(o);
+    return ret;
+}
+
+static int check_calib(storage_t *st, const storage_calib_t *c, err_t *err)
+{
+    storage_sensor_t sn;
+    if (c->r < 1 || c->r > 64) return err_set(err, -EINVAL, "calibration r: %d, need 1..64", c->r);
+    if (!c->S || !c->S_err) return err_set(err, -EINVAL, "calibration S / S_err: NULL");
+    if (!c->status || !*c->status) return err_set(err, -EINVAL, "calibration status: empty");
+    if (!c->noise_model || !*c->noise_model)
+        return err_set(err, -EINVAL, "calibration noise_model: empty");
+    int ret = storage_sensor_get(st, c->sensor_id, &sn, err);
+    if (ret) return ret;
+    if (c->pixel_col < 0 || c->pixel_row < 0 || c->pixel_col >= sn.n_cols ||
+        c->pixel_row >= sn.n_rows)
+        ret = err_set(err, -EINVAL, "calibration pixel: (%d, %d) is outside the %d x %d sensor",
+                      c->pixel_col, c->pixel_row, sn.n_cols, sn.n_rows);
+    storage_sensor_free(&sn);
+    return ret;
+}
+
+/* Single-row helper: steps bound q expecting one integer (0 when there is no row). */
+static int one_id(storage_t *st, sqlite3_stmt *q, int rc, int64_t *v, err_t *err, const char *what)
+{
+    int ret = rc == SQLITE_OK ? stg_row(st, q, err, what) : stg_error(st, rc, err, what);
+    *v = ret == 0 ? sqlite3_column_int64(q, 0) : 0;
+    stg_reset(q);
+    return ret == -ENOENT ? 0 : ret;
+}
+
+/* Inside the write transaction: finds the current calibration of the pixel, reserves the new id,
+ * points the old row to it and inserts the new row. superseded_by is a DEFERRED foreign key, so
+ * the old row may name the new id before the new row exists; the partial unique index
+ * calibrations_current allows one current row per pixel at every step. */
+static int supersede(storage_t *st, const storage_calib_t *c, int64_t *new_id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int64_t old = 0;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_CALIB_CURRENT_ID, &q, err))) return ret;
+    stg_bind_int(q, 1, c->sensor_id, &rc);
+    stg_bind_int(q, 2, c->pixel_col, &rc);
+    stg_bind_int(q, 3, c->pixel_row, &rc);
+    if ((ret = one_id(st, q, rc, &old, err, "finding the current calibration"))) return ret;
+    if ((ret = stg_stmt(st, STG_CALIB_NEXT_ID, &q, err)) ||
+        (ret = one_id(st, q, SQLITE_OK, new_id, err, "reserving a calibration id")))
+        return ret;
+    if (!old) return 0;
+    if ((ret = stg_stmt(st, STG_CALIB_SUPERSEDE, &q, err))) return ret;
+    stg_bind_int(q, 1, old, &rc);
+    stg_bind_int(q, 2, *new_id, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "superseding a calibration");
+    }
+    return stg_run(st, q, err, "superseding a calibration");
+}
+
+static int calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int64_t new_id = 0;
+    int ret = check_calib(st, c, err), rc = SQLITE_OK;
+    if (ret || (ret = supersede(st, c, &new_id, err))) return ret;
+    size_t n = (size_t)c->r * (size_t)c->r;
+    unsigned char *s = stg_blob_from_f64(c->S, n), *e = stg_blob_from_f64(c->S_err, n);
+    if (!s || !e) {
+        ret = err_set(err, -ENOMEM, "calibration: out of memory");
+        goto out;
+    }
+    if ((ret = stg_stmt(st, STG_CALIB_INSERT, &q, err))) goto out;
+    stg_bind_int(q, 1, new_id, &rc);
+    stg_bind_int(q, 2, c->sensor_id, &rc);
+    stg_bind_int(q, 3, c->pixel_col, &rc);
+    stg_bind_int(q, 4, c->pixel_row, &rc);
+    stg_bind_int(q, 5, c->r, &rc);
+    stg_bind_blob(q, 6, s, n * 8, &rc);
+    stg_bind_blob(q, 7, e, n * 8, &rc);
+    stg_bind_double(q, 8, c->I0, &rc);
+    stg_bind_double(q, 9, c->chi2_red, &rc);
+    stg_bind_text(q, 10, c->status, &rc);
+    stg_bind_id(q, 11, c->scan_id, &rc);
+    stg_bind_id(q, 12, c->fit_id, &rc);
+    stg_bind_text(q, 13, c->noise_model, &rc);
+    stg_bind_double(q, 14, c->wavelength_um, &rc);
+    stg_bind_double(q, 15, c->na, &rc);
+    stg_bind_double(q, 16, c->spot_radius_um, &rc);
+    stg_bind_text(q, 17, c->software_version ? c->software_version : IPSD_VERSION, &rc);
+    stg_bind_int(q, 18, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "storing a calibration");
+        goto out;
+    }
+    ret = stg_run(st, q, err, "storing a calibration");
+    if (ret == -ENOENT)
+        err_set(err, ret, "calibration: scan %lld or fit %lld does not exist",
+                (long long)c->scan_id, (long long)c->fit_id);
+    if (ret == 0) *id = new_id;
+out:
+    free(s);
+    free(e);
+    return ret;
+}
+
+int storage_calib_put(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err)
+{
+    if (!st || !c || !id) return err_set(err, -EINVAL, "calibration put: NULL argument");
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    if ((ret = calib_insert(st, c, id, err))) {
+        stg_rollback(st);
+        return ret;
+    }
+    return stg_commit(st, err);
+}
+
+/* Runs a bound single-calibration query into *out. */
+static int calib_one(storage_t *st, sqlite3_stmt *q, int rc, storage_calib_t *out, err_t *err)
+{
+    int ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a calibration")
+                              : stg_error(st, rc, err, "reading a calibration");
+    if (ret == 0 && (ret = read_calib(q, out)))
+        err_set(err, ret, "reading a calibration: %s",
+                ret == -EIO ? "map BLOB of the wrong size" : "out of memory");
+    stg_reset(q);
+    return ret;
+}
+
+int storage_calib_get(storage_t *st, int64_t id, storage_calib_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "calibration get: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_CALIB_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    ret = calib_one(st, q, rc, out, err);
+    return ret == -ENOENT ? err_set(err, ret, "calibration %lld does not exist", (long long)id)
+                          : ret;
+}
+
+int storage_calib_current(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
+                          storage_calib_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "calibration current: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_CALIB_CURRENT, &q, err))) return ret;
+    stg_bind_int(q, 1, sensor_id, &rc);
+    stg_bind_int(q, 2, pixel_col, &rc);
+    stg_bind_int(q, 3, pixel_row, &rc);
+    ret = calib_one(st, q, rc, out, err);
+    if (ret == -ENOENT)
+        err_set(err, ret, "sensor %lld pixel (%d, %d) has no calibration", (long long)sensor_id,
+                pixel_col, pixel_row);
+    return ret;
+}
+
+int storage_calib_history(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
+                          storage_calib_list_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "calibration history: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_CALIB_HISTORY, &q, err))) return ret;
+    stg_bind_int(q, 1, sensor_id, &rc);
+    stg_bind_int(q, 2, pixel_col, &rc);
+    stg_bind_int(q, 3, pixel_row, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "reading calibration history");
+    }
+    ret = stg_collect(st, q, sizeof *out->items, read_calib, (void **)&out->items, &out->n, err,
+                      "reading calibration history");
+    if (ret) storage_calib_list_free(out);
+    else out->total = (int64_t)out->n;
+    return ret;
+}
+
+static void bind_calib_filter(sqlite3_stmt *q, const storage_calib_filter_t *f, int *rc)
+{
+    stg_bind_id(q, 1, f->sensor_id, rc);
+    stg_bind_text(q, 2, f->model, rc);
+    int bounds[4] = {f->col_min, f->col_max, f->row_min, f->row_max};
+    for (int i = 0; i < 4; i++) {
+        if (bounds[i] < 0) {
+            if (*rc == SQLITE_OK) *rc = sqlite3_bind_null(q, 3 + i);
+        } else {
+            stg_bind_int(q, 3 + i, bounds[i], rc);
+        }
+    }
+    stg_bind_id(q, 7, f->since_ms, rc);
+    stg_bind_text(q, 8, f->status, rc);
+    stg_bind_int(q, 9, f->current_only ? 1 : 0, rc);
+}
+
+int storage_calib_search(storage_t *st, const storage_calib_filter_t *f, int limit, int offset,
+                         storage_calib_list_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !f || !out) return err_set(err, -EINVAL, "calibration search: NULL argument");
+    memset(out, 0, sizeof *out);
+    if (offset < 0)
+        return err_set(err, -EINVAL, "calibration search offset: %d, need >= 0", offset);
+    if ((ret = stg_begin_read(st, err))) return ret;
+    if ((ret = stg_stmt(st, STG_CALIB_COUNT, &q, err))) goto out;
+    bind_calib_filter(q, f, &rc);
+    if ((ret = stg_count(st, q, rc, &out->total, err, "counting calibrations"))) goto out;
+    if ((ret = stg_stmt(st, STG_CALIB_SEARCH, &q, err))) goto out;
+    bind_calib_filter(q, f, &rc);
+    stg_bind_int(q, 10, limit > 0 ? limit : -1, &rc);
+    stg_bind_int(q, 11, offset, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "searching calibrations");
+        goto out;
+    }
+    ret = stg_collect(st, q, sizeof *out->items, read_calib, (void **)&out->items, &out->n, err,
+                      "searching calibrations");
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        storage_calib_list_free(out);
+    }
+    return ret;
+}

@@ -1,0 +1,162 @@
+/* storage_int.h: what the files of storage/ share and nobody else sees: the handle, the ids of
+ * the prepared statements (their SQL is in storage_sql.c), the column lists the row readers
+ * depend on, and small checked helpers for binding, reading, transactions and BLOBs. */
+#ifndef IPSD_STORAGE_INT_H
+#define IPSD_STORAGE_INT_H
+
+#include <sqlite3.h>
+#include <stdint.h>
+
+#include "storage.h"
+
+/* Every statement the code runs after open, prepared once per connection on first use. */
+enum stg_id {
+    STG_BEGIN_WRITE,
+    STG_BEGIN_READ,
+    STG_COMMIT,
+    STG_ROLLBACK,
+    STG_USER_VERSION,
+    STG_SENSOR_INSERT,
+    STG_SENSOR_GET,
+    STG_SENSOR_FIND,
+    STG_SENSOR_LIST,
+    STG_SCAN_INSERT,
+    STG_SCAN_GET,
+    STG_SCAN_COUNT,
+    STG_SCAN_LIST,
+    STG_SCAN_SET_STATE,
+    STG_SCAN_ADD_POINT,
+    STG_SCAN_CANCEL,
+    STG_FRAME_INSERT,
+    STG_FRAME_GET,
+    STG_FRAME_LAST,
+    STG_FRAME_RASTER,
+    STG_JOB_INSERT,
+    STG_JOB_GET,
+    STG_JOB_NEXT,
+    STG_JOB_START,
+    STG_JOB_HEARTBEAT,
+    STG_JOB_FINISH,
+    STG_JOB_CANCEL,
+    STG_JOB_STATE,
+    STG_JOB_ABANDON,
+    STG_JOB_REQUEUE,
+    STG_JOB_COUNT,
+    STG_JOB_LIST,
+    STG_JOB_SET_FIT,
+    STG_FIT_INSERT,
+    STG_FIT_GET,
+    STG_FIT_COUNT,
+    STG_FIT_LIST,
+    STG_CALIB_CURRENT_ID,
+    STG_CALIB_NEXT_ID,
+    STG_CALIB_SUPERSEDE,
+    STG_CALIB_INSERT,
+    STG_CALIB_GET,
+    STG_CALIB_CURRENT,
+    STG_CALIB_HISTORY,
+    STG_CALIB_COUNT,
+    STG_CALIB_SEARCH,
+    STG_N
+};
+
+/* Column lists of the SELECTs whose rows the readers (stg_read_*) decode, in this order. */
+#define STG_SENSOR_COLS                                                                           \
+    "id, model, serial, n_cols, n_rows, pitch_um, gain_e_per_dn, read_noise_e, bias_dn, "         \
+    "full_scale_dn, created_ms"
+#define STG_SCAN_COLS                                                                             \
+    "id, sensor_id, poi_col, poi_row, wavelength_um, na, spot_radius_um, area_px, step_um, "      \
+    "sub_px, frames, exposure_us, points_total, state, points_done, error, created_ms, "          \
+    "started_ms, finished_ms"
+#define STG_JOB_COLS                                                                              \
+    "id, kind, params, state, progress, points_done, error, attempts, heartbeat_ms, created_ms, " \
+    "started_ms, finished_ms, scan_id, fit_id"
+#define STG_FIT_COLS                                                                              \
+    "id, scan_id, dcol, drow, noise_model, best_r_aic, best_r_bic, f_value, p_value, result, "    \
+    "created_ms"
+#define STG_CALIB_COLS                                                                            \
+    "c.id, c.sensor_id, c.pixel_col, c.pixel_row, c.r, c.s, c.s_err, c.i0, c.chi2_red, "          \
+    "c.status, c.scan_id, c.fit_id, c.noise_model, c.wavelength_um, c.na, c.spot_radius_um, "     \
+    "c.software_version, c.created_ms, c.superseded_by"
+
+extern const char *const stg_sql[STG_N];
+/* stg_migrations[i] brings user_version i to i + 1 and ends by setting it. */
+extern const char *const stg_migrations[];
+extern const int stg_n_migrations;
+
+struct storage {
+    sqlite3 *db;
+    sqlite3_stmt *stmt[STG_N];
+    storage_clock_fn clock;
+    void *clock_ctx;
+};
+
+/* The cached statement id, prepared on first use; 0 or -EIO/-ENOMEM. Give it back with
+ * stg_reset once its rows are read (before the next use or the end of the transaction). */
+int stg_stmt(storage_t *st, enum stg_id id, sqlite3_stmt **out, err_t *err);
+void stg_reset(sqlite3_stmt *s);
+
+/* Maps a SQLite result code to a negative errno and sets "what: sqlite3_errmsg" in err. */
+int stg_error(storage_t *st, int rc, err_t *err, const char *what);
+
+/* Binders: do nothing when *rc is already an error, else bind and store the result in *rc.
+ * bind_double binds NULL for NaN; bind_id binds NULL for 0; bind_text binds NULL for NULL. */
+void stg_bind_int(sqlite3_stmt *s, int i, int64_t v, int *rc);
+void stg_bind_id(sqlite3_stmt *s, int i, int64_t v, int *rc);
+void stg_bind_double(sqlite3_stmt *s, int i, double v, int *rc);
+void stg_bind_text(sqlite3_stmt *s, int i, const char *v, int *rc);
+void stg_bind_blob(sqlite3_stmt *s, int i, const void *v, size_t n, int *rc);
+
+/* Column readers: NULL reads as NaN (double), 0 (id), NULL (text). stg_col_text returns a
+ * malloc'ed copy and sets *oom when the copy fails. */
+double stg_col_double(sqlite3_stmt *s, int i);
+int64_t stg_col_id(sqlite3_stmt *s, int i);
+char *stg_col_text(sqlite3_stmt *s, int i, int *oom);
+
+/* Runs a bound statement that returns no rows and resets it: 0 or a negative errno. */
+int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what);
+/* Steps a bound statement expecting one row: 0 (row ready), -ENOENT (no row), or an error. */
+int stg_row(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what);
+
+/* Steps a bound COUNT statement (rc: the binding result) into *total and resets it. */
+int stg_count(storage_t *st, sqlite3_stmt *s, int rc, int64_t *total, err_t *err,
+              const char *what);
+/* Reads every row of a bound statement into a growing array of `size`-byte items with read
+ * (0, -ENOMEM, or -EIO for a corrupt row; it frees its item on failure), then resets it.
+ * *items / *n hold what was read even on failure, for the caller's list_free. */
+typedef int (*stg_reader_fn)(sqlite3_stmt *s, void *item);
+int stg_collect(storage_t *st, sqlite3_stmt *s, size_t size, stg_reader_fn read, void **items,
+                size_t *n, err_t *err, const char *what);
+
+/* Transactions: BEGIN IMMEDIATE for writes, BEGIN (deferred) for consistent multi-statement
+ * reads; commit rolls back when it fails; rollback is a no-op outside a transaction. */
+int stg_begin_write(storage_t *st, err_t *err);
+int stg_begin_read(storage_t *st, err_t *err);
+int stg_commit(storage_t *st, err_t *err);
+void stg_rollback(storage_t *st);
+
+/* Little-endian BLOB codecs (docs/schema.md). Encoders return a malloc'ed buffer (NULL when out of
+ * memory); decoders check the byte count and return a malloc'ed array, or NULL (*bad = 1 when the
+ * size is wrong, 0 when out of memory). */
+unsigned char *stg_blob_from_f64(const double *v, size_t n);
+unsigned char *stg_blob_from_u16(const uint16_t *v, size_t n);
+double *stg_f64_from_blob(const void *blob, size_t bytes, size_t n, int *bad);
+uint16_t *stg_u16_from_blob(const void *blob, size_t bytes, size_t n, int *bad);
+double stg_f64_le(const unsigned char *p);
+
+/* Row readers for the STG_*_COLS lists; 0 or -ENOMEM (the struct is freed on failure). */
+int stg_read_sensor(sqlite3_stmt *s, storage_sensor_t *out);
+int stg_read_scan(sqlite3_stmt *s, storage_scan_t *out);
+int stg_read_job(sqlite3_stmt *s, storage_job_t *out);
+
+/* Validation shared by the files; each returns 0 or -EINVAL naming the field. */
+int stg_check_scan(const storage_scan_t *sc, const storage_sensor_t *sensor, err_t *err);
+/* Inserts a scan inside the caller's write transaction. */
+int stg_scan_insert(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t *err);
+/* Inserts a job inside the caller's write transaction. */
+int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_json,
+                   int64_t scan_id, int64_t *id, err_t *err);
+/* Reads the scan inside the caller's transaction (-ENOENT when unknown). */
+int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err);
+
+#endif

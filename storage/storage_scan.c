@@ -1,0 +1,369 @@
+/* storage_scan.c: sensors, scans and their frames (one row per raster point), including the
+ * per-point transaction the scan writer relies on for resume and the pixel raster the fit reads. */
+#include "storage_int.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* the largest k*m*m sample count of one point's raw BLOB (128 MiB), far below SQLite's limit */
+#define STG_MAX_POINT_SAMPLES (1 << 26)
+
+/* ---- sensors ------------------------------------------------------------------------------ */
+
+void storage_sensor_free(storage_sensor_t *s)
+{
+    if (!s) return;
+    free(s->model);
+    free(s->serial);
+    memset(s, 0, sizeof *s);
+}
+
+void storage_sensor_list_free(storage_sensor_list_t *l)
+{
+    if (!l) return;
+    for (size_t i = 0; i < l->n; i++) storage_sensor_free(&l->items[i]);
+    free(l->items);
+    memset(l, 0, sizeof *l);
+}
+
+int stg_read_sensor(sqlite3_stmt *s, storage_sensor_t *o)
+{
+    int oom = 0;
+    memset(o, 0, sizeof *o);
+    o->id = sqlite3_column_int64(s, 0);
+    o->model = stg_col_text(s, 1, &oom);
+    o->serial = stg_col_text(s, 2, &oom);
+    o->n_cols = sqlite3_column_int(s, 3);
+    o->n_rows = sqlite3_column_int(s, 4);
+    o->pitch_um = stg_col_double(s, 5);
+    o->gain_e_per_dn = stg_col_double(s, 6);
+    o->read_noise_e = stg_col_double(s, 7);
+    o->bias_dn = stg_col_double(s, 8);
+    o->full_scale_dn = stg_col_double(s, 9);
+    o->created_ms = stg_col_id(s, 10);
+    if (oom) storage_sensor_free(o);
+    return oom ? -ENOMEM : 0;
+}
+
+static int rd_sensor(sqlite3_stmt *s, void *item) { return stg_read_sensor(s, item); }
+
+static int check_sensor(const storage_sensor_t *s, err_t *err)
+{
+    if (!s) return err_set(err, -EINVAL, "sensor: NULL");
+    if (!s->model || !*s->model) return err_set(err, -EINVAL, "sensor model: empty");
+    if (!s->serial || !*s->serial) return err_set(err, -EINVAL, "sensor serial: empty");
+    if (s->n_cols <= 0 || s->n_rows <= 0)
+        return err_set(err, -EINVAL, "sensor n_cols/n_rows: %d x %d, need > 0", s->n_cols,
+                       s->n_rows);
+    if (!(s->pitch_um > 0 && isfinite(s->pitch_um)))
+        return err_set(err, -EINVAL, "sensor pitch_um: %g, need > 0", s->pitch_um);
+    if (!(s->gain_e_per_dn > 0 && isfinite(s->gain_e_per_dn)))
+        return err_set(err, -EINVAL, "sensor gain_e_per_dn: %g, need > 0", s->gain_e_per_dn);
+    if (!(s->read_noise_e >= 0 && isfinite(s->read_noise_e)))
+        return err_set(err, -EINVAL, "sensor read_noise_e: %g, need >= 0", s->read_noise_e);
+    if (!isfinite(s->bias_dn)) return err_set(err, -EINVAL, "sensor bias_dn: not finite");
+    if (!(s->full_scale_dn > 0 && isfinite(s->full_scale_dn)))
+        return err_set(err, -EINVAL, "sensor full_scale_dn: %g, need > 0", s->full_scale_dn);
+    return 0;
+}
+
+int storage_sensor_create(storage_t *st, const storage_sensor_t *s, int64_t *id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !id) return err_set(err, -EINVAL, "sensor create: NULL argument");
+    if ((ret = check_sensor(s, err)) || (ret = stg_stmt(st, STG_SENSOR_INSERT, &q, err)))
+        return ret;
+    stg_bind_text(q, 1, s->model, &rc);
+    stg_bind_text(q, 2, s->serial, &rc);
+    stg_bind_int(q, 3, s->n_cols, &rc);
+    stg_bind_int(q, 4, s->n_rows, &rc);
+    stg_bind_double(q, 5, s->pitch_um, &rc);
+    stg_bind_double(q, 6, s->gain_e_per_dn, &rc);
+    stg_bind_double(q, 7, s->read_noise_e, &rc);
+    stg_bind_double(q, 8, s->bias_dn, &rc);
+    stg_bind_double(q, 9, s->full_scale_dn, &rc);
+    stg_bind_int(q, 10, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "sensor create");
+    }
+    ret = stg_run(st, q, err, "sensor create");
+    if (ret == -EEXIST)
+        return err_set(err, ret, "sensor model '%s' serial '%s' exists already", s->model,
+                       s->serial);
+    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
+    return ret;
+}
+
+/* Steps q (bound) for one sensor row into *out; -ENOENT when there is none. Resets q. */
+static int sensor_one(storage_t *st, sqlite3_stmt *q, int rc, storage_sensor_t *out, err_t *err)
+{
+    int ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a sensor")
+                              : stg_error(st, rc, err, "reading a sensor");
+    if (ret == 0 && stg_read_sensor(q, out)) ret = err_set(err, -ENOMEM, "sensor: out of memory");
+    stg_reset(q);
+    return ret;
+}
+
+int storage_sensor_get(storage_t *st, int64_t id, storage_sensor_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "sensor get: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_SENSOR_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    ret = sensor_one(st, q, rc, out, err);
+    return ret == -ENOENT ? err_set(err, ret, "sensor %lld does not exist", (long long)id) : ret;
+}
+
+int storage_sensor_find(storage_t *st, const char *model, const char *serial,
+                        storage_sensor_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out || !model || !serial)
+        return err_set(err, -EINVAL, "sensor find: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_SENSOR_FIND, &q, err))) return ret;
+    stg_bind_text(q, 1, model, &rc);
+    stg_bind_text(q, 2, serial, &rc);
+    ret = sensor_one(st, q, rc, out, err);
+    if (ret == -ENOENT) return err_set(err, ret, "no sensor '%s' serial '%s'", model, serial);
+    return ret;
+}
+
+int storage_sensor_list(storage_t *st, storage_sensor_list_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    if (!st || !out) return err_set(err, -EINVAL, "sensor list: NULL argument");
+    memset(out, 0, sizeof *out);
+    int ret = stg_stmt(st, STG_SENSOR_LIST, &q, err);
+    if (ret) return ret;
+    ret = stg_collect(st, q, sizeof *out->items, rd_sensor, (void **)&out->items, &out->n, err,
+                      "listing sensors");
+    if (ret) storage_sensor_list_free(out);
+    else out->total = (int64_t)out->n;
+    return ret;
+}
+
+/* ---- scans -------------------------------------------------------------------------------- */
+
+void storage_scan_free(storage_scan_t *sc)
+{
+    if (!sc) return;
+    free(sc->error);
+    memset(sc, 0, sizeof *sc);
+}
+
+void storage_scan_list_free(storage_scan_list_t *l)
+{
+    if (!l) return;
+    for (size_t i = 0; i < l->n; i++) storage_scan_free(&l->items[i]);
+    free(l->items);
+    memset(l, 0, sizeof *l);
+}
+
+int stg_read_scan(sqlite3_stmt *s, storage_scan_t *o)
+{
+    int oom = 0;
+    memset(o, 0, sizeof *o);
+    o->id = sqlite3_column_int64(s, 0);
+    o->sensor_id = sqlite3_column_int64(s, 1);
+    o->poi_col = sqlite3_column_int(s, 2);
+    o->poi_row = sqlite3_column_int(s, 3);
+    o->wavelength_um = stg_col_double(s, 4);
+    o->na = stg_col_double(s, 5);
+    o->spot_radius_um = stg_col_double(s, 6);
+    o->area_px = sqlite3_column_int(s, 7);
+    o->step_um = stg_col_double(s, 8);
+    o->sub_px = sqlite3_column_int(s, 9);
+    o->frames = sqlite3_column_int(s, 10);
+    o->exposure_us = stg_col_double(s, 11);
+    o->points_total = sqlite3_column_int(s, 12);
+    storage_state_parse((const char *)sqlite3_column_text(s, 13), &o->state); /* CHECKed */
+    o->points_done = sqlite3_column_int(s, 14);
+    o->error = stg_col_text(s, 15, &oom);
+    o->created_ms = stg_col_id(s, 16);
+    o->started_ms = stg_col_id(s, 17);
+    o->finished_ms = stg_col_id(s, 18);
+    if (oom) storage_scan_free(o);
+    return oom ? -ENOMEM : 0;
+}
+
+static int rd_scan(sqlite3_stmt *s, void *item) { return stg_read_scan(s, item); }
+
+static int positive(double v) { return v > 0 && isfinite(v); }
+
+int stg_check_scan(const storage_scan_t *sc, const storage_sensor_t *sn, err_t *err)
+{
+    int h = (sc->sub_px - 1) / 2;
+    if (sc->poi_col < 0 || sc->poi_row < 0 || sc->poi_col >= sn->n_cols ||
+        sc->poi_row >= sn->n_rows)
+        return err_set(err, -EINVAL, "scan poi: (%d, %d) is outside the %d x %d sensor",
+                       sc->poi_col, sc->poi_row, sn->n_cols, sn->n_rows);
+    if (!positive(sc->wavelength_um)) return err_set(err, -EINVAL, "scan wavelength_um: need > 0");
+    if (!positive(sc->na)) return err_set(err, -EINVAL, "scan na: need > 0");
+    if (!positive(sc->spot_radius_um))
+        return err_set(err, -EINVAL, "scan spot_radius_um: need > 0");
+    if (sc->area_px <= 0) return err_set(err, -EINVAL, "scan area_px: %d, need > 0", sc->area_px);
+    if (!positive(sc->step_um)) return err_set(err, -EINVAL, "scan step_um: need > 0");
+    if (sc->sub_px <= 0 || sc->sub_px % 2 == 0)
+        return err_set(err, -EINVAL, "scan sub_px: %d, need an odd number > 0", sc->sub_px);
+    if (sc->frames <= 0) return err_set(err, -EINVAL, "scan frames: %d, need > 0", sc->frames);
+    if ((int64_t)sc->frames * sc->sub_px * sc->sub_px > STG_MAX_POINT_SAMPLES)
+        return err_set(err, -EINVAL, "scan frames x sub_px^2: more than %d samples per point",
+                       STG_MAX_POINT_SAMPLES);
+    if (!positive(sc->exposure_us)) return err_set(err, -EINVAL, "scan exposure_us: need > 0");
+    if (sc->points_total <= 0)
+        return err_set(err, -EINVAL, "scan points_total: %d, need > 0", sc->points_total);
+    if (sc->poi_col - h < 0 || sc->poi_row - h < 0 || sc->poi_col + h >= sn->n_cols ||
+        sc->poi_row + h >= sn->n_rows)
+        return err_set(err, -EINVAL, "scan sub_px: the %d x %d sub-frame around (%d, %d) leaves "
+                       "the sensor", sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row);
+    return 0;
+}
+
+int stg_scan_insert(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t *err)
+{
+    sqlite3_stmt *q;
+    storage_sensor_t sn;
+    int ret = storage_sensor_get(st, sc->sensor_id, &sn, err), rc = SQLITE_OK;
+    if (ret) return ret;
+    ret = stg_check_scan(sc, &sn, err);
+    storage_sensor_free(&sn);
+    if (ret || (ret = stg_stmt(st, STG_SCAN_INSERT, &q, err))) return ret;
+    stg_bind_int(q, 1, sc->sensor_id, &rc);
+    stg_bind_int(q, 2, sc->poi_col, &rc);
+    stg_bind_int(q, 3, sc->poi_row, &rc);
+    stg_bind_double(q, 4, sc->wavelength_um, &rc);
+    stg_bind_double(q, 5, sc->na, &rc);
+    stg_bind_double(q, 6, sc->spot_radius_um, &rc);
+    stg_bind_int(q, 7, sc->area_px, &rc);
+    stg_bind_double(q, 8, sc->step_um, &rc);
+    stg_bind_int(q, 9, sc->sub_px, &rc);
+    stg_bind_int(q, 10, sc->frames, &rc);
+    stg_bind_double(q, 11, sc->exposure_us, &rc);
+    stg_bind_int(q, 12, sc->points_total, &rc);
+    stg_bind_int(q, 13, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "scan create");
+    }
+    if ((ret = stg_run(st, q, err, "scan create"))) return ret;
+    *id = sqlite3_last_insert_rowid(st->db);
+    return 0;
+}
+
+int storage_scan_create(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t *err)
+{
+    if (!st || !sc || !id) return err_set(err, -EINVAL, "scan create: NULL argument");
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    if ((ret = stg_scan_insert(st, sc, id, err))) {
+        stg_rollback(st);
+        return ret;
+    }
+    return stg_commit(st, err);
+}
+
+int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *params_json,
+                        int64_t *scan_id, int64_t *job_id, err_t *err)
+{
+    if (!st || !sc || !params_json || !scan_id || !job_id)
+        return err_set(err, -EINVAL, "scan submit: NULL argument");
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    if ((ret = stg_scan_insert(st, sc, scan_id, err)) ||
+        (ret = stg_job_insert(st, STORAGE_JOB_SCAN, params_json, *scan_id, job_id, err))) {
+        stg_rollback(st);
+        return ret;
+    }
+    return stg_commit(st, err);
+}
+
+int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_SCAN_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a scan")
+                          : stg_error(st, rc, err, "reading a scan");
+    if (ret == 0 && stg_read_scan(q, out)) ret = err_set(err, -ENOMEM, "scan: out of memory");
+    stg_reset(q);
+    return ret == -ENOENT ? err_set(err, ret, "scan %lld does not exist", (long long)id) : ret;
+}
+
+int storage_scan_get(storage_t *st, int64_t id, storage_scan_t *out, err_t *err)
+{
+    if (!st || !out) return err_set(err, -EINVAL, "scan get: NULL argument");
+    return stg_scan_load(st, id, out, err);
+}
+
+static void bind_scan_filter(sqlite3_stmt *q, int64_t sensor_id, int state, int *rc)
+{
+    stg_bind_id(q, 1, sensor_id, rc);
+    stg_bind_text(q, 2, state == STORAGE_ANY ? NULL : storage_state_name(state), rc);
+}
+
+int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, int offset,
+                      storage_scan_list_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "scan list: NULL argument");
+    memset(out, 0, sizeof *out);
+    if (state != STORAGE_ANY && !storage_state_name(state))
+        return err_set(err, -EINVAL, "scan list state: %d is not a state", state);
+    if (offset < 0) return err_set(err, -EINVAL, "scan list offset: %d, need >= 0", offset);
+    if ((ret = stg_begin_read(st, err))) return ret;
+    if ((ret = stg_stmt(st, STG_SCAN_COUNT, &q, err))) goto out;
+    bind_scan_filter(q, sensor_id, state, &rc);
+    if ((ret = stg_count(st, q, rc, &out->total, err, "counting scans"))) goto out;
+    if ((ret = stg_stmt(st, STG_SCAN_LIST, &q, err))) goto out;
+    bind_scan_filter(q, sensor_id, state, &rc);
+    stg_bind_int(q, 3, limit > 0 ? limit : -1, &rc);
+    stg_bind_int(q, 4, offset, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "listing scans");
+        goto out;
+    }
+    ret = stg_collect(st, q, sizeof *out->items, rd_scan, (void **)&out->items, &out->n, err,
+                      "listing scans");
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        storage_scan_list_free(out);
+    }
+    return ret;
+}
+
+int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, const char *error,
+                           err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st) return err_set(err, -EINVAL, "scan set state: NULL handle");
+    if (!storage_state_name(state))
+        return err_set(err, -EINVAL, "scan state: %d is not a state", (int)state);
+    if ((ret = stg_stmt(st, STG_SCAN_SET_STATE, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    stg_bind_text(q, 2, storage_state_name(state), &rc);
+    stg_bind_text(q, 3, error, &rc);
+    stg_bind_int(q, 4, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "scan set state");
+    }
+    if ((ret = stg_run(st, q, err, "scan set state"))) return ret;
+    if (sqlite3_changes(st->db) == 0)
+        return err_set(err, -ENOENT, "scan %lld does not exist", (long long)id);
+    return 0;
+}

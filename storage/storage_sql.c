@@ -1,0 +1,239 @@
+/* storage_sql.c: every SQL text of ipsd: the schema migrations and the statements the code
+ * prepares (once per connection). Values are always bound parameters, never spliced into SQL.
+ * The schema is documented for people in docs/schema.md: keep the two in step. */
+#include "storage_int.h"
+
+/* Migration N (index N-1) brings user_version N-1 to N inside one transaction run by
+ * storage_open. Never edit a released migration: add a new one. */
+const char *const stg_migrations[] = {
+    /* 1: the initial schema */
+    "CREATE TABLE sensors (\n"
+    "    id            INTEGER PRIMARY KEY,\n"
+    "    model         TEXT    NOT NULL CHECK (length(model) > 0),\n"
+    "    serial        TEXT    NOT NULL CHECK (length(serial) > 0),\n"
+    "    n_cols        INTEGER NOT NULL CHECK (n_cols > 0),\n"
+    "    n_rows        INTEGER NOT NULL CHECK (n_rows > 0),\n"
+    "    pitch_um      REAL    NOT NULL CHECK (pitch_um > 0),\n"
+    "    gain_e_per_dn REAL    NOT NULL CHECK (gain_e_per_dn > 0),\n"
+    "    read_noise_e  REAL    NOT NULL CHECK (read_noise_e >= 0),\n"
+    "    bias_dn       REAL    NOT NULL,\n"
+    "    full_scale_dn REAL    NOT NULL CHECK (full_scale_dn > 0),\n"
+    "    created_ms    INTEGER NOT NULL,\n"
+    "    UNIQUE (model, serial)\n"
+    ");\n"
+    "CREATE TABLE scans (\n"
+    "    id             INTEGER PRIMARY KEY,\n"
+    "    sensor_id      INTEGER NOT NULL REFERENCES sensors (id),\n"
+    "    poi_col        INTEGER NOT NULL CHECK (poi_col >= 0),\n"
+    "    poi_row        INTEGER NOT NULL CHECK (poi_row >= 0),\n"
+    "    wavelength_um  REAL    NOT NULL CHECK (wavelength_um > 0),\n"
+    "    na             REAL    NOT NULL CHECK (na > 0),\n"
+    "    spot_radius_um REAL    NOT NULL CHECK (spot_radius_um > 0),\n"
+    "    area_px        INTEGER NOT NULL CHECK (area_px > 0),\n"
+    "    step_um        REAL    NOT NULL CHECK (step_um > 0),\n"
+    "    sub_px         INTEGER NOT NULL CHECK (sub_px > 0 AND sub_px % 2 = 1),\n"
+    "    frames         INTEGER NOT NULL CHECK (frames > 0),\n"
+    "    exposure_us    REAL    NOT NULL CHECK (exposure_us > 0),\n"
+    "    points_total   INTEGER NOT NULL CHECK (points_total > 0),\n"
+    "    state          TEXT    NOT NULL DEFAULT 'queued'\n"
+    "                   CHECK (state IN ('queued', 'running', 'done', 'failed', 'cancelled')),\n"
+    "    points_done    INTEGER NOT NULL DEFAULT 0\n"
+    "                   CHECK (points_done BETWEEN 0 AND points_total),\n"
+    "    error          TEXT,\n"
+    "    created_ms     INTEGER NOT NULL,\n"
+    "    started_ms     INTEGER,\n"
+    "    finished_ms    INTEGER\n"
+    ");\n"
+    "CREATE INDEX scans_sensor_state ON scans (sensor_id, state);\n"
+    /* raw is the last column: reading mean (the raster) never walks raw's overflow pages */
+    "CREATE TABLE frames (\n"
+    "    id          INTEGER PRIMARY KEY,\n"
+    "    scan_id     INTEGER NOT NULL REFERENCES scans (id),\n"
+    "    point_index INTEGER NOT NULL CHECK (point_index >= 0),\n"
+    "    stage_x_um  REAL    NOT NULL,\n"
+    "    stage_y_um  REAL    NOT NULL,\n"
+    "    stage_z_um  REAL    NOT NULL,\n"
+    "    exposure_us REAL    NOT NULL CHECK (exposure_us > 0),\n"
+    "    captured_ms INTEGER NOT NULL,\n"
+    "    mean        BLOB    NOT NULL,\n"
+    "    raw         BLOB    NOT NULL,\n"
+    "    UNIQUE (scan_id, point_index)\n"
+    ");\n"
+    "CREATE TABLE jobs (\n"
+    "    id           INTEGER PRIMARY KEY,\n"
+    "    kind         TEXT    NOT NULL CHECK (kind IN ('scan', 'fit')),\n"
+    "    params       TEXT    NOT NULL CONSTRAINT params_json CHECK (json_valid(params)),\n"
+    "    state        TEXT    NOT NULL DEFAULT 'queued'\n"
+    "                 CHECK (state IN ('queued', 'running', 'done', 'failed', 'cancelled')),\n"
+    "    progress     REAL    NOT NULL DEFAULT 0 CHECK (progress BETWEEN 0 AND 1),\n"
+    "    points_done  INTEGER NOT NULL DEFAULT 0 CHECK (points_done >= 0),\n"
+    "    error        TEXT,\n"
+    "    attempts     INTEGER NOT NULL DEFAULT 0,\n"
+    "    heartbeat_ms INTEGER,\n"
+    "    created_ms   INTEGER NOT NULL,\n"
+    "    started_ms   INTEGER,\n"
+    "    finished_ms  INTEGER,\n"
+    "    scan_id      INTEGER REFERENCES scans (id),\n"
+    "    fit_id       INTEGER REFERENCES fits (id)\n"
+    ");\n"
+    "CREATE INDEX jobs_queue ON jobs (kind, state, id);\n"
+    "CREATE INDEX jobs_scan ON jobs (scan_id);\n"
+    "CREATE TABLE fits (\n"
+    "    id          INTEGER PRIMARY KEY,\n"
+    "    scan_id     INTEGER NOT NULL REFERENCES scans (id),\n"
+    "    dcol        INTEGER NOT NULL,\n"
+    "    drow        INTEGER NOT NULL,\n"
+    "    noise_model TEXT    NOT NULL CHECK (length(noise_model) > 0),\n"
+    "    best_r_aic  INTEGER,\n"
+    "    best_r_bic  INTEGER,\n"
+    "    f_value     REAL,\n"
+    "    p_value     REAL,\n"
+    "    result      TEXT    NOT NULL CONSTRAINT result_json CHECK (json_valid(result)),\n"
+    "    created_ms  INTEGER NOT NULL\n"
+    ");\n"
+    "CREATE INDEX fits_scan_pixel ON fits (scan_id, drow, dcol);\n"
+    "CREATE TABLE calibrations (\n"
+    "    id               INTEGER PRIMARY KEY,\n"
+    "    sensor_id        INTEGER NOT NULL REFERENCES sensors (id),\n"
+    "    pixel_col        INTEGER NOT NULL CHECK (pixel_col >= 0),\n"
+    "    pixel_row        INTEGER NOT NULL CHECK (pixel_row >= 0),\n"
+    "    r                INTEGER NOT NULL CHECK (r BETWEEN 1 AND 64),\n"
+    "    s                BLOB    NOT NULL CHECK (length(s) = 8 * r * r),\n"
+    "    s_err            BLOB    NOT NULL CHECK (length(s_err) = 8 * r * r),\n"
+    "    i0               REAL,\n"
+    "    chi2_red         REAL,\n"
+    "    status           TEXT    NOT NULL CHECK (length(status) > 0),\n"
+    "    scan_id          INTEGER REFERENCES scans (id),\n"
+    "    fit_id           INTEGER REFERENCES fits (id),\n"
+    "    noise_model      TEXT    NOT NULL CHECK (length(noise_model) > 0),\n"
+    "    wavelength_um    REAL,\n"
+    "    na               REAL,\n"
+    "    spot_radius_um   REAL,\n"
+    "    software_version TEXT    NOT NULL,\n"
+    "    created_ms       INTEGER NOT NULL,\n"
+    "    superseded_by    INTEGER REFERENCES calibrations (id) DEFERRABLE INITIALLY DEFERRED\n"
+    ");\n"
+    /* at most one current calibration per sensor pixel, enforced by the database itself */
+    "CREATE UNIQUE INDEX calibrations_current ON calibrations (sensor_id, pixel_row, pixel_col)\n"
+    "    WHERE superseded_by IS NULL;\n"
+    "CREATE INDEX calibrations_pixel ON calibrations (sensor_id, pixel_row, pixel_col, id);\n"
+    "CREATE INDEX calibrations_created ON calibrations (created_ms);\n"
+    "PRAGMA user_version = 1;\n",
+};
+const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
+
+#define SCAN_FILTER "WHERE (?1 IS NULL OR sensor_id = ?1) AND (?2 IS NULL OR state = ?2)"
+#define JOB_FILTER                                                                                \
+    "WHERE (?1 IS NULL OR kind = ?1) AND (?2 IS NULL OR state = ?2) "                             \
+    "AND (?3 IS NULL OR scan_id = ?3)"
+#define CALIB_FILTER                                                                              \
+    "FROM calibrations c JOIN sensors s ON s.id = c.sensor_id "                                   \
+    "WHERE (?1 IS NULL OR c.sensor_id = ?1) AND (?2 IS NULL OR s.model = ?2) "                    \
+    "AND (?3 IS NULL OR c.pixel_col >= ?3) AND (?4 IS NULL OR c.pixel_col <= ?4) "                \
+    "AND (?5 IS NULL OR c.pixel_row >= ?5) AND (?6 IS NULL OR c.pixel_row <= ?6) "                \
+    "AND (?7 IS NULL OR c.created_ms >= ?7) AND (?8 IS NULL OR c.status = ?8) "                   \
+    "AND (?9 = 0 OR c.superseded_by IS NULL)"
+#define FINAL_STATES "('done', 'failed', 'cancelled')"
+
+const char *const stg_sql[STG_N] = {
+    [STG_BEGIN_WRITE] = "BEGIN IMMEDIATE",
+    [STG_BEGIN_READ] = "BEGIN",
+    [STG_COMMIT] = "COMMIT",
+    [STG_ROLLBACK] = "ROLLBACK",
+    [STG_USER_VERSION] = "PRAGMA user_version",
+
+    [STG_SENSOR_INSERT] =
+        "INSERT INTO sensors (model, serial, n_cols, n_rows, pitch_um, gain_e_per_dn, "
+        "read_noise_e, bias_dn, full_scale_dn, created_ms) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+    [STG_SENSOR_GET] = "SELECT " STG_SENSOR_COLS " FROM sensors WHERE id = ?1",
+    [STG_SENSOR_FIND] = "SELECT " STG_SENSOR_COLS " FROM sensors WHERE model = ?1 AND serial = ?2",
+    [STG_SENSOR_LIST] = "SELECT " STG_SENSOR_COLS " FROM sensors ORDER BY id",
+
+    [STG_SCAN_INSERT] =
+        "INSERT INTO scans (sensor_id, poi_col, poi_row, wavelength_um, na, spot_radius_um, "
+        "area_px, step_um, sub_px, frames, exposure_us, points_total, state, points_done, "
+        "created_ms) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, 'queued', 0, ?13)",
+    [STG_SCAN_GET] = "SELECT " STG_SCAN_COLS " FROM scans WHERE id = ?1",
+    [STG_SCAN_COUNT] = "SELECT count(*) FROM scans " SCAN_FILTER,
+    [STG_SCAN_LIST] =
+        "SELECT " STG_SCAN_COLS " FROM scans " SCAN_FILTER " ORDER BY id DESC LIMIT ?3 OFFSET ?4",
+    [STG_SCAN_SET_STATE] =
+        "UPDATE scans SET state = ?2, error = ?3, "
+        "started_ms = CASE WHEN ?2 = 'running' THEN coalesce(started_ms, ?4) ELSE started_ms END, "
+        "finished_ms = CASE WHEN ?2 IN " FINAL_STATES " THEN ?4 ELSE NULL END "
+        "WHERE id = ?1",
+    [STG_SCAN_ADD_POINT] = "UPDATE scans SET points_done = points_done + 1 WHERE id = ?1",
+    [STG_SCAN_CANCEL] = "UPDATE scans SET state = 'cancelled', finished_ms = ?2 "
+                        "WHERE id = ?1 AND state IN ('queued', 'running')",
+
+    [STG_FRAME_INSERT] =
+        "INSERT INTO frames (scan_id, point_index, stage_x_um, stage_y_um, stage_z_um, "
+        "exposure_us, captured_ms, mean, raw) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+    [STG_FRAME_GET] =
+        "SELECT stage_x_um, stage_y_um, stage_z_um, exposure_us, captured_ms, mean, raw "
+        "FROM frames WHERE scan_id = ?1 AND point_index = ?2",
+    [STG_FRAME_LAST] =
+        "SELECT coalesce(max(point_index), -1), count(*) FROM frames WHERE scan_id = ?1",
+    /* ?2 is the 1-based byte offset of the pixel's float64 in the mean BLOB */
+    [STG_FRAME_RASTER] =
+        "SELECT point_index, stage_x_um, stage_y_um, exposure_us, substr(mean, ?2, 8) "
+        "FROM frames WHERE scan_id = ?1 ORDER BY point_index",
+
+    [STG_JOB_INSERT] = "INSERT INTO jobs (kind, params, state, created_ms, scan_id) "
+                       "VALUES (?1, ?2, 'queued', ?3, ?4)",
+    [STG_JOB_GET] = "SELECT " STG_JOB_COLS " FROM jobs WHERE id = ?1",
+    [STG_JOB_NEXT] = "SELECT id FROM jobs WHERE kind = ?1 AND state = 'queued' ORDER BY id LIMIT 1",
+    [STG_JOB_START] = "UPDATE jobs SET state = 'running', attempts = attempts + 1, "
+                      "heartbeat_ms = ?2, started_ms = coalesce(started_ms, ?2) "
+                      "WHERE id = ?1 AND state = 'queued'",
+    [STG_JOB_HEARTBEAT] = "UPDATE jobs SET heartbeat_ms = ?2, progress = ?3, points_done = ?4 "
+                          "WHERE id = ?1 AND state = 'running'",
+    [STG_JOB_FINISH] =
+        "UPDATE jobs SET state = ?2, error = ?3, finished_ms = ?4, heartbeat_ms = ?4, "
+        "progress = CASE WHEN ?2 = 'done' THEN 1 ELSE progress END "
+        "WHERE id = ?1 AND state = 'running'",
+    [STG_JOB_CANCEL] = "UPDATE jobs SET state = 'cancelled', finished_ms = ?2 "
+                       "WHERE id = ?1 AND state IN ('queued', 'running')",
+    [STG_JOB_STATE] = "SELECT state, kind, scan_id FROM jobs WHERE id = ?1",
+    [STG_JOB_ABANDON] =
+        "UPDATE jobs SET state = 'failed', finished_ms = ?3, "
+        "error = 'abandoned after ' || attempts || ' attempts (stale heartbeat)' "
+        "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1 AND ?2 > 0 AND attempts >= ?2",
+    [STG_JOB_REQUEUE] = "UPDATE jobs SET state = 'queued', heartbeat_ms = NULL "
+                        "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1",
+    [STG_JOB_COUNT] = "SELECT count(*) FROM jobs " JOB_FILTER,
+    [STG_JOB_LIST] =
+        "SELECT " STG_JOB_COLS " FROM jobs " JOB_FILTER " ORDER BY id DESC LIMIT ?4 OFFSET ?5",
+    [STG_JOB_SET_FIT] = "UPDATE jobs SET fit_id = ?2 WHERE id = ?1",
+
+    [STG_FIT_INSERT] = "INSERT INTO fits (scan_id, dcol, drow, noise_model, best_r_aic, "
+                       "best_r_bic, f_value, p_value, result, created_ms) "
+                       "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+    [STG_FIT_GET] = "SELECT " STG_FIT_COLS " FROM fits WHERE id = ?1",
+    [STG_FIT_COUNT] = "SELECT count(*) FROM fits WHERE scan_id = ?1",
+    [STG_FIT_LIST] = "SELECT " STG_FIT_COLS " FROM fits WHERE scan_id = ?1 "
+                     "ORDER BY id DESC LIMIT ?2 OFFSET ?3",
+
+    [STG_CALIB_CURRENT_ID] = "SELECT id FROM calibrations WHERE sensor_id = ?1 AND pixel_col = ?2 "
+                             "AND pixel_row = ?3 AND superseded_by IS NULL",
+    /* the id the next INSERT would get anyway: known before the INSERT so that the old row can
+     * point to it first (superseded_by is a deferred foreign key; see storage_calib.c) */
+    [STG_CALIB_NEXT_ID] = "SELECT coalesce(max(id), 0) + 1 FROM calibrations",
+    [STG_CALIB_SUPERSEDE] = "UPDATE calibrations SET superseded_by = ?2 WHERE id = ?1",
+    [STG_CALIB_INSERT] =
+        "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
+        "chi2_red, status, scan_id, fit_id, noise_model, wavelength_um, na, spot_radius_um, "
+        "software_version, created_ms) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
+    [STG_CALIB_GET] = "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.id = ?1",
+    [STG_CALIB_CURRENT] =
+        "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.sensor_id = ?1 "
+        "AND c.pixel_col = ?2 AND c.pixel_row = ?3 AND c.superseded_by IS NULL",
+    [STG_CALIB_HISTORY] = "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.sensor_id = ?1 "
+                          "AND c.pixel_col = ?2 AND c.pixel_row = ?3 ORDER BY c.id DESC",
+    [STG_CALIB_COUNT] = "SELECT count(*) " CALIB_FILTER,
+    [STG_CALIB_SEARCH] = "SELECT " STG_CALIB_COLS " " CALIB_FILTER
+                         " ORDER BY c.created_ms DESC, c.id DESC LIMIT ?10 OFFSET ?11",
+};

@@ -1,0 +1,826 @@
+/* test_storage.c: storage/ against real SQLite files in a mkdtemp directory (removed at the end).
+ * Expected values come from the test's own inputs and from independent readers: the raw SQLite
+ * API on a separate connection (schema version, journal mode, row counts, BLOB bytes against
+ * hand-written little-endian hex) and the sqlite3 command-line shell. */
+#define _GNU_SOURCE /* mkdtemp, strdup under -std=c11 */
+#include <dirent.h>
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <sqlite3.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "storage.h"
+
+static char tmpdir[512];
+static int64_t fake_now = 1700000000000; /* the clock of the handles that install it */
+
+static int64_t fake_clock(void *ctx) { return *(int64_t *)ctx; }
+
+static const char *db_path(const char *name)
+{
+    static char buf[8][1024];
+    static int next;
+    char *p = buf[next++ % 8];
+    snprintf(p, sizeof buf[0], "%s/%s", tmpdir, name);
+    return p;
+}
+
+static storage_t *open_db(const char *name)
+{
+    storage_t *st = NULL;
+    err_t err = {{0}};
+    int ret = storage_open(db_path(name), &st, &err);
+    if (ret) fprintf(stderr, "storage_open %s: %d %s\n", name, ret, err.msg);
+    CHECK(ret == 0 && st);
+    if (st) storage_set_clock(st, fake_clock, &fake_now);
+    return st;
+}
+
+/* ---- independent reader: a raw SQLite connection -------------------------------------------- */
+
+static int64_t raw_int(const char *name, const char *sql)
+{
+    sqlite3 *db = NULL;
+    sqlite3_stmt *s = NULL;
+    int64_t v = -999;
+    if (sqlite3_open(db_path(name), &db) == SQLITE_OK &&
+        sqlite3_prepare_v2(db, sql, -1, &s, NULL) == SQLITE_OK && sqlite3_step(s) == SQLITE_ROW)
+        v = sqlite3_column_int64(s, 0);
+    sqlite3_finalize(s);
+    sqlite3_close(db);
+    return v;
+}
+
+static void raw_text(const char *name, const char *sql, char *out, size_t n)
+{
+    sqlite3 *db = NULL;
+    sqlite3_stmt *s = NULL;
+    snprintf(out, n, "(none)");
+    if (sqlite3_open(db_path(name), &db) == SQLITE_OK &&
+        sqlite3_prepare_v2(db, sql, -1, &s, NULL) == SQLITE_OK && sqlite3_step(s) == SQLITE_ROW &&
+        sqlite3_column_text(s, 0))
+        snprintf(out, n, "%s", (const char *)sqlite3_column_text(s, 0));
+    sqlite3_finalize(s);
+    sqlite3_close(db);
+}
+
+static int raw_exec(const char *name, const char *sql)
+{
+    sqlite3 *db = NULL;
+    int rc = sqlite3_open(db_path(name), &db);
+    if (rc == SQLITE_OK) {
+        sqlite3_busy_timeout(db, 5000);
+        rc = sqlite3_exec(db, sql, NULL, NULL, NULL);
+    }
+    sqlite3_close(db);
+    return rc;
+}
+
+/* ---- fixtures ------------------------------------------------------------------------------- */
+
+static int64_t make_sensor(storage_t *st, const char *model, const char *serial)
+{
+    storage_sensor_t s = {.model = (char *)model, .serial = (char *)serial, .n_cols = 640,
+                          .n_rows = 480, .pitch_um = 6.0, .gain_e_per_dn = 1.5,
+                          .read_noise_e = 3.25, .bias_dn = 100.0, .full_scale_dn = 16383.0};
+    int64_t id = 0;
+    CHECK(storage_sensor_create(st, &s, &id, NULL) == 0 && id > 0);
+    return id;
+}
+
+static storage_scan_t scan_template(int64_t sensor_id)
+{
+    return (storage_scan_t){.sensor_id = sensor_id, .poi_col = 100, .poi_row = 200,
+                            .wavelength_um = 0.55, .na = 0.25, .spot_radius_um = 1.342,
+                            .area_px = 5, .step_um = 0.6, .sub_px = 3, .frames = 2,
+                            .exposure_us = 1500.0, .points_total = 6};
+}
+
+static int64_t make_running_scan(storage_t *st, int64_t sensor_id)
+{
+    storage_scan_t sc = scan_template(sensor_id);
+    int64_t id = 0;
+    CHECK(storage_scan_create(st, &sc, &id, NULL) == 0 && id > 0);
+    CHECK(storage_scan_set_state(st, id, STORAGE_RUNNING, NULL, NULL) == 0);
+    return id;
+}
+
+/* A point of a 3 x 3, 2-frame scan whose mean at sub-frame pixel (i, j) is 1000 p + 10 j + i
+ * + 0.25 and whose raw samples are 100 p + sample index. */
+static int put_point(storage_t *st, int64_t scan, int p, err_t *err)
+{
+    uint16_t raw[18];
+    double mean[9];
+    for (int k = 0; k < 18; k++) raw[k] = (uint16_t)(100 * p + k);
+    for (int j = 0; j < 3; j++)
+        for (int i = 0; i < 3; i++) mean[j * 3 + i] = 1000.0 * p + 10 * j + i + 0.25;
+    storage_frame_t f = {.scan_id = scan, .point_index = p, .stage_x_um = 0.6 * (p % 3),
+                         .stage_y_um = 0.6 * (p / 3), .stage_z_um = -12.5,
+                         .exposure_us = 1000.0 + p, .frames = 2, .sub_px = 3, .raw = raw,
+                         .mean = mean};
+    return storage_frame_put(st, &f, err);
+}
+
+/* ---- tests ---------------------------------------------------------------------------------- */
+
+static void test_open_migrate(void)
+{
+    storage_t *st = open_db("open.db");
+    struct stat sb;
+    char mode[32];
+    CHECK(stat(db_path("open.db"), &sb) == 0);
+    CHECK(storage_schema_version() >= 1);
+    CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
+    raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
+    CHECK(strcmp(mode, "wal") == 0);
+    CHECK(raw_int("open.db", "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN "
+                             "('sensors','scans','frames','jobs','fits','calibrations')") == 6);
+    int64_t sensor = make_sensor(st, "IMX-T", "0001");
+    int64_t objects = raw_int("open.db", "SELECT count(*) FROM sqlite_master");
+    storage_close(st);
+
+    /* reopening an existing, current database is a no-op: same version, objects and rows */
+    st = open_db("open.db");
+    CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
+    CHECK(raw_int("open.db", "SELECT count(*) FROM sqlite_master") == objects);
+    storage_sensor_t s;
+    CHECK(storage_sensor_get(st, sensor, &s, NULL) == 0 && strcmp(s.model, "IMX-T") == 0);
+    storage_sensor_free(&s);
+    storage_close(st);
+
+    /* bad arguments, a missing directory, NULL close */
+    err_t err = {{0}};
+    storage_t *none = (storage_t *)&err;
+    CHECK(storage_open(NULL, &none, &err) == -EINVAL && none == NULL);
+    CHECK(storage_open(db_path("x.db"), NULL, &err) == -EINVAL);
+    CHECK(storage_open(db_path("no/such/dir/x.db"), &none, &err) == -EIO && none == NULL);
+    CHECK(strstr(err.msg, "no/such/dir/x.db") != NULL);
+    storage_close(NULL);
+}
+
+static void test_refuse(void)
+{
+    /* a database from a newer ipsd: refused, and left exactly as it was (not even WAL) */
+    char sql[128], mode[32];
+    snprintf(sql, sizeof sql, "CREATE TABLE t (x); PRAGMA user_version = %d;",
+             storage_schema_version() + 1);
+    CHECK(raw_exec("new.db", sql) == SQLITE_OK);
+    storage_t *st = NULL;
+    err_t err = {{0}};
+    CHECK(storage_open(db_path("new.db"), &st, &err) == -ENOTSUP && st == NULL);
+    CHECK(strstr(err.msg, "newer") != NULL);
+    CHECK(raw_int("new.db", "PRAGMA user_version") == storage_schema_version() + 1);
+    raw_text("new.db", "PRAGMA journal_mode", mode, sizeof mode);
+    CHECK(strcmp(mode, "delete") == 0);
+
+    /* a file that is not a database */
+    FILE *f = fopen(db_path("junk.db"), "w");
+    CHECK(f != NULL);
+    if (f) {
+        for (int i = 0; i < 64; i++) fputs("this is not an SQLite database\n", f);
+        fclose(f);
+    }
+    CHECK(storage_open(db_path("junk.db"), &st, &err) == -EIO && st == NULL);
+    CHECK(strstr(err.msg, "junk.db") != NULL);
+}
+
+static void test_sensor_scan_roundtrip(void)
+{
+    storage_t *st = open_db("rt.db");
+    err_t err = {{0}};
+    int64_t sensor = make_sensor(st, "IMX-RT", "S/N 42");
+    storage_sensor_t s, dup = {.model = "IMX-RT", .serial = "S/N 42", .n_cols = 1, .n_rows = 1,
+                               .pitch_um = 1, .gain_e_per_dn = 1, .full_scale_dn = 1};
+    int64_t id = 0;
+    CHECK(storage_sensor_create(st, &dup, &id, &err) == -EEXIST && strstr(err.msg, "S/N 42"));
+    CHECK(storage_sensor_find(st, "IMX-RT", "S/N 42", &s, NULL) == 0);
+    CHECK(s.id == sensor && s.n_cols == 640 && s.n_rows == 480 && s.pitch_um == 6.0);
+    CHECK(s.gain_e_per_dn == 1.5 && s.read_noise_e == 3.25 && s.bias_dn == 100.0);
+    CHECK(s.full_scale_dn == 16383.0 && s.created_ms == fake_now);
+    storage_sensor_free(&s);
+    CHECK(storage_sensor_get(st, 999, &s, &err) == -ENOENT && strstr(err.msg, "999"));
+
+    storage_scan_t in = scan_template(sensor), sc;
+    CHECK(storage_scan_create(st, &in, &id, NULL) == 0);
+    CHECK(storage_scan_get(st, id, &sc, NULL) == 0);
+    CHECK(sc.sensor_id == sensor && sc.poi_col == 100 && sc.poi_row == 200);
+    CHECK(sc.wavelength_um == 0.55 && sc.na == 0.25 && sc.spot_radius_um == 1.342);
+    CHECK(sc.area_px == 5 && sc.step_um == 0.6 && sc.sub_px == 3 && sc.frames == 2);
+    CHECK(sc.exposure_us == 1500.0 && sc.points_total == 6 && sc.points_done == 0);
+    CHECK(sc.state == STORAGE_QUEUED && sc.error == NULL && sc.created_ms == fake_now);
+    CHECK(sc.started_ms == 0 && sc.finished_ms == 0);
+    storage_scan_free(&sc);
+    int64_t t_start = fake_now += 1000;
+    CHECK(storage_scan_set_state(st, id, STORAGE_RUNNING, NULL, NULL) == 0);
+    fake_now += 1000;
+    CHECK(storage_scan_set_state(st, id, STORAGE_FAILED, "stage lost", NULL) == 0);
+    CHECK(storage_scan_get(st, id, &sc, NULL) == 0);
+    CHECK(sc.state == STORAGE_FAILED && sc.error && strcmp(sc.error, "stage lost") == 0);
+    CHECK(sc.started_ms == t_start && sc.finished_ms == fake_now);
+    storage_scan_free(&sc);
+    CHECK(storage_scan_set_state(st, 999, STORAGE_DONE, NULL, NULL) == -ENOENT);
+
+    /* validation: even sub-frame, unknown sensor, sub-frame off the sensor */
+    in.sub_px = 4;
+    CHECK(storage_scan_create(st, &in, &id, &err) == -EINVAL && strstr(err.msg, "sub_px"));
+    in = scan_template(999);
+    CHECK(storage_scan_create(st, &in, &id, &err) == -ENOENT);
+    in = scan_template(sensor);
+    in.poi_col = 639;
+    CHECK(storage_scan_create(st, &in, &id, &err) == -EINVAL);
+    CHECK(raw_int("rt.db", "SELECT count(*) FROM scans") == 1);
+    storage_close(st);
+}
+
+static void test_frame_roundtrip(void)
+{
+    storage_t *st = open_db("frame.db");
+    int64_t scan = make_running_scan(st, make_sensor(st, "IMX-F", "1"));
+    uint16_t raw[18] = {0x1234, 0xFFFF, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 65534, 42};
+    double mean[9] = {1.0, -0.0, 1.0 / 3.0, 5e-324, 1.7976931348623157e308, -2.5, 1e-300,
+                      3.141592653589793, 16383.0};
+    storage_frame_t f = {.scan_id = scan, .point_index = 4, .stage_x_um = 1.25,
+                         .stage_y_um = -3.5, .stage_z_um = 0.125, .exposure_us = 2000.0,
+                         .frames = 2, .sub_px = 3, .raw = raw, .mean = mean}, g;
+    CHECK(storage_frame_put(st, &f, NULL) == 0);
+    CHECK(storage_frame_get(st, scan, 4, &g, NULL) == 0);
+    CHECK(g.frames == 2 && g.sub_px == 3 && g.raw && g.mean);
+    CHECK(g.raw && memcmp(g.raw, raw, sizeof raw) == 0);
+    CHECK(g.mean && memcmp(g.mean, mean, sizeof mean) == 0); /* bit-exact, -0.0 and denormal too */
+    CHECK(g.stage_x_um == 1.25 && g.stage_y_um == -3.5 && g.stage_z_um == 0.125);
+    CHECK(g.exposure_us == 2000.0 && g.captured_ms == fake_now);
+    storage_frame_free(&g);
+    CHECK(storage_frame_get(st, scan, 3, &g, NULL) == -ENOENT);
+
+    /* the documented layout: little-endian, uint16 raw, float64 mean (hex written by hand) */
+    char hex[64];
+    raw_text("frame.db", "SELECT hex(substr(raw, 1, 4)) FROM frames", hex, sizeof hex);
+    CHECK(strcmp(hex, "3412FFFF") == 0);
+    raw_text("frame.db", "SELECT hex(substr(mean, 1, 16)) FROM frames", hex, sizeof hex);
+    CHECK(strcmp(hex, "000000000000F03F0000000000000080") == 0);
+    CHECK(raw_int("frame.db", "SELECT length(raw) FROM frames") == 2 * 3 * 3 * 2);
+    CHECK(raw_int("frame.db", "SELECT length(mean) FROM frames") == 3 * 3 * 8);
+
+    /* wrong shape, index out of range */
+    err_t err = {{0}};
+    f.sub_px = 5;
+    CHECK(storage_frame_put(st, &f, &err) == -EINVAL && strstr(err.msg, "shape"));
+    f.sub_px = 3;
+    f.point_index = 6;
+    CHECK(storage_frame_put(st, &f, &err) == -EINVAL && strstr(err.msg, "point_index"));
+    storage_close(st);
+}
+
+static void test_frames_unique(void)
+{
+    storage_t *st = open_db("uniq.db");
+    int64_t scan = make_running_scan(st, make_sensor(st, "IMX-U", "1"));
+    err_t err = {{0}};
+    CHECK(put_point(st, scan, 0, NULL) == 0);
+    /* the same index again, with other values: refused, the stored row unchanged */
+    uint16_t raw[18] = {0};
+    double mean[9] = {0};
+    storage_frame_t dup = {.scan_id = scan, .point_index = 0, .exposure_us = 1, .frames = 2,
+                           .sub_px = 3, .raw = raw, .mean = mean}, g;
+    CHECK(storage_frame_put(st, &dup, &err) == -EEXIST && strstr(err.msg, "point 0"));
+    CHECK(storage_frame_get(st, scan, 0, &g, NULL) == 0);
+    CHECK(g.mean && g.mean[4] == 11.25 && g.raw && g.raw[17] == 17 && g.exposure_us == 1000.0);
+    storage_frame_free(&g);
+    CHECK(raw_int("uniq.db", "SELECT count(*) FROM frames") == 1);
+    CHECK(raw_int("uniq.db", "SELECT points_done FROM scans") == 1);
+    storage_close(st);
+}
+
+static void test_point_transaction(void)
+{
+    storage_t *st = open_db("txn.db");
+    int64_t scan = make_running_scan(st, make_sensor(st, "IMX-X", "1"));
+    CHECK(put_point(st, scan, 0, NULL) == 0 && put_point(st, scan, 1, NULL) == 0);
+    /* another connection makes the progress update of the third point fail, after its frame
+     * row was inserted in the same transaction */
+    CHECK(raw_exec("txn.db", "CREATE TRIGGER inject BEFORE UPDATE OF points_done ON scans "
+                             "WHEN NEW.points_done = 3 BEGIN SELECT RAISE(ABORT, 'injected'); END")
+          == SQLITE_OK);
+    err_t err = {{0}};
+    CHECK(put_point(st, scan, 2, &err) < 0 && strstr(err.msg, "injected"));
+    CHECK(raw_int("txn.db", "SELECT count(*) FROM frames WHERE point_index = 2") == 0);
+    CHECK(raw_int("txn.db", "SELECT points_done FROM scans") == 2);
+    int last = -9, count = -9;
+    CHECK(storage_frame_last(st, scan, &last, &count, NULL) == 0 && last == 1 && count == 2);
+    CHECK(raw_exec("txn.db", "DROP TRIGGER inject") == SQLITE_OK);
+    CHECK(put_point(st, scan, 2, NULL) == 0); /* not a duplicate: nothing was left behind */
+    CHECK(raw_int("txn.db", "SELECT points_done FROM scans") == 3);
+    storage_close(st);
+
+    /* a process that dies without closing: what returned 0 is in the file */
+    pid_t pid = fork();
+    if (pid == 0) {
+        storage_t *c = NULL;
+        int64_t job = 0;
+        if (storage_open(db_path("txn.db"), &c, NULL) || put_point(c, scan, 3, NULL) ||
+            storage_job_enqueue(c, STORAGE_JOB_FIT, "{\"r\": 7}", scan, &job, NULL))
+            _exit(1);
+        _exit(0); /* no storage_close, no commit of anything pending */
+    }
+    int status = -1;
+    CHECK(pid > 0 && waitpid(pid, &status, 0) == pid && WIFEXITED(status) &&
+          WEXITSTATUS(status) == 0);
+    st = open_db("txn.db");
+    CHECK(storage_frame_last(st, scan, &last, &count, NULL) == 0 && last == 3 && count == 4);
+    CHECK(raw_int("txn.db", "SELECT count(*) FROM jobs WHERE state = 'queued' "
+                            "AND json_extract(params, '$.r') = 7") == 1);
+    storage_close(st);
+}
+
+static void test_raster(void)
+{
+    storage_t *st = open_db("raster.db");
+    int64_t scan = make_running_scan(st, make_sensor(st, "IMX-R", "1"));
+    int order[6] = {3, 0, 5, 1, 4, 2};
+    for (int k = 0; k < 6; k++) CHECK(put_point(st, scan, order[k], NULL) == 0);
+    storage_raster_t r;
+    /* (dcol, drow) = (1, -1) is sub-frame pixel (i, j) = (2, 0): mean 1000 p + 2.25 */
+    CHECK(storage_frame_raster(st, scan, 1, -1, &r, NULL) == 0 && r.n == 6);
+    for (size_t p = 0; p < r.n && r.n == 6; p++) {
+        CHECK(r.point_index[p] == (int)p);
+        CHECK(r.mean_dn[p] == 1000.0 * p + 2.25);
+        CHECK(r.stage_x_um[p] == 0.6 * (p % 3) && r.stage_y_um[p] == 0.6 * (p / 3));
+        CHECK(r.exposure_us[p] == 1000.0 + p);
+    }
+    storage_raster_free(&r);
+    CHECK(storage_frame_raster(st, scan, 0, 0, &r, NULL) == 0 && r.n == 6);
+    CHECK(r.n == 6 && r.mean_dn[5] == 5011.25 && r.mean_dn[0] == 11.25);
+    storage_raster_free(&r);
+    CHECK(storage_frame_raster(st, scan, -1, 1, &r, NULL) == 0 && r.n == 6);
+    CHECK(r.n == 6 && r.mean_dn[3] == 3020.25);
+    storage_raster_free(&r);
+    err_t err = {{0}};
+    CHECK(storage_frame_raster(st, scan, 2, 0, &r, &err) == -EINVAL && strstr(err.msg, "outside"));
+    CHECK(storage_frame_raster(st, 999, 0, 0, &r, NULL) == -ENOENT);
+    int last, count;
+    CHECK(storage_frame_last(st, scan, &last, &count, NULL) == 0 && last == 5 && count == 6);
+    storage_close(st);
+
+    /* the sqlite3 shell reads what the code wrote (Debian package sqlite3) */
+    if (access("/usr/bin/sqlite3", X_OK) == 0) {
+        char cmd[1024], line[128] = "";
+        snprintf(cmd, sizeof cmd, "/usr/bin/sqlite3 '%s' 'select count(*) from frames'",
+                 db_path("raster.db"));
+        FILE *p = popen(cmd, "r");
+        CHECK(p && fgets(line, sizeof line, p) && atoi(line) == 6);
+        CHECK(p && pclose(p) == 0);
+        /* point 1's mean at pixel (0, 0) is 1000.25 = 0x408F420000000000, little-endian */
+        snprintf(cmd, sizeof cmd, "/usr/bin/sqlite3 '%s' 'select hex(substr(mean, 1, 8)) from "
+                 "frames where point_index = 1'", db_path("raster.db"));
+        p = popen(cmd, "r");
+        CHECK(p && fgets(line, sizeof line, p) && strncmp(line, "0000000000428F40", 16) == 0);
+        CHECK(p && pclose(p) == 0);
+    } else {
+        printf("note: /usr/bin/sqlite3 not installed, shell check skipped\n");
+    }
+}
+
+/* ---- jobs ----------------------------------------------------------------------------------- */
+
+#define N_JOBS 400
+
+static pthread_barrier_t claim_start;
+
+typedef struct claimer {
+    char path[1024]; /* set by the main thread (db_path is not thread-safe) */
+    int64_t ids[N_JOBS];
+    int n, failed;
+} claimer_t;
+
+static void *claim_loop(void *arg)
+{
+    claimer_t *c = arg;
+    storage_t *st = NULL;
+    if (storage_open(c->path, &st, NULL)) c->failed = 1;
+    pthread_barrier_wait(&claim_start); /* both threads race from here */
+    for (; st;) {
+        storage_job_t j;
+        if (storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL)) {
+            c->failed = 1;
+            break;
+        }
+        if (j.id == 0) break;
+        if (c->n < N_JOBS) c->ids[c->n++] = j.id;
+        if (j.attempts != 1 || j.state != STORAGE_RUNNING ||
+            storage_job_finish(st, j.id, STORAGE_DONE, NULL, NULL))
+            c->failed = 1;
+        storage_job_free(&j);
+        usleep(300); /* "work", so the other thread gets its turns */
+    }
+    storage_close(st);
+    return NULL;
+}
+
+static void test_claim_concurrent(void)
+{
+    storage_t *st = open_db("claim.db");
+    int64_t id, first = 0, scan_job;
+    for (int k = 0; k < N_JOBS; k++) {
+        CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &id, NULL) == 0);
+        if (k == 0) first = id;
+    }
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_SCAN, "{}", 0, &scan_job, NULL) == 0);
+    storage_close(st);
+    static claimer_t c[2];
+    pthread_t t[2];
+    CHECK(pthread_barrier_init(&claim_start, NULL, 2) == 0);
+    for (int k = 0; k < 2; k++) snprintf(c[k].path, sizeof c[k].path, "%s", db_path("claim.db"));
+    for (int k = 0; k < 2; k++) CHECK(pthread_create(&t[k], NULL, claim_loop, &c[k]) == 0);
+    for (int k = 0; k < 2; k++) pthread_join(t[k], NULL);
+    pthread_barrier_destroy(&claim_start);
+    CHECK(!c[0].failed && !c[1].failed);
+    CHECK(c[0].n + c[1].n == N_JOBS);
+    /* every job exactly once, each thread in queue order */
+    char seen[N_JOBS] = {0};
+    int dup = 0, unordered = 0;
+    for (int k = 0; k < 2; k++)
+        for (int i = 0; i < c[k].n; i++) {
+            int64_t slot = c[k].ids[i] - first;
+            if (slot < 0 || slot >= N_JOBS || seen[slot]++) dup++;
+            if (i && c[k].ids[i] <= c[k].ids[i - 1]) unordered++;
+        }
+    CHECK(dup == 0 && unordered == 0);
+    CHECK(raw_int("claim.db", "SELECT count(*) FROM jobs WHERE kind = 'fit' AND state = 'done' "
+                              "AND attempts = 1 AND progress = 1") == N_JOBS);
+    CHECK(raw_int("claim.db", "SELECT count(*) FROM jobs WHERE kind = 'scan' AND state = 'queued' "
+                              "AND attempts = 0") == 1);
+    printf("claims: thread 0 got %d, thread 1 got %d\n", c[0].n, c[1].n);
+}
+
+static void test_requeue(void)
+{
+    storage_t *st = open_db("requeue.db");
+    storage_job_t j;
+    int64_t id, other;
+    int rq = -1, fl = -1;
+    err_t err = {{0}};
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{\"a\": [1, 2]}", 0, &id, NULL) == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == id);
+    CHECK(j.attempts == 1 && j.heartbeat_ms == fake_now && j.started_ms == fake_now);
+    storage_job_free(&j);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &other, NULL) == 0);
+    fake_now += 10000;
+    CHECK(storage_job_heartbeat(st, id, 0.5, 40, NULL) == 0);
+    fake_now += 30000; /* heartbeat 30 s old: fresh for a 60 s threshold */
+    CHECK(storage_job_requeue_stale(st, 60000, 3, &rq, &fl, NULL) == 0 && rq == 0 && fl == 0);
+    fake_now += 60000; /* now 90 s old */
+    CHECK(storage_job_requeue_stale(st, 60000, 3, &rq, &fl, NULL) == 0 && rq == 1 && fl == 0);
+    CHECK(storage_job_get(st, id, &j, NULL) == 0);
+    CHECK(j.state == STORAGE_QUEUED && j.attempts == 1 && j.heartbeat_ms == 0);
+    CHECK(j.progress == 0.5 && j.points_done == 40 && strcmp(j.params, "{\"a\": [1, 2]}") == 0);
+    storage_job_free(&j);
+    /* the old worker, if it still lives, learns it lost the job */
+    CHECK(storage_job_heartbeat(st, id, 0.6, 41, &err) == -ESTALE && strstr(err.msg, "queued"));
+    CHECK(storage_job_finish(st, id, STORAGE_DONE, NULL, NULL) == -ESTALE);
+    /* claimed again (it is the oldest), then abandoned at max_attempts = 2 */
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == id && j.attempts == 2);
+    storage_job_free(&j);
+    CHECK(storage_job_requeue_stale(st, 0, 2, &rq, &fl, NULL) == 0 && rq == 0 && fl == 1);
+    CHECK(storage_job_get(st, id, &j, NULL) == 0);
+    CHECK(j.state == STORAGE_FAILED && j.error && strstr(j.error, "abandoned after 2"));
+    CHECK(j.finished_ms == fake_now);
+    storage_job_free(&j);
+    CHECK(storage_job_get(st, other, &j, NULL) == 0 && j.state == STORAGE_QUEUED);
+    storage_job_free(&j);
+    storage_close(st);
+}
+
+static void test_cancel(void)
+{
+    storage_t *st = open_db("cancel.db");
+    storage_job_t j;
+    int64_t q_id, r_id, d_id;
+    int changed = -1;
+    err_t err = {{0}};
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &d_id, NULL) == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == d_id);
+    storage_job_free(&j);
+    CHECK(storage_job_finish(st, d_id, STORAGE_DONE, NULL, NULL) == 0);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &r_id, NULL) == 0);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &q_id, NULL) == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == r_id);
+    storage_job_free(&j);
+    /* queued -> cancelled, once */
+    CHECK(storage_job_cancel(st, q_id, &changed, NULL) == 0 && changed == 1);
+    CHECK(storage_job_cancel(st, q_id, &changed, NULL) == 0 && changed == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == 0);
+    /* running -> cancelled; the worker hears it at its next heartbeat or finish */
+    CHECK(storage_job_cancel(st, r_id, &changed, NULL) == 0 && changed == 1);
+    CHECK(storage_job_heartbeat(st, r_id, 0.3, 3, &err) == -ECANCELED);
+    CHECK(storage_job_finish(st, r_id, STORAGE_FAILED, "late", NULL) == -ECANCELED);
+    CHECK(storage_job_get(st, r_id, &j, NULL) == 0 && j.state == STORAGE_CANCELLED && !j.error);
+    CHECK(j.finished_ms == fake_now);
+    storage_job_free(&j);
+    /* done stays done; unknown ids */
+    CHECK(storage_job_cancel(st, d_id, &changed, NULL) == 0 && changed == 0);
+    CHECK(storage_job_get(st, d_id, &j, NULL) == 0 && j.state == STORAGE_DONE && j.progress == 1);
+    storage_job_free(&j);
+    CHECK(storage_job_cancel(st, 999, &changed, &err) == -ENOENT && strstr(err.msg, "999"));
+    CHECK(storage_job_heartbeat(st, 999, 0, 0, NULL) == -ENOENT);
+
+    /* a scan job: submit is atomic, cancel stops the scan writer */
+    int64_t sensor = make_sensor(st, "IMX-C", "1"), scan = 0, job = 0;
+    storage_scan_t sc = scan_template(sensor);
+    CHECK(storage_scan_submit(st, &sc, "{not json", &scan, &job, &err) == -EINVAL);
+    CHECK(strstr(err.msg, "JSON") != NULL);
+    CHECK(raw_int("cancel.db", "SELECT count(*) FROM scans") == 0);
+    CHECK(storage_scan_submit(st, &sc, "{\"n\": 5}", &scan, &job, NULL) == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == job);
+    CHECK(j.scan_id == scan);
+    storage_job_free(&j);
+    CHECK(storage_scan_set_state(st, scan, STORAGE_RUNNING, NULL, NULL) == 0);
+    CHECK(put_point(st, scan, 0, NULL) == 0);
+    CHECK(storage_job_cancel(st, job, &changed, NULL) == 0 && changed == 1);
+    CHECK(put_point(st, scan, 1, &err) == -ECANCELED);
+    CHECK(storage_scan_get(st, scan, &sc, NULL) == 0 && sc.state == STORAGE_CANCELLED);
+    CHECK(sc.points_done == 1);
+    storage_scan_free(&sc);
+    storage_close(st);
+}
+
+static void test_busy(void)
+{
+    storage_t *st = open_db("busy.db");
+    sqlite3 *other = NULL;
+    int64_t id = 0;
+    err_t err = {{0}};
+    /* another connection holds the write lock: a write gives up after the busy timeout */
+    CHECK(sqlite3_open(db_path("busy.db"), &other) == SQLITE_OK);
+    CHECK(sqlite3_exec(other, "BEGIN IMMEDIATE", NULL, NULL, NULL) == SQLITE_OK);
+    CHECK(storage_set_busy_timeout(st, 20, NULL) == 0);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &id, &err) == -EBUSY);
+    CHECK(strstr(err.msg, "locked") != NULL);
+    storage_job_list_t l; /* readers are not blocked (WAL) */
+    CHECK(storage_job_list(st, STORAGE_ANY, STORAGE_ANY, 0, 0, 0, &l, NULL) == 0 && l.total == 0);
+    storage_job_list_free(&l);
+    CHECK(sqlite3_exec(other, "COMMIT", NULL, NULL, NULL) == SQLITE_OK);
+    sqlite3_close(other);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &id, NULL) == 0 && id == 1);
+    storage_close(st);
+}
+
+/* ---- fits and calibrations ------------------------------------------------------------------ */
+
+static int64_t put_calib(storage_t *st, int64_t sensor, int col, int row, double s0,
+                         const char *status)
+{
+    double S[4] = {s0, 1.0 / 3.0, 1e-300, -2.5}, E[4] = {0.01, 0.02, 0.03, 0.04};
+    storage_calib_t c = {.sensor_id = sensor, .pixel_col = col, .pixel_row = row, .r = 2,
+                         .S = S, .S_err = E, .I0 = 1234.5, .chi2_red = 1.07,
+                         .status = (char *)status, .noise_model = "shot+read",
+                         .wavelength_um = 0.55, .na = 0.25, .spot_radius_um = 1.342};
+    int64_t id = 0;
+    CHECK(storage_calib_put(st, &c, &id, NULL) == 0 && id > 0);
+    return id;
+}
+
+static void test_fits(void)
+{
+    storage_t *st = open_db("fits.db");
+    int64_t sensor = make_sensor(st, "IMX-FT", "1"), scan = make_running_scan(st, sensor);
+    int64_t job, fit_id = 0, calib_id = 0;
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &job, NULL) == 0);
+    storage_fit_t f = {.scan_id = scan, .dcol = 0, .drow = 1, .noise_model = "paper",
+                       .best_r_aic = 7, .best_r_bic = 5, .f_value = 2.49, .p_value = 0.00711,
+                       .result = "{\"best_r\": {\"aic\": 7, \"bic\": 5}, "
+                                 "\"note\": \"\u00b5m\"}"}, g;
+    double S[1] = {1.0}, E[1] = {0.5};
+    storage_calib_t c = {.sensor_id = sensor, .pixel_col = 100, .pixel_row = 201, .r = 1, .S = S,
+                         .S_err = E, .I0 = NAN, .chi2_red = NAN, .status = "ok",
+                         .noise_model = "paper", .wavelength_um = NAN, .na = NAN,
+                         .spot_radius_um = NAN}, got;
+    CHECK(storage_fit_put(st, &f, &c, job, &fit_id, &calib_id, NULL) == 0 && fit_id && calib_id);
+    CHECK(storage_fit_get(st, fit_id, &g, NULL) == 0);
+    CHECK(g.scan_id == scan && g.dcol == 0 && g.drow == 1 && strcmp(g.noise_model, "paper") == 0);
+    CHECK(g.best_r_aic == 7 && g.best_r_bic == 5 && g.f_value == 2.49 && g.p_value == 0.00711);
+    CHECK(strcmp(g.result, f.result) == 0 && g.created_ms == fake_now);
+    storage_fit_free(&g);
+    CHECK(storage_calib_get(st, calib_id, &got, NULL) == 0);
+    CHECK(got.fit_id == fit_id && got.scan_id == scan && isnan(got.I0) && isnan(got.na));
+    CHECK(strcmp(got.software_version, IPSD_VERSION) == 0);
+    storage_calib_free(&got);
+    storage_job_t j;
+    CHECK(storage_job_get(st, job, &j, NULL) == 0 && j.fit_id == fit_id);
+    storage_job_free(&j);
+
+    /* no F-test -> NaN; a failed link leaves nothing behind */
+    f.f_value = f.p_value = NAN;
+    f.best_r_aic = 0;
+    err_t err = {{0}};
+    CHECK(storage_fit_put(st, &f, &c, 999, NULL, NULL, &err) == -ENOENT && strstr(err.msg, "999"));
+    CHECK(raw_int("fits.db", "SELECT count(*) FROM fits") == 1);
+    CHECK(raw_int("fits.db", "SELECT count(*) FROM calibrations") == 1);
+    CHECK(storage_fit_put(st, &f, NULL, 0, &fit_id, NULL, NULL) == 0);
+    CHECK(storage_fit_get(st, fit_id, &g, NULL) == 0);
+    CHECK(isnan(g.f_value) && isnan(g.p_value) && g.best_r_aic == 0 && g.best_r_bic == 5);
+    storage_fit_free(&g);
+    f.result = "{broken";
+    CHECK(storage_fit_put(st, &f, NULL, 0, NULL, NULL, &err) == -EINVAL && strstr(err.msg, "JSON"));
+    f.result = "{}";
+    f.dcol = 2;
+    CHECK(storage_fit_put(st, &f, NULL, 0, NULL, NULL, &err) == -EINVAL);
+    storage_fit_list_t fl;
+    CHECK(storage_fit_list(st, scan, 1, 0, &fl, NULL) == 0 && fl.total == 2 && fl.n == 1);
+    CHECK(fl.n == 1 && fl.items[0].id == fit_id);
+    storage_fit_list_free(&fl);
+    storage_close(st);
+}
+
+static void check_calib_search(storage_t *st, int64_t a, const int64_t *ids, int64_t t2);
+
+static void test_calibrations(void)
+{
+    storage_t *st = open_db("calib.db");
+    int64_t a = make_sensor(st, "IMX-A", "1"), b = make_sensor(st, "CMV-B", "7");
+    int64_t t1 = fake_now += 1000, c1 = put_calib(st, a, 10, 20, 0.9, "ok");
+    int64_t t2 = fake_now += 1000, c2 = put_calib(st, a, 10, 20, 0.95, "ok");
+    int64_t t3 = fake_now += 1000, c3 = put_calib(st, a, 10, 20, 1.05, "unconstrained");
+    int64_t d = put_calib(st, a, 11, 20, 1.0, "ok");
+    fake_now += 1000;
+    int64_t e = put_calib(st, b, 10, 20, 1.0, "ok");
+    storage_calib_t c;
+    CHECK(storage_calib_current(st, a, 10, 20, &c, NULL) == 0 && c.id == c3);
+    CHECK(c.superseded_by == 0 && c.created_ms == t3 && c.r == 2);
+    CHECK(strcmp(c.status, "unconstrained") == 0);
+    double want[4] = {1.05, 1.0 / 3.0, 1e-300, -2.5}, want_err[4] = {0.01, 0.02, 0.03, 0.04};
+    CHECK(c.S && memcmp(c.S, want, sizeof want) == 0);
+    CHECK(c.S_err && memcmp(c.S_err, want_err, sizeof want_err) == 0);
+    CHECK(c.I0 == 1234.5 && c.chi2_red == 1.07 && strcmp(c.noise_model, "shot+read") == 0);
+    CHECK(c.wavelength_um == 0.55 && c.na == 0.25 && c.spot_radius_um == 1.342);
+    storage_calib_free(&c);
+    CHECK(storage_calib_get(st, c1, &c, NULL) == 0 && c.superseded_by == c2 && c.created_ms == t1);
+    CHECK(c.S && c.S[0] == 0.9);
+    storage_calib_free(&c);
+    CHECK(storage_calib_get(st, c2, &c, NULL) == 0 && c.superseded_by == c3 && c.created_ms == t2);
+    storage_calib_free(&c);
+    CHECK(storage_calib_current(st, a, 11, 20, &c, NULL) == 0 && c.id == d);
+    storage_calib_free(&c);
+    CHECK(storage_calib_current(st, b, 10, 20, &c, NULL) == 0 && c.id == e);
+    storage_calib_free(&c);
+    CHECK(storage_calib_current(st, a, 12, 20, &c, NULL) == -ENOENT);
+
+    storage_calib_list_t l;
+    CHECK(storage_calib_history(st, a, 10, 20, &l, NULL) == 0 && l.n == 3);
+    CHECK(l.n == 3 && l.items[0].id == c3 && l.items[1].id == c2 && l.items[2].id == c1);
+    storage_calib_list_free(&l);
+    /* the database itself allows one current map per pixel */
+    CHECK(raw_int("calib.db", "SELECT count(*) FROM calibrations WHERE superseded_by IS NULL "
+                              "AND pixel_col = 10 AND pixel_row = 20") == 2); /* a and b */
+    CHECK(raw_exec("calib.db", "INSERT INTO calibrations (sensor_id, pixel_col, pixel_row, r, s, "
+                               "s_err, status, noise_model, software_version, created_ms) VALUES "
+                               "(1, 10, 20, 1, zeroblob(8), zeroblob(8), 'ok', 'paper', 'x', 0)")
+          == SQLITE_CONSTRAINT);
+    /* the map BLOB is little-endian float64: S[0] = 1.05 = 0x3FF0CCCCCCCCCCCD */
+    char hex[40], sql[128];
+    snprintf(sql, sizeof sql, "SELECT hex(substr(s, 1, 8)) FROM calibrations WHERE id = %lld",
+             (long long)c3);
+    raw_text("calib.db", sql, hex, sizeof hex);
+    CHECK(strcmp(hex, "CDCCCCCCCCCCF03F") == 0);
+
+    /* validation */
+    err_t err = {{0}};
+    double S[1] = {1};
+    storage_calib_t bad = {.sensor_id = a, .pixel_col = 640, .pixel_row = 0, .r = 1, .S = S,
+                           .S_err = S, .status = "ok", .noise_model = "paper"};
+    int64_t id;
+    CHECK(storage_calib_put(st, &bad, &id, &err) == -EINVAL && strstr(err.msg, "outside"));
+    bad.pixel_col = 0;
+    bad.sensor_id = 999;
+    CHECK(storage_calib_put(st, &bad, &id, &err) == -ENOENT);
+    bad.sensor_id = a;
+    bad.scan_id = 999;
+    CHECK(storage_calib_put(st, &bad, &id, &err) == -ENOENT);
+    CHECK(raw_int("calib.db", "SELECT count(*) FROM calibrations") == 5);
+    int64_t ids[5] = {c1, c2, c3, d, e};
+    check_calib_search(st, a, ids, t2);
+    storage_close(st);
+}
+
+/* Search over the calibrations of test_calibrations: ids c1, c2, c3 (sensor a, pixel (10, 20),
+ * c3 "unconstrained"), d (a, (11, 20)), e (the other sensor, model CMV-B), c2 created at t2. */
+static void check_calib_search(storage_t *st, int64_t a, const int64_t *ids, int64_t t2)
+{
+    int64_t c3 = ids[2], d = ids[3], e = ids[4];
+    storage_calib_list_t l;
+    storage_calib_filter_t f = storage_calib_filter_default();
+    CHECK(storage_calib_search(st, &f, 2, 1, &l, NULL) == 0 && l.total == 5 && l.n == 2);
+    CHECK(l.n == 2 && l.items[0].id == d && l.items[1].id == c3); /* newest first: e, d, c3 */
+    storage_calib_list_free(&l);
+    f.model = "CMV-B";
+    CHECK(storage_calib_search(st, &f, 0, 0, &l, NULL) == 0 && l.total == 1 && l.items[0].id == e);
+    storage_calib_list_free(&l);
+    f = storage_calib_filter_default();
+    f.sensor_id = a;
+    f.current_only = 1;
+    CHECK(storage_calib_search(st, &f, 0, 0, &l, NULL) == 0 && l.total == 2 && l.n == 2);
+    storage_calib_list_free(&l);
+    f.current_only = 0;
+    f.col_min = f.col_max = 11;
+    CHECK(storage_calib_search(st, &f, 0, 0, &l, NULL) == 0 && l.total == 1 && l.items[0].id == d);
+    storage_calib_list_free(&l);
+    f = storage_calib_filter_default();
+    f.since_ms = t2;
+    CHECK(storage_calib_search(st, &f, 0, 0, &l, NULL) == 0 && l.total == 4);
+    storage_calib_list_free(&l);
+    f.status = "unconstrained";
+    CHECK(storage_calib_search(st, &f, 0, 0, &l, NULL) == 0 && l.total == 1 && l.items[0].id == c3);
+    storage_calib_list_free(&l);
+}
+
+static void test_pagination(void)
+{
+    storage_t *st = open_db("page.db");
+    int64_t a = make_sensor(st, "IMX-P", "1"), b = make_sensor(st, "IMX-P", "2"), ids[5], id;
+    storage_scan_t sc = scan_template(a);
+    for (int k = 0; k < 5; k++) CHECK(storage_scan_create(st, &sc, &ids[k], NULL) == 0);
+    sc.sensor_id = b;
+    for (int k = 0; k < 3; k++) CHECK(storage_scan_create(st, &sc, &id, NULL) == 0);
+    CHECK(storage_scan_set_state(st, ids[1], STORAGE_RUNNING, NULL, NULL) == 0);
+    CHECK(storage_scan_set_state(st, ids[3], STORAGE_RUNNING, NULL, NULL) == 0);
+    CHECK(storage_scan_set_state(st, ids[4], STORAGE_DONE, NULL, NULL) == 0);
+    storage_scan_list_t l;
+    CHECK(storage_scan_list(st, a, STORAGE_ANY, 2, 0, &l, NULL) == 0 && l.total == 5 && l.n == 2);
+    CHECK(l.n == 2 && l.items[0].id == ids[4] && l.items[1].id == ids[3]);
+    storage_scan_list_free(&l);
+    CHECK(storage_scan_list(st, a, STORAGE_ANY, 2, 4, &l, NULL) == 0 && l.total == 5 && l.n == 1);
+    CHECK(l.n == 1 && l.items[0].id == ids[0]);
+    storage_scan_list_free(&l);
+    CHECK(storage_scan_list(st, a, STORAGE_ANY, 2, 5, &l, NULL) == 0 && l.total == 5 && l.n == 0);
+    storage_scan_list_free(&l);
+    CHECK(storage_scan_list(st, 0, STORAGE_RUNNING, 0, 0, &l, NULL) == 0 && l.total == 2);
+    CHECK(l.n == 2 && l.items[0].id == ids[3] && l.items[1].id == ids[1]);
+    storage_scan_list_free(&l);
+    CHECK(storage_scan_list(st, 0, STORAGE_ANY, 0, 0, &l, NULL) == 0 && l.total == 8 && l.n == 8);
+    storage_scan_list_free(&l);
+    CHECK(storage_scan_list(st, b, STORAGE_DONE, 10, 0, &l, NULL) == 0 && l.total == 0);
+    storage_scan_list_free(&l);
+    CHECK(storage_scan_list(st, a, 17, 10, 0, &l, NULL) == -EINVAL);
+
+    storage_sensor_list_t sl;
+    CHECK(storage_sensor_list(st, &sl, NULL) == 0 && sl.n == 2 && sl.items[0].id == a);
+    storage_sensor_list_free(&sl);
+    for (int k = 0; k < 4; k++)
+        CHECK(storage_job_enqueue(st, k % 2 ? STORAGE_JOB_FIT : STORAGE_JOB_SCAN, "[]",
+                                  k < 2 ? ids[0] : 0, &id, NULL) == 0);
+    storage_job_list_t jl;
+    CHECK(storage_job_list(st, STORAGE_JOB_FIT, STORAGE_QUEUED, 0, 1, 0, &jl, NULL) == 0);
+    CHECK(jl.total == 2 && jl.n == 1 && jl.items[0].id == id);
+    storage_job_list_free(&jl);
+    CHECK(storage_job_list(st, STORAGE_ANY, STORAGE_ANY, ids[0], 0, 0, &jl, NULL) == 0);
+    CHECK(jl.total == 2 && jl.n == 2);
+    storage_job_list_free(&jl);
+    storage_close(st);
+}
+
+/* ---- driver --------------------------------------------------------------------------------- */
+
+static void remove_tmpdir(void)
+{
+    DIR *d = opendir(tmpdir);
+    struct dirent *e;
+    while (d && (e = readdir(d))) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+        CHECK(unlink(db_path(e->d_name)) == 0);
+    }
+    if (d) closedir(d);
+    CHECK(rmdir(tmpdir) == 0);
+}
+
+int main(void)
+{
+    const char *base = getenv("TMPDIR");
+    snprintf(tmpdir, sizeof tmpdir, "%s/ipsd-test-storage-XXXXXX", base && *base ? base : "/tmp");
+    if (!mkdtemp(tmpdir)) {
+        perror("mkdtemp");
+        return 1;
+    }
+    test_open_migrate();
+    test_refuse();
+    test_sensor_scan_roundtrip();
+    test_frame_roundtrip();
+    test_frames_unique();
+    test_point_transaction();
+    test_raster();
+    test_claim_concurrent();
+    test_requeue();
+    test_cancel();
+    test_busy();
+    test_fits();
+    test_calibrations();
+    test_pagination();
+    remove_tmpdir();
+    CHECK_DONE();
+}
