@@ -135,17 +135,6 @@ static size_t sweep_build(const struct cheb *ch, const fit_design_opts_t *o, dou
     return evals;
 }
 
-static double cheb_sum(const double *c, int n, double t)
-{
-    double b1 = 0, b2 = 0, t2 = 2 * t;
-    for (int k = n; k >= 1; k--) {
-        double b0 = t2 * b1 + (c[k] - b2);
-        b2 = b1;
-        b1 = b0;
-    }
-    return t * b1 + (c[0] - b2);
-}
-
 /* Prefix integrals of Q (and of P when wp is not NULL) up to E = s (1 <= s <= the sweep's end). */
 static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, double *wp)
 {
@@ -158,8 +147,8 @@ static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, doub
     const struct segment *g = &sw->seg[lo];
     double h = 0.5 * (g->sb - g->sa), t = h > 0 ? (s - 0.5 * (g->sa + g->sb)) / h : 1.0;
     if (t > 1) t = 1;
-    *wq = g->cq + cheb_sum(g->Cq, m, t);
-    if (wp) *wp = g->cp + cheb_sum(g->Cp, m, t);
+    *wq = g->cq + radial_clenshaw(g->Cq, m, t);
+    if (wp) *wp = g->cp + radial_clenshaw(g->Cp, m, t);
 }
 
 /* ---- the design matrix ---- */

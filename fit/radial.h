@@ -7,8 +7,9 @@
 
 #include "radial_table.h"
 
-/* Sum of c_k T_k(t) by Clenshaw's recurrence, t in [-1, 1]. Plain multiply-adds: fma() is a
- * library call on baseline x86-64 and would cost more than the whole sum. */
+/* Sum of c_k T_k(t), k = 0..order, by Clenshaw's recurrence, t in [-1, 1] (also used by the
+ * design matrix's spectral sweeps). Plain multiply-adds: fma() is a library call on baseline
+ * x86-64 and would cost more than the whole sum. */
 static inline double radial_clenshaw(const double *c, int order, double t)
 {
     double b1 = 0, b2 = 0, t2 = 2 * t;
