@@ -188,11 +188,19 @@ static int job_once(fit_method_t method, int full, double ms[3], struct job_time
     if (rc) return rc;
     double t1 = cli_now_ms();
     jt->best_aic = sw.best_aic;
-    fit_sweep_free(&sw);
     ms[0] = t1 - t0;
-    if (!full) return 0;
-    rc = fit_ftest_run(&bench_scan, BENCH_R, FIT_EDGE_TOP | FIT_EDGE_LEFT | FIT_EDGE_BOTTOM, &o,
-                       &ft, err);
+    if (!full) {
+        fit_sweep_free(&sw);
+        return 0;
+    }
+    /* as `ips fit --ftest` does: the sweep's linear r = 7 fit is H1 */
+    const fit_result_t *h1 = &sw.fits[BENCH_R - 1];
+    rc = method == FIT_LINEAR
+             ? fit_ftest_with_h1(&bench_scan, h1, FIT_EDGE_TOP | FIT_EDGE_LEFT | FIT_EDGE_BOTTOM,
+                                 &o, &ft, err)
+             : fit_ftest_run(&bench_scan, BENCH_R, FIT_EDGE_TOP | FIT_EDGE_LEFT | FIT_EDGE_BOTTOM,
+                             &o, &ft, err);
+    fit_sweep_free(&sw);
     if (rc) return rc;
     double t2 = cli_now_ms();
     jt->F = ft.F;

@@ -317,7 +317,12 @@ static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
     run->ms_sweep = cli_now_ms() - t;
     if (a->edges_text) {
         t = cli_now_ms();
-        rc = fit_ftest_run(&run->sf.scan, a->ftest_r, a->edges, &a->opts, &run->ftest, err);
+        const fit_sweep_t *sw = &run->sweep; /* reuse the sweep's linear fit as H1 */
+        if (a->opts.method == FIT_LINEAR && a->ftest_r >= sw->r_min && a->ftest_r <= sw->r_max)
+            rc = fit_ftest_with_h1(&run->sf.scan, &sw->fits[a->ftest_r - sw->r_min], a->edges,
+                                   &a->opts, &run->ftest, err);
+        else
+            rc = fit_ftest_run(&run->sf.scan, a->ftest_r, a->edges, &a->opts, &run->ftest, err);
         if (rc) return rc;
         run->have_ftest = 1;
         run->ms_ftest = cli_now_ms() - t;

@@ -100,38 +100,48 @@ out:
     return rc;
 }
 
+int fit_ftest_with_h1(const fit_scan_t *scan, const fit_result_t *h1, unsigned edges,
+                      const fit_options_t *opts, fit_ftest_t *out, err_t *err)
+{
+    memset(out, 0, sizeof *out);
+    out->r = h1->r;
+    out->edges = edges;
+    out->F = out->p_value = out->chi2_h0 = NAN;
+    fit_options_t o = opts ? *opts : fit_options_default();
+    o.method = FIT_LINEAR; /* both hypotheses at their exact minima */
+    if (!edges) return err_set(err, -EINVAL, "the F-test needs at least one edge");
+    out->flags = h1->flags;
+    out->n = h1->n_used;
+    out->params_h1 = h1->params;
+    out->chi2_h1 = h1->chi2;
+    if (!h1->S || !h1->model_dn)
+        return err_set(err, -EDOM, "the F-test needs a full r = %d fit, which has status %s",
+                       h1->r, fit_status_name(h1->flags));
+    int rc = chi2_h0(scan, h1, h1->r, edges, &o, &out->chi2_h0, &out->params_h0, err);
+    if (rc) return rc;
+    int d1 = out->params_h1 - out->params_h0, d2 = (int)out->n - out->params_h1;
+    if (d1 < 1 || d2 < 1)
+        return err_set(err, -EDOM, "the F-test needs N > p1 > p0 (N = %zu, p1 = %d, p0 = %d)",
+                       out->n, out->params_h1, out->params_h0);
+    out->F = ((out->chi2_h0 - out->chi2_h1) / out->chi2_h1) * ((double)d2 / d1); /* eq. 6 */
+    out->p_value = gsl_cdf_fdist_Q(out->F, d1, d2);
+    return 0;
+}
+
 int fit_ftest_run(const fit_scan_t *scan, int r, unsigned edges, const fit_options_t *opts,
                   fit_ftest_t *out, err_t *err)
 {
+    fit_options_t o = opts ? *opts : fit_options_default();
+    o.method = FIT_LINEAR;
     memset(out, 0, sizeof *out);
     out->r = r;
     out->edges = edges;
     out->F = out->p_value = out->chi2_h0 = out->chi2_h1 = NAN;
-    fit_options_t o = opts ? *opts : fit_options_default();
-    o.method = FIT_LINEAR; /* both hypotheses at their exact minima */
     if (!edges) return err_set(err, -EINVAL, "the F-test needs at least one edge");
     fit_result_t h1;
     int rc = fit_map(scan, r, &o, &h1, err);
     if (rc) return rc;
-    out->flags = h1.flags;
-    out->n = h1.n_used;
-    out->params_h1 = h1.params;
-    out->chi2_h1 = h1.chi2;
-    if (!h1.S) {
-        rc = err_set(err, -EDOM, "the F-test needs a full r = %d fit, which has status %s", r,
-                     fit_status_name(h1.flags));
-        goto out;
-    }
-    if ((rc = chi2_h0(scan, &h1, r, edges, &o, &out->chi2_h0, &out->params_h0, err))) goto out;
-    int d1 = out->params_h1 - out->params_h0, d2 = (int)out->n - out->params_h1;
-    if (d1 < 1 || d2 < 1) {
-        rc = err_set(err, -EDOM, "the F-test needs N > p1 > p0 (N = %zu, p1 = %d, p0 = %d)",
-                     out->n, out->params_h1, out->params_h0);
-        goto out;
-    }
-    out->F = ((out->chi2_h0 - out->chi2_h1) / out->chi2_h1) * ((double)d2 / d1); /* eq. 6 */
-    out->p_value = gsl_cdf_fdist_Q(out->F, d1, d2);
-out:
+    rc = fit_ftest_with_h1(scan, &h1, edges, &o, out, err);
     fit_result_free(&h1);
     return rc;
 }

@@ -112,4 +112,9 @@ typedef struct fit_ftest {
 int fit_ftest_run(const fit_scan_t *scan, int r, unsigned edges, const fit_options_t *opts,
                   fit_ftest_t *out, err_t *err);
 
+/* The same with H1 already fitted (e.g. taken from a sweep): h1 must be a linear fit of scan at
+ * r = h1->r with the same options; it stays the caller's. */
+int fit_ftest_with_h1(const fit_scan_t *scan, const fit_result_t *h1, unsigned edges,
+                      const fit_options_t *opts, fit_ftest_t *out, err_t *err);
+
 #endif
