@@ -1,11 +1,405 @@
-/* cmd_simulate.c: `ips simulate [options] -o FILE`, a scan by the simulated bench written as a
- * scan file. Placeholder until the simulated instrument lands. */
+/* cmd_simulate.c: `ips simulate [options] -o FILE`: a scan by the simulated bench (instrument/
+ * sim.h) written as a scan file. By default the paper's whole procedure runs (scan.h: exposure,
+ * centring from a random start, focus, the 51 x 51 raster of 5 x 5 pixels with 9 x 9 sub-frames)
+ * and the response of the pixel of interest at the positions inside it is written; --grid N
+ * instead rasters N x N points directly inside the POI from its true centre (the paper's 9 x 9
+ * of fig. 9). Prints a JSON summary (setup errors against the truth, work, timing). */
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <gsl/gsl_rng.h>
+#include <jansson.h>
+
 #include "cliutil.h"
 #include "commands.h"
+#include "json_out.h"
+#include "../instrument/scan.h"
+#include "scanfile.h"
+#include "sim.h"
+
+#define TRUTH_R_MAX 10
+
+static const char usage[] =
+    "usage: ips simulate [options] -o FILE\n"
+    "  --scene S           uniform | paperlike[:M] | map:FILE (default paperlike)\n"
+    "  --seed N            seed of the noise and of the random start (default 1)\n"
+    "  --grid N            N x N points inside the POI from its true centre (no setup)\n"
+    "  --step UM           raster / grid step (default 0.6)\n"
+    "  --area N            raster over N x N pixels (default 5)\n"
+    "  --subframe M        M x M sub-frame per point (default 9)\n"
+    "  --pixel DC,DR       write sub-frame pixel (DC, DR) instead of the POI (0,0)\n"
+    "  --offset DX,DY      true spot position minus written position, um (default 0,0)\n"
+    "  --wavelength NM --na NA | --radius UM   the spot (default 550 nm, NA 0.25)\n"
+    "  --frames K          frames per point (default 12)\n"
+    "  --peak-e E          photo-electrons of the whole spot per frame at the reference\n"
+    "                      exposure on a uniform sensor (default 21500)\n"
+    "  --noiseless         no photon or read noise, no ADC rounding\n"
+    "  --leave-out TOL     simulator leave-out tolerance, fraction of the spot's flux (1e-4)\n"
+    "  --truth FILE        write the scene's true sub-pixel means for r = 1..10\n"
+    "  -o, --output FILE   the scan file to write (required)\n";
+
+struct sim_args {
+    sim_config_t sim;
+    scan_config_t scan;
+    const char *out, *truth;
+    int grid, dcol, drow, have_wavelength, have_na, have_radius;
+    double offset_x, offset_y;
+};
+
+enum {
+    OPT_SCENE = 256,
+    OPT_SEED,
+    OPT_GRID,
+    OPT_STEP,
+    OPT_AREA,
+    OPT_SUBFRAME,
+    OPT_PIXEL,
+    OPT_OFFSET,
+    OPT_WAVELENGTH,
+    OPT_NA,
+    OPT_RADIUS,
+    OPT_FRAMES,
+    OPT_PEAK,
+    OPT_NOISELESS,
+    OPT_LEAVE,
+    OPT_TRUTH,
+    OPT_HELP
+};
+
+static const struct option long_opts[] = {
+    {"scene", required_argument, NULL, OPT_SCENE},
+    {"seed", required_argument, NULL, OPT_SEED},
+    {"grid", required_argument, NULL, OPT_GRID},
+    {"step", required_argument, NULL, OPT_STEP},
+    {"area", required_argument, NULL, OPT_AREA},
+    {"subframe", required_argument, NULL, OPT_SUBFRAME},
+    {"pixel", required_argument, NULL, OPT_PIXEL},
+    {"offset", required_argument, NULL, OPT_OFFSET},
+    {"wavelength", required_argument, NULL, OPT_WAVELENGTH},
+    {"na", required_argument, NULL, OPT_NA},
+    {"radius", required_argument, NULL, OPT_RADIUS},
+    {"frames", required_argument, NULL, OPT_FRAMES},
+    {"peak-e", required_argument, NULL, OPT_PEAK},
+    {"noiseless", no_argument, NULL, OPT_NOISELESS},
+    {"leave-out", required_argument, NULL, OPT_LEAVE},
+    {"truth", required_argument, NULL, OPT_TRUTH},
+    {"output", required_argument, NULL, 'o'},
+    {"help", no_argument, NULL, OPT_HELP},
+    {NULL, 0, NULL, 0},
+};
+
+/* A number option in [lo, hi]. */
+static int num_in(const char *name, const char *text, double lo, double hi, double *v)
+{
+    if (cli_parse_double(text, v) < 0)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be a number (got '%s')", name, text);
+    if (*v < lo || *v > hi)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be between %g and %g (got %s)", name,
+                        lo, hi, text);
+    return 0;
+}
+
+static int int_in(const char *name, const char *text, int lo, int hi, int *v)
+{
+    if (cli_parse_int(text, v) < 0)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be an integer (got '%s')", name,
+                        text);
+    if (*v < lo || *v > hi)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be between %d and %d (got %s)", name,
+                        lo, hi, text);
+    return 0;
+}
+
+/* "A,B" into two numbers (integers when ints). */
+static int pair(const char *name, const char *text, int ints, double *a, double *b)
+{
+    const char *comma = strchr(text, ',');
+    char first[64];
+    if (!comma || (size_t)(comma - text) >= sizeof first)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be two numbers A,B (got '%s')", name,
+                        text);
+    memcpy(first, text, (size_t)(comma - text));
+    first[comma - text] = '\0';
+    int ia, ib;
+    if (ints ? (cli_parse_int(first, &ia) < 0 || cli_parse_int(comma + 1, &ib) < 0)
+             : (cli_parse_double(first, a) < 0 || cli_parse_double(comma + 1, b) < 0))
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be two %s A,B (got '%s')", name,
+                        ints ? "integers" : "numbers", text);
+    if (ints) *a = ia, *b = ib;
+    return 0;
+}
+
+/* One option into a; returns 0 or the exit code. */
+static int parse_opt(int c, const char *arg, struct sim_args *a)
+{
+    double v, w;
+    int n = 0, rc = 0;
+    switch (c) {
+    case OPT_SCENE:
+        a->sim.scene = arg;
+        break;
+    case OPT_SEED:
+        if ((rc = num_in("seed", arg, 0, 4294967295.0, &v)) == 0 && v != floor(v))
+            rc =
+                cli_fail(CLI_EXIT_USAGE, "simulate", "--seed must be a whole number (got %s)", arg);
+        a->sim.seed = (unsigned long)v;
+        break;
+    case OPT_GRID:
+        rc = int_in("grid", arg, 1, 200, &a->grid);
+        break;
+    case OPT_STEP:
+        rc = num_in("step", arg, 1e-3, 1e3, &a->scan.step_um);
+        break;
+    case OPT_AREA:
+        rc = int_in("area", arg, 1, 50, &a->scan.area_px);
+        break;
+    case OPT_SUBFRAME:
+        if ((rc = int_in("subframe", arg, 3, 63, &n)) == 0 && n % 2 == 0)
+            rc = cli_fail(CLI_EXIT_USAGE, "simulate", "--subframe must be odd (got %d)", n);
+        a->scan.subframe_px = n;
+        break;
+    case OPT_PIXEL:
+        if ((rc = pair("pixel", arg, 1, &v, &w)) == 0) a->dcol = (int)v, a->drow = (int)w;
+        break;
+    case OPT_OFFSET:
+        rc = pair("offset", arg, 0, &a->offset_x, &a->offset_y);
+        break;
+    case OPT_WAVELENGTH:
+        rc = num_in("wavelength", arg, 10, 100000, &v);
+        a->sim.wavelength_um = v * 1e-3, a->have_wavelength = 1;
+        break;
+    case OPT_NA:
+        rc = num_in("na", arg, 1e-3, 0.999, &a->sim.na), a->have_na = 1;
+        break;
+    case OPT_RADIUS:
+        rc = num_in("radius", arg, 1e-3, 1e3, &a->sim.radius_um), a->have_radius = 1;
+        break;
+    case OPT_FRAMES:
+        rc = int_in("frames", arg, 1, 10000, &a->scan.frames);
+        break;
+    case OPT_PEAK:
+        rc = num_in("peak-e", arg, 0, 1e12, &a->sim.flux_e);
+        break;
+    case OPT_NOISELESS:
+        a->sim.noiseless = 1, a->scan.use_expected = 1;
+        break;
+    case OPT_LEAVE:
+        rc = num_in("leave-out", arg, 0, 0.5, &a->sim.leave_out_tol);
+        break;
+    case OPT_TRUTH:
+        a->truth = arg;
+        break;
+    case 'o':
+        a->out = arg;
+        break;
+    case OPT_HELP:
+        fputs(usage, stdout);
+        return -1;
+    default:
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "bad option (see ips simulate --help)");
+    }
+    return rc;
+}
+
+static int parse_args(int argc, char **argv, struct sim_args *a)
+{
+    a->sim = sim_config_default();
+    a->scan = scan_config_default();
+    optind = 1;
+    opterr = 0;
+    int c;
+    while ((c = getopt_long(argc, argv, ":o:", long_opts, NULL)) != -1) {
+        if (c == '?' || c == ':')
+            return cli_fail(CLI_EXIT_USAGE, "simulate", "%s option '%s' (see ips simulate --help)",
+                            c == ':' ? "missing value for" : "unknown", argv[optind - 1]);
+        int rc = parse_opt(c, optarg, a);
+        if (rc) return rc;
+    }
+    if (optind < argc)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "unexpected argument '%s'", argv[optind]);
+    if (!a->out) return cli_fail(CLI_EXIT_USAGE, "simulate", "-o FILE is required");
+    if (a->have_radius && (a->have_wavelength || a->have_na))
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "give --radius or --wavelength/--na, not both");
+    if (a->grid && (a->dcol || a->drow))
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--pixel needs the full procedure, not --grid");
+    int h = a->scan.subframe_px / 2;
+    if (abs(a->dcol) > h || abs(a->drow) > h)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--pixel %d,%d is outside the %dx%d sub-frame",
+                        a->dcol, a->drow, a->scan.subframe_px, a->scan.subframe_px);
+    return 0;
+}
+
+/* The truth file: the scene's sub-pixel means for r = 1..TRUTH_R_MAX, raw and mean-1. */
+static int write_truth(const sim_t *sim, const char *path, err_t *err)
+{
+    const scene_t *sc = sim_scene(sim);
+    int m, rc = 0;
+    scene_map(sc, &m);
+    json_t *root = json_object(), *maps = json_array();
+    json_object_set_new(root, "scene", json_string(scene_name(sc)));
+    json_object_set_new(root, "pitch_um", json_real(scene_sensor(sc)->pitch_um));
+    json_object_set_new(root, "map_resolution", json_integer(m));
+    json_object_set_new(
+        root, "note",
+        json_string("S[j*r+i]: mean sensitivity of sub-pixel column i, row j (y downward) of the "
+                    "simulator's "
+                    "piecewise-constant map; S_normalised has mean 1, as ips fit reports S"));
+    double S[TRUTH_R_MAX * TRUTH_R_MAX];
+    for (int r = 1; r <= TRUTH_R_MAX && rc == 0; r++) {
+        if ((rc = scene_truth(sc, r, S, err)) != 0) break;
+        double mean = 0;
+        for (int c = 0; c < r * r; c++)
+            mean += S[c] / (r * r);
+        json_t *e = json_object(), *norm = json_array();
+        json_object_set_new(e, "r", json_integer(r));
+        json_object_set_new(e, "mean", json_real(mean));
+        json_object_set_new(e, "S", json_out_array(S, (size_t)r * r));
+        for (int c = 0; c < r * r; c++)
+            json_array_append_new(norm, json_real(S[c] / mean));
+        json_object_set_new(e, "S_normalised", norm);
+        json_array_append_new(maps, e);
+    }
+    json_object_set_new(root, "maps", maps);
+    if (rc == 0 && json_dump_file(root, path, JSON_INDENT(1) | JSON_REAL_PRECISION(17)) != 0)
+        rc = err_set(err, -EIO, "cannot write the truth file %s", path);
+    json_decref(root);
+    return rc;
+}
+
+struct outcome {
+    scanfile_t sf;
+    scan_setup_t su;
+    stage_pos_t found; /* centre the setup found, before --offset */
+    double setup_ms, raster_ms;
+};
+
+/* --grid: no setup; N x N points around the POI's true centre (shifted by --offset). */
+static int run_grid(sim_t *sim, const struct sim_args *a, struct outcome *o, err_t *err)
+{
+    scan_config_t c = a->scan;
+    c.do_centre = c.do_focus = c.do_exposure = 0;
+    c.start = sim_pixel_centre(sim, c.poi_col, c.poi_row);
+    double t0 = cli_now_ms();
+    int rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &o->su, err);
+    o->found = o->su.centre;
+    o->su.centre.x_um += a->offset_x;
+    o->su.centre.y_um += a->offset_y;
+    o->setup_ms = cli_now_ms() - t0;
+    if (rc == 0)
+        rc = scan_grid_pixel(sim_camera(sim), sim_stage(sim), &c, &o->su, a->grid, NULL, &o->sf,
+                             err);
+    o->raster_ms = cli_now_ms() - o->setup_ms - t0;
+    return rc;
+}
+
+/* The paper's procedure from a random start (seeded): up to 1.5 um off in x and y, 8 um in z. */
+static int run_procedure(sim_t *sim, const struct sim_args *a, struct outcome *o, err_t *err)
+{
+    scan_config_t c = a->scan;
+    stage_pos_t truth = sim_pixel_centre(sim, c.poi_col, c.poi_row);
+    gsl_rng *rng = gsl_rng_alloc(gsl_rng_mt19937);
+    if (!rng) return err_set(err, -ENOMEM, "out of memory");
+    gsl_rng_set(rng, a->sim.seed ^ 0x5eedUL);
+    c.start = (stage_pos_t){truth.x_um + 3 * (gsl_rng_uniform(rng) - 0.5),
+                            truth.y_um + 3 * (gsl_rng_uniform(rng) - 0.5),
+                            truth.z_um + 16 * (gsl_rng_uniform(rng) - 0.5)};
+    gsl_rng_free(rng);
+    scan_raster_t r;
+    memset(&r, 0, sizeof r);
+    double t0 = cli_now_ms();
+    int rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &o->su, err);
+    o->found = o->su.centre;
+    /* --offset: the raster is centred that far from the found centre, the file does not know */
+    o->su.centre.x_um += a->offset_x;
+    o->su.centre.y_um += a->offset_y;
+    o->setup_ms = cli_now_ms() - t0;
+    if (rc == 0) rc = scan_raster_init(&r, &c, &o->su, err);
+    if (rc == 0)
+        rc = scan_raster_run(sim_camera(sim), sim_stage(sim), &c, &o->su, 0, NULL, &r, err);
+    if (rc == 0) rc = scan_extract_pixel(&r, a->dcol, a->drow, &o->sf, err);
+    o->raster_ms = cli_now_ms() - o->setup_ms - t0;
+    scan_raster_free(&r);
+    return rc;
+}
+
+static json_t *summary(sim_t *sim, const struct sim_args *a, const struct outcome *o)
+{
+    stage_pos_t truth = sim_pixel_centre(sim, a->scan.poi_col, a->scan.poi_row);
+    sim_stats_t st;
+    sim_get_stats(sim, &st);
+    json_t *root = json_object(), *setup = json_object(), *work = json_object(),
+           *timing = json_object(), *cerr = json_array();
+    json_object_set_new(root, "output", json_string(a->out));
+    json_object_set_new(root, "scene", json_string(scene_name(sim_scene(sim))));
+    json_object_set_new(root, "mode", json_string(a->grid ? "grid" : "procedure"));
+    json_object_set_new(root, "points", json_integer((json_int_t)o->sf.scan.n));
+    json_object_set_new(root, "spot_radius_um", json_real(sim_spot_radius0(sim)));
+    json_object_set_new(root, "pixel", json_pack("[ii]", a->dcol, a->drow));
+    json_array_append_new(cerr, json_real(o->found.x_um - truth.x_um));
+    json_array_append_new(cerr, json_real(o->found.y_um - truth.y_um));
+    json_object_set_new(setup, "centre_error_um", cerr);
+    json_object_set_new(setup, "focus_error_um", json_real(o->found.z_um - truth.z_um));
+    json_object_set_new(setup, "focus_tolerance_um", json_real(sim_focus_tolerance(sim)));
+    json_object_set_new(setup, "exposure_us", json_real(o->su.exposure_us));
+    json_object_set_new(setup, "peak_dn", json_out_num(o->su.peak_dn));
+    json_object_set_new(setup, "imbalance",
+                        json_pack("[ff]", o->su.imbalance_x, o->su.imbalance_y));
+    json_object_set_new(setup, "evaluations", json_integer(o->su.focus_evaluations));
+    json_object_set_new(root, "setup", setup);
+    json_object_set_new(work, "frames", json_integer((json_int_t)st.frames));
+    json_object_set_new(work, "pixel_frames", json_integer((json_int_t)st.pixel_frames));
+    json_object_set_new(work, "memo_hits", json_integer((json_int_t)st.hits));
+    json_object_set_new(work, "integrated_full", json_integer((json_int_t)st.full));
+    json_object_set_new(work, "integrated_coarse", json_integer((json_int_t)st.coarse));
+    json_object_set_new(work, "integrated_uniform", json_integer((json_int_t)st.uniform));
+    json_object_set_new(work, "left_out", json_integer((json_int_t)st.left_out));
+    json_object_set_new(work, "max_left_out_e", json_real(st.max_left_out_e));
+    json_object_set_new(root, "simulator", work);
+    json_object_set_new(timing, "setup", json_real(o->setup_ms));
+    json_object_set_new(timing, "raster", json_real(o->raster_ms));
+    json_object_set_new(root, "timing_ms", timing);
+    return root;
+}
 
 int cmd_simulate(int argc, char **argv)
 {
-    (void)argc;
-    (void)argv;
-    return cli_fail(CLI_EXIT_USAGE, "simulate", "not available yet");
+    struct sim_args a = {0};
+    int rc = parse_args(argc, argv, &a);
+    if (rc) return rc < 0 ? 0 : rc;
+    err_t err;
+    sim_t *sim = NULL;
+    struct outcome o;
+    memset(&o, 0, sizeof o);
+    if ((rc = sim_open(&a.sim, &sim, &err)) != 0)
+        return cli_fail(cli_exit_code(rc), "simulate", "%s", err.msg);
+    const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
+    a.scan.poi_col = sn->cols / 2;
+    a.scan.poi_row = sn->rows / 2;
+    a.scan.spot_radius_um = sim_spot_radius0(sim);
+    rc = a.grid ? run_grid(sim, &a, &o, &err) : run_procedure(sim, &a, &o, &err);
+    json_t *extra = NULL;
+    if (rc == 0) {
+        extra = json_pack(
+            "{s:s}", "description",
+            "ips simulate: a scan of one pixel by the simulated bench (instrument/sim.h)");
+        rc = scanfile_write(a.out, &o.sf.scan, extra, &err);
+    }
+    if (rc == 0 && a.truth) rc = write_truth(sim, a.truth, &err);
+    int code = 0;
+    if (rc)
+        code = cli_fail(rc == -ECANCELED || rc == -EIO ? CLI_EXIT_FAILURE : cli_exit_code(rc),
+                        "simulate", "%s", err.msg);
+    else {
+        json_t *root = summary(sim, &a, &o);
+        if (json_out_print(root, stdout) != 0) code = CLI_EXIT_FAILURE;
+        json_decref(root);
+    }
+    json_decref(extra);
+    scanfile_free(&o.sf);
+    sim_close(sim);
+    return code;
 }

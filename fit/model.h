@@ -14,7 +14,7 @@
 #include "design.h"
 #include "err.h"
 #include "noise.h"
-#include "scan.h"
+#include "scandata.h"
 
 /* Status flags of a fit: any flag but FIT_SATURATED / FIT_NONFINITE (points left out, counted)
  * means the map must not be trusted as it is. */

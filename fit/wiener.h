@@ -9,7 +9,7 @@
 #include <stddef.h>
 
 #include "err.h"
-#include "scan.h"
+#include "scandata.h"
 
 typedef struct fit_wiener {
     int nx, ny;          /* grid size (columns, rows) */

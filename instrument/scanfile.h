@@ -13,7 +13,7 @@
 #include <jansson.h>
 
 #include "err.h"
-#include "scan.h"
+#include "scandata.h"
 
 /* A parsed scan file: scan's arrays point into the buffers owned by this struct. */
 typedef struct scanfile {

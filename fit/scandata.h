@@ -1,8 +1,8 @@
-/* scan.h: a spot scan of one pixel as the fit sees it: spot positions and the pixel's mean
+/* scandata.h: a spot scan of one pixel as the fit sees it: spot positions and the pixel's mean
  * response, with the sensor constants the noise model needs (the scan-file contract of
  * docs/contracts.md, without any I/O). The arrays are borrowed, not owned. */
-#ifndef IPSD_FIT_SCAN_H
-#define IPSD_FIT_SCAN_H
+#ifndef IPSD_FIT_SCANDATA_H
+#define IPSD_FIT_SCANDATA_H
 
 #include <stddef.h>
 

@@ -1,0 +1,92 @@
+/* cam.h: the camera interface of the bench, one small C header for every backend.
+ *
+ * Backends are compiled in at build time and chosen by name when a camera is opened:
+ *   "sim"        the simulated bench's camera (always built; see sim.h). cam_open("sim", SPEC)
+ *                opens a bench of its own with the paper's defaults on scene SPEC ("uniform",
+ *                "paperlike", "map:FILE"; NULL or "" for paperlike); sim.h opens configured ones.
+ *   "libcamera"  a camera driven by libcamera (cam_libcamera.cpp, built when pkg-config finds
+ *                libcamera; otherwise opening it fails with -ENOTSUP). ID is libcamera's camera id,
+ *                or NULL / "" for the first camera.
+ * A frame is a region of interest (ROI) of 16-bit DN values, row-major, with its metadata. A
+ * handle is used by one thread at a time. */
+#ifndef IPSD_INSTRUMENT_CAM_H
+#define IPSD_INSTRUMENT_CAM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "err.h"
+
+typedef struct cam cam_t;
+
+/* A rectangle of pixels: columns [col, col + width), rows [row, row + height). */
+typedef struct cam_roi {
+    int col, row, width, height;
+} cam_roi_t;
+
+/* What a camera says about itself. Unknown numbers are NaN. */
+typedef struct cam_info {
+    char backend[16]; /* "sim" or "libcamera" */
+    char id[128];     /* the id cam_open takes */
+    char model[64];
+    int width, height;    /* full array, pixels */
+    double pitch_um;      /* pixel pitch */
+    double gain_e_per_dn; /* conversion gain at analogue gain 1 */
+    double read_noise_e;
+    double bias_dn;
+    double full_scale_dn; /* largest DN value the ADC gives */
+    double exposure_min_us, exposure_max_us;
+    double gain_min, gain_max; /* analogue gain range */
+} cam_info_t;
+
+/* One captured frame. dn and expected_dn are owned by the frame: release with cam_frame_free. */
+typedef struct cam_frame {
+    cam_roi_t roi;
+    uint16_t *dn;         /* roi.width * roi.height values, row-major (y then x) */
+    double *expected_dn;  /* the simulator's noiseless expectation of each pixel (bias
+                             included, unrounded, unclipped); NULL for real cameras */
+    double left_out_dn;   /* the simulator's bound on signal it left out of any one pixel of
+                             the frame (its leave-out rule); 0 for real cameras */
+    double exposure_us;   /* exposure actually used */
+    double gain;          /* analogue gain actually used */
+    int64_t timestamp_ns; /* start of the exposure, backend clock: libcamera's sensor
+                             timestamp, or the simulated bench's time */
+    double temperature_c; /* sensor temperature, NaN if unknown */
+    uint64_t sequence;    /* frame counter of this handle */
+} cam_frame_t;
+
+/* Lists the cameras of backend ("sim" or "libcamera"). *infos (n entries) is owned by the caller
+ * (free()). Returns 0 (possibly with n = 0), -ENOTSUP for a backend not built in, -EINVAL for an
+ * unknown backend, or another negative errno from the backend. */
+int cam_list(const char *backend, cam_info_t **infos, size_t *n, err_t *err);
+
+/* Opens camera id of backend (see above). *out is owned by the caller (cam_close). Returns 0,
+ * -ENODEV (no such camera; for libcamera with none present: "no camera found by libcamera"),
+ * -ENOTSUP (backend not built), -EINVAL, -EBUSY or -ENOMEM. */
+int cam_open(const char *backend, const char *id, cam_t **out, err_t *err);
+
+/* Closes the camera (stops it, releases it); accepts NULL. */
+void cam_close(cam_t *cam);
+
+/* Fills *info. Returns 0 or a negative errno. */
+int cam_get_info(cam_t *cam, cam_info_t *info, err_t *err);
+
+/* Sets the exposure time for the following captures (microseconds, within the info's range).
+ * Returns 0, -ERANGE (outside the range) or a backend error. */
+int cam_set_exposure(cam_t *cam, double exposure_us, err_t *err);
+
+/* Sets the analogue gain (1 = the sensor's base conversion gain). Returns 0, -ERANGE or an
+ * error. */
+int cam_set_gain(cam_t *cam, double gain, err_t *err);
+
+/* Captures one frame of roi (NULL: the whole array) into *frame, which the caller releases with
+ * cam_frame_free. Returns 0, -EINVAL (ROI outside the array), -EIO (capture failed), -ENOMEM. */
+int cam_capture(cam_t *cam, const cam_roi_t *roi, cam_frame_t *frame, err_t *err);
+
+/* Releases what the frame owns and zeroes it; accepts NULL. */
+void cam_frame_free(cam_frame_t *frame);
+
+/* Names of the backends built in, NULL-terminated (static). */
+const char *const *cam_backends(void);
+
+#endif

@@ -1,0 +1,96 @@
+/* stage.c: the motion stage interface's dispatch over its backends (see stage.h). */
+#include "stage.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stage_impl.h"
+
+int stage_open_sim(const stage_sim_config_t *cfg, stage_t **out, err_t *err)
+{
+    *out = NULL;
+    void *impl;
+    int rc = stage_sim_new(cfg, &impl, err);
+    if (rc) return rc;
+    stage_t *s = calloc(1, sizeof *s);
+    if (!s) {
+        stage_sim_ops.close(impl);
+        return err_set(err, -ENOMEM, "out of memory for the stage");
+    }
+    s->ops = &stage_sim_ops;
+    s->impl = impl;
+    *out = s;
+    return 0;
+}
+
+int stage_open(const char *backend, const char *id, stage_t **out, err_t *err)
+{
+    (void)id;
+    *out = NULL;
+    if (!backend || strcmp(backend, "sim") == 0) {
+        stage_sim_config_t cfg = stage_sim_config_default();
+        return stage_open_sim(&cfg, out, err);
+    }
+    return err_set(err, -EINVAL, "unknown stage backend '%s' (sim)", backend);
+}
+
+void stage_close(stage_t *stage)
+{
+    if (!stage) return;
+    stage->ops->close(stage->impl);
+    free(stage);
+}
+
+int stage_move(stage_t *stage, const stage_pos_t *target, err_t *err)
+{
+    if (!isfinite(target->x_um) || !isfinite(target->y_um) || !isfinite(target->z_um))
+        return err_set(err, -EINVAL, "stage target is not finite");
+    stage_limits_t lim;
+    int rc = stage->ops->limits(stage->impl, &lim, err);
+    if (rc) return rc;
+    const double *t = &target->x_um, *lo = &lim.min.x_um, *hi = &lim.max.x_um;
+    static const char axis[] = "xyz";
+    for (int a = 0; a < 3; a++)
+        if (t[a] < lo[a] || t[a] > hi[a])
+            return err_set(err, -ERANGE, "stage target %c = %g um is outside the travel [%g, %g]",
+                           axis[a], t[a], lo[a], hi[a]);
+    return stage->ops->move(stage->impl, target, err);
+}
+
+int stage_get_position(stage_t *stage, stage_pos_t *pos, err_t *err)
+{
+    return stage->ops->position(stage->impl, pos, err);
+}
+
+int stage_home(stage_t *stage, err_t *err)
+{
+    return stage->ops->home(stage->impl, err);
+}
+
+int stage_get_limits(stage_t *stage, stage_limits_t *limits, err_t *err)
+{
+    return stage->ops->limits(stage->impl, limits, err);
+}
+
+int stage_sim_true_position(stage_t *stage, stage_pos_t *pos)
+{
+    if (stage->ops != &stage_sim_ops) return -ENOTSUP;
+    return stage_sim_true(stage->impl, pos);
+}
+
+int stage_sim_clock(stage_t *stage, double *seconds)
+{
+    if (stage->ops != &stage_sim_ops) return -ENOTSUP;
+    *seconds = stage_sim_time(stage->impl);
+    return 0;
+}
+
+int stage_sim_advance(stage_t *stage, double seconds)
+{
+    if (stage->ops != &stage_sim_ops) return -ENOTSUP;
+    if (!(seconds >= 0) || !isfinite(seconds)) return -EINVAL;
+    stage_sim_add_time(stage->impl, seconds);
+    return 0;
+}

@@ -1,0 +1,30 @@
+/* stage_impl.h (internal to instrument/): how a stage backend plugs into stage.h: a table of
+ * operations over the backend's state, wrapped by stage_wrap; stage.c dispatches. */
+#ifndef IPSD_INSTRUMENT_STAGE_IMPL_H
+#define IPSD_INSTRUMENT_STAGE_IMPL_H
+
+#include "stage.h"
+
+struct stage_ops {
+    const char *backend;
+    void (*close)(void *impl);
+    int (*move)(void *impl, const stage_pos_t *target, err_t *err);
+    int (*position)(void *impl, stage_pos_t *pos, err_t *err);
+    int (*home)(void *impl, err_t *err);
+    int (*limits)(void *impl, stage_limits_t *limits, err_t *err);
+};
+
+struct stage {
+    const struct stage_ops *ops;
+    void *impl;
+};
+
+/* The simulated backend's operations (stage_sim.c); stage.c recognises them for the sim-only
+ * calls. */
+extern const struct stage_ops stage_sim_ops;
+int stage_sim_true(void *impl, stage_pos_t *pos);
+double stage_sim_time(void *impl);
+void stage_sim_add_time(void *impl, double seconds);
+int stage_sim_new(const stage_sim_config_t *cfg, void **impl, err_t *err);
+
+#endif
