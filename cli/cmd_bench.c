@@ -19,7 +19,7 @@
 #include "cliutil.h"
 #include "commands.h"
 #include "design.h"
-#include "json_out.h"
+#include "fitjson.h"
 #include "simperf.h"
 #include "model.h"
 #include "wiener.h"
@@ -293,24 +293,24 @@ static json_t *bench_json(const struct design_row *rows, int n, const struct job
         json_array_append_new(
             design,
             json_pack("{s:o, s:i, s:o, s:i, s:o, s:o, s:o, s:o, s:o, s:o, s:i, s:I, s:I, s:o}",
-                      "R_um", json_out_num(r->R), "r", BENCH_R, "tol", json_out_num(r->tol),
-                      "order", r->o.order, "seg_dv", json_out_num(r->o.seg_dv), "seg_ds",
-                      json_out_num(r->o.seg_ds), "skip_tol", json_out_num(r->o.skip_tol),
-                      "max_row_rel_err", json_out_num(r->row_err), "max_entry_rel_err",
-                      json_out_num(r->entry_err), "median_ms", json_out_num(r->median_ms),
+                      "R_um", fitjson_num(r->R), "r", BENCH_R, "tol", fitjson_num(r->tol),
+                      "order", r->o.order, "seg_dv", fitjson_num(r->o.seg_dv), "seg_ds",
+                      fitjson_num(r->o.seg_ds), "skip_tol", fitjson_num(r->o.skip_tol),
+                      "max_row_rel_err", fitjson_num(r->row_err), "max_entry_rel_err",
+                      fitjson_num(r->entry_err), "median_ms", fitjson_num(r->median_ms),
                       "runs", r->runs, "radial_evals", (json_int_t)r->st.radial_evals,
                       "skipped", (json_int_t)r->st.skipped, "ref_bound",
-                      json_out_num(r->ref_bound)));
+                      fitjson_num(r->ref_bound)));
         json_object_set_new(json_array_get(design, (size_t)i), "verdict",
                             json_string(tol_verdict(r)));
     }
     json_t *job = json_pack(
         "{s:i, s:{s:o, s:o}, s:{s:o, s:o, s:o}, s:o, s:i, s:i, s:o, s:o}", "runs", jt->runs,
-        "total_ms", "min", json_out_num(jt->total_min), "median", json_out_num(jt->total_median),
-        "phases_median_ms", "sweep", json_out_num(jt->sweep), "ftest", json_out_num(jt->ftest),
-        "wiener", json_out_num(jt->wiener), "lm_sweep_ms", json_out_num(jt->lm_sweep), "lm_runs",
-        jt->lm_runs, "best_r_aic", jt->best_aic, "F", json_out_num(jt->F), "p_value",
-        json_out_num(jt->p_value));
+        "total_ms", "min", fitjson_num(jt->total_min), "median", fitjson_num(jt->total_median),
+        "phases_median_ms", "sweep", fitjson_num(jt->sweep), "ftest", fitjson_num(jt->ftest),
+        "wiener", fitjson_num(jt->wiener), "lm_sweep_ms", fitjson_num(jt->lm_sweep), "lm_runs",
+        jt->lm_runs, "best_r_aic", jt->best_aic, "F", fitjson_num(jt->F), "p_value",
+        fitjson_num(jt->p_value));
     return json_pack("{s:o, s:o}", "design", design, "job", job);
 }
 
@@ -345,7 +345,7 @@ int cmd_bench(int argc, char **argv)
     }
     json_t *root = bench_json(rows, n_rows, &jt);
     if (root) json_object_set_new(root, "simulator", simperf_json(&sp));
-    rc = root ? json_out_print(root, stdout) : -ENOMEM;
+    rc = root ? fitjson_print(root, stdout) : -ENOMEM;
     json_decref(root);
     return rc ? cli_fail(CLI_EXIT_FAILURE, "bench", "writing the output failed") : 0;
 }

@@ -12,7 +12,7 @@
 #include "commands.h"
 #include "fit_table.h"
 #include "interp.h"
-#include "json_out.h"
+#include "fitjson.h"
 #include "model.h"
 #include "scanfile.h"
 #include "wiener.h"
@@ -193,82 +193,7 @@ static int parse_args(int argc, char **argv, struct fit_args *a)
 
 /* ---- output ---- */
 
-static const struct {
-    unsigned bit;
-    const char *name;
-} flag_names[] = {
-    {FIT_NO_POINTS, "no_points"},         {FIT_UNDERDETERMINED, "underdetermined"},
-    {FIT_NO_SIGNAL, "no_signal"},         {FIT_ILL_CONDITIONED, "ill_conditioned"},
-    {FIT_UNCONSTRAINED, "unconstrained"}, {FIT_LM_NOT_GLOBAL, "lm_not_global"},
-    {FIT_LM_NOT_CONVERGED, "lm_not_converged"}, {FIT_NONFINITE, "nonfinite_input"},
-    {FIT_SATURATED, "saturated"},
-};
-
-static json_t *flags_json(unsigned flags)
-{
-    json_t *a = json_array();
-    for (size_t i = 0; i < sizeof flag_names / sizeof flag_names[0]; i++)
-        if (flags & flag_names[i].bit) json_array_append_new(a, json_string(flag_names[i].name));
-    return a;
-}
-
-static json_t *fit_json(const fit_result_t *f, fit_method_t method)
-{
-    size_t m = (size_t)f->r * f->r;
-    json_t *o = json_pack("{s:i, s:o, s:i, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:s, s:o}",
-                          "r", f->r, "chi2", json_out_num(f->chi2), "params", f->params, "aic",
-                          json_out_num(f->aic), "bic", json_out_num(f->bic), "I0",
-                          json_out_num(f->I0), "I0_err", json_out_num(f->I0_err), "S",
-                          json_out_array(f->S, m), "S_err", json_out_array(f->S_err, m), "cond",
-                          json_out_num(f->cond), "chi2_red", json_out_num(f->chi2_red), "status",
-                          fit_status_name(f->flags), "flags", flags_json(f->flags));
-    json_object_set_new(o, "n_used", json_integer((json_int_t)f->n_used));
-    json_object_set_new(o, "n_saturated", json_integer((json_int_t)f->n_saturated));
-    json_object_set_new(o, "n_nonfinite", json_integer((json_int_t)f->n_nonfinite));
-    json_object_set_new(o, "n_unconstrained", json_integer((json_int_t)f->n_unconstrained));
-    if (method != FIT_LINEAR) {
-        json_object_set_new(o, "lm_chi2", json_out_num(f->lm_chi2));
-        json_object_set_new(o, "lm_iterations", json_integer(f->lm_iterations));
-    }
-    json_object_set_new(o, "design",
-                        json_pack("{s:I, s:I, s:o, s:I}", "entries", (json_int_t)f->design.entries,
-                                  "skipped", (json_int_t)f->design.skipped, "max_skipped_bound",
-                                  json_out_num(f->design.max_skipped_bound), "radial_evals",
-                                  (json_int_t)f->design.radial_evals));
-    json_object_set_new(o, "timing_ms", json_pack("{s:o, s:o}", "design",
-                                                  json_out_num(f->design_ms), "solve",
-                                                  json_out_num(f->solve_ms)));
-    return o;
-}
-
-static json_t *ftest_json(const fit_ftest_t *t)
-{
-    static const struct {
-        unsigned bit;
-        const char *name;
-    } edge_names[] = {{FIT_EDGE_TOP, "top"}, {FIT_EDGE_LEFT, "left"},
-                      {FIT_EDGE_BOTTOM, "bottom"}, {FIT_EDGE_RIGHT, "right"}};
-    json_t *edges = json_array();
-    for (size_t i = 0; i < sizeof edge_names / sizeof edge_names[0]; i++)
-        if (t->edges & edge_names[i].bit)
-            json_array_append_new(edges, json_string(edge_names[i].name));
-    return json_pack("{s:i, s:o, s:o, s:i, s:o, s:i, s:o, s:o, s:I, s:s, s:o}", "r", t->r,
-                     "edges", edges, "chi2_H0", json_out_num(t->chi2_h0), "params_H0",
-                     t->params_h0, "chi2_H1", json_out_num(t->chi2_h1), "params_H1",
-                     t->params_h1, "F", json_out_num(t->F), "p_value", json_out_num(t->p_value),
-                     "N", (json_int_t)t->n, "status", fit_status_name(t->flags), "flags",
-                     flags_json(t->flags));
-}
-
-static json_t *wiener_json(const fit_wiener_t *w)
-{
-    return json_pack("{s:i, s:i, s:[o, o], s:o, s:o, s:o, s:o}", "nx", w->nx, "ny", w->ny,
-                     "step_um", json_out_num(w->step_x_um), json_out_num(w->step_y_um), "x0_um",
-                     json_out_num(w->x0_um), "y0_um", json_out_num(w->y0_um), "nsr",
-                     json_out_num(w->nsr), "S", json_out_array(w->S, (size_t)w->nx * w->ny));
-}
-
-/* ---- the run ---- */
+/* The JSON encoding of fits is json/fitjson.h, shared with ipsd (it stores the same document). */
 
 struct fit_run {
     scanfile_t sf;
@@ -346,33 +271,23 @@ static json_t *interp_json(int n, const struct fit_run *run)
 {
     if (!run->interp_r) return json_null();
     return json_pack("{s:i, s:i, s:o}", "r", run->interp_r, "n", n, "S",
-                     json_out_array(run->interp, (size_t)n * n));
+                     fitjson_array(run->interp, (size_t)n * n));
 }
 
 static json_t *result_json(const struct fit_args *a, const struct fit_run *run, double t0)
 {
-    const fit_sweep_t *sw = &run->sweep;
-    json_t *fits = json_array();
-    for (int r = sw->r_min; r <= sw->r_max; r++)
-        json_array_append_new(fits, fit_json(&sw->fits[r - sw->r_min], a->opts.method));
-    const char *methods[] = {"linear", "lm", "both"};
-    json_t *root = json_pack(
-        "{s:I, s:I, s:s, s:s, s:b, s:o, s:o, s:o, s:{s:o, s:o}}", "N",
-        (json_int_t)sw->fits[0].n_used, "n_points", (json_int_t)run->sf.scan.n, "sigma",
-        fit_noise_name(a->opts.noise), "method", methods[a->opts.method], "nonneg",
-        a->opts.nonneg, "design_tol", json_out_num(a->opts.design_tol), "full_scale_dn",
-        json_out_num(run->sf.scan.full_scale_dn), "fits", fits, "best_r", "aic",
-        json_out_int_or_null(sw->best_aic), "bic", json_out_int_or_null(sw->best_bic));
-    if (run->have_ftest) json_object_set_new(root, "ftest", ftest_json(&run->ftest));
-    if (run->have_wiener) json_object_set_new(root, "wiener", wiener_json(&run->wiener));
+    json_t *root = fitjson_sweep(&run->sweep, run->sf.scan.n, &a->opts, run->sf.scan.full_scale_dn);
+    if (!root) return NULL;
+    if (run->have_ftest) json_object_set_new(root, "ftest", fitjson_ftest(&run->ftest));
+    if (run->have_wiener) json_object_set_new(root, "wiener", fitjson_wiener(&run->wiener));
     if (a->interp_n) json_object_set_new(root, "interp", interp_json(a->interp_n, run));
     json_object_set_new(root, "timing_ms",
                         json_pack("{s:o, s:o, s:o, s:o, s:o, s:o}", "read",
-                                  json_out_num(run->ms_read), "sweep", json_out_num(run->ms_sweep),
-                                  "ftest", json_out_num(run->ms_ftest), "wiener",
-                                  json_out_num(run->ms_wiener), "interp",
-                                  json_out_num(run->ms_interp), "total",
-                                  json_out_num(cli_now_ms() - t0)));
+                                  fitjson_num(run->ms_read), "sweep", fitjson_num(run->ms_sweep),
+                                  "ftest", fitjson_num(run->ms_ftest), "wiener",
+                                  fitjson_num(run->ms_wiener), "interp",
+                                  fitjson_num(run->ms_interp), "total",
+                                  fitjson_num(cli_now_ms() - t0)));
     return root;
 }
 
@@ -398,7 +313,7 @@ int cmd_fit(int argc, char **argv)
     json_t *root = result_json(&a, &run, t0);
     run_free(&run);
     if (!root) return cli_fail(CLI_EXIT_FAILURE, "fit", "out of memory building the output");
-    rc = json_out_print(root, stdout);
+    rc = fitjson_print(root, stdout);
     json_decref(root);
     return rc ? cli_fail(CLI_EXIT_FAILURE, "fit", "writing the output failed") : 0;
 }

@@ -16,7 +16,7 @@
 
 #include "cliutil.h"
 #include "commands.h"
-#include "json_out.h"
+#include "fitjson.h"
 #include "../instrument/scan.h"
 #include "scanfile.h"
 #include "sim.h"
@@ -257,7 +257,7 @@ static int write_truth(const sim_t *sim, const char *path, err_t *err)
         json_t *e = json_object(), *norm = json_array();
         json_object_set_new(e, "r", json_integer(r));
         json_object_set_new(e, "mean", json_real(mean));
-        json_object_set_new(e, "S", json_out_array(S, (size_t)r * r));
+        json_object_set_new(e, "S", fitjson_array(S, (size_t)r * r));
         for (int c = 0; c < r * r; c++)
             json_array_append_new(norm, json_real(S[c] / mean));
         json_object_set_new(e, "S_normalised", norm);
@@ -345,7 +345,7 @@ static json_t *summary(sim_t *sim, const struct sim_args *a, const struct outcom
     json_object_set_new(setup, "focus_error_um", json_real(o->found.z_um - truth.z_um));
     json_object_set_new(setup, "focus_tolerance_um", json_real(sim_focus_tolerance(sim)));
     json_object_set_new(setup, "exposure_us", json_real(o->su.exposure_us));
-    json_object_set_new(setup, "peak_dn", json_out_num(o->su.peak_dn));
+    json_object_set_new(setup, "peak_dn", fitjson_num(o->su.peak_dn));
     json_object_set_new(setup, "imbalance",
                         json_pack("[ff]", o->su.imbalance_x, o->su.imbalance_y));
     json_object_set_new(setup, "evaluations", json_integer(o->su.focus_evaluations));
@@ -395,7 +395,7 @@ int cmd_simulate(int argc, char **argv)
                         "simulate", "%s", err.msg);
     else {
         json_t *root = summary(sim, &a, &o);
-        if (json_out_print(root, stdout) != 0) code = CLI_EXIT_FAILURE;
+        if (fitjson_print(root, stdout) != 0) code = CLI_EXIT_FAILURE;
         json_decref(root);
     }
     json_decref(extra);

@@ -10,7 +10,11 @@ IPSD_PACKAGES=(
     libmicrohttpd-dev                       # api/
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
     curl wrk python3                        # HTTP tests, load benchmark, test scripts
+    chromium                                # the dashboard's browser test (headless)
 )
+# node and npm run the browser test's driver (playwright-core from the npm registry). Machines
+# that already have a node (e.g. from nodesource) keep it: Debian's npm conflicts with that one.
+command -v node >/dev/null 2>&1 || IPSD_PACKAGES+=(nodejs npm)
 
 missing=()
 for p in "${IPSD_PACKAGES[@]}"; do

@@ -8,6 +8,8 @@ scripts/deps.sh
 
 scripts/build.sh build
 scripts/build.sh build-asan -DIPSD_SANITIZE=ON
+# the browser test's driver, pinned by tests/web/package-lock.json (the browser is Debian's)
+npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
 
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1

@@ -369,6 +369,25 @@ static int pragma(storage_t *st, const char *sql, const char *want, err_t *err)
     return ret;
 }
 
+/* After migrations: every foreign key must hold (PRAGMA foreign_key_check returns no row). */
+static int fk_check(storage_t *st, err_t *err)
+{
+    sqlite3_stmt *s = NULL;
+    int rc = sqlite3_prepare_v2(st->db, "PRAGMA foreign_key_check", -1, &s, NULL);
+    if (rc != SQLITE_OK) return stg_error(st, rc, err, "PRAGMA foreign_key_check");
+    rc = sqlite3_step(s);
+    int ret = 0;
+    if (rc == SQLITE_ROW)
+        ret = err_set(err, -EIO, "after migrating: table %s row %lld breaks a foreign key to %s",
+                      (const char *)sqlite3_column_text(s, 0),
+                      (long long)sqlite3_column_int64(s, 1),
+                      (const char *)sqlite3_column_text(s, 2));
+    else if (rc != SQLITE_DONE)
+        ret = stg_error(st, rc, err, "PRAGMA foreign_key_check");
+    sqlite3_finalize(s);
+    return ret;
+}
+
 int storage_open(const char *path, storage_t **out, err_t *err)
 {
     if (!out) return err_set(err, -EINVAL, "storage_open: out is NULL");
@@ -390,15 +409,19 @@ int storage_open(const char *path, storage_t **out, err_t *err)
         ret = stg_error(st, rc, err, path);
         goto out;
     }
-    /* the version check comes first: a database we refuse is not even switched to WAL */
+    /* the version check comes first: a database we refuse is not even switched to WAL.
+     * Migrations run with foreign keys off (a table rebuild drops a referenced table, SQLite's
+     * documented procedure); the keys are checked (no row may violate them) and turned on after. */
     int v = 0;
-    if ((ret = pragma(st, "PRAGMA foreign_keys = ON", NULL, err)) ||
-        (ret = pragma(st, "PRAGMA foreign_keys", "1", err)) ||
+    if ((ret = pragma(st, "PRAGMA foreign_keys = OFF", NULL, err)) ||
         (ret = check_version(st, path, &v, err)) ||
         (ret = pragma(st, "PRAGMA journal_mode = WAL", "wal", err)) ||
-        (ret = pragma(st, "PRAGMA synchronous = FULL", NULL, err)))
+        (ret = pragma(st, "PRAGMA synchronous = FULL", NULL, err)) ||
+        (ret = migrate(st, v, err)) ||
+        (v < stg_n_migrations && (ret = fk_check(st, err))) ||
+        (ret = pragma(st, "PRAGMA foreign_keys = ON", NULL, err)))
         goto out;
-    ret = migrate(st, v, err);
+    ret = pragma(st, "PRAGMA foreign_keys", "1", err);
 out:
     if (ret) {
         storage_close(st);

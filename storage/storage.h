@@ -155,6 +155,13 @@ int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, con
 void storage_scan_free(storage_scan_t *sc);
 void storage_scan_list_free(storage_scan_list_t *l);
 
+/* The scan's setup: what the scan procedure found before the raster (centre, exposure, sensor
+ * constants), as JSON text the caller defines (schema 2). A resumed raster and the extraction of
+ * a pixel's response need it. set: -EINVAL when not valid JSON, -ENOENT for an unknown scan.
+ * get: *json is a malloc'ed copy owned by the caller (free()), NULL when none is stored yet. */
+int storage_scan_set_setup(storage_t *st, int64_t id, const char *json, err_t *err);
+int storage_scan_get_setup(storage_t *st, int64_t id, char **json, err_t *err);
+
 /* ---- frames: one row per scan point ------------------------------------------------------- */
 
 typedef struct storage_frame {
@@ -245,6 +252,9 @@ int storage_job_finish(storage_t *st, int64_t id, storage_state_t state, const c
  * Cancelling a scan job also cancels its scan if that is queued or running (same transaction),
  * so the scan writer's next storage_frame_put returns -ECANCELED. -ENOENT for an unknown job. */
 int storage_job_cancel(storage_t *st, int64_t id, int *changed, err_t *err);
+/* Gives a running job back to the queue (graceful shutdown): queued again, heartbeat cleared, the
+ * claim not counted in attempts. -ECANCELED / -ESTALE / -ENOENT as storage_job_heartbeat. */
+int storage_job_release(storage_t *st, int64_t id, err_t *err);
 int storage_job_get(storage_t *st, int64_t id, storage_job_t *out, err_t *err);
 /* Jobs newest first, filtered by kind and state (STORAGE_ANY: any) and scan (0: any). */
 int storage_job_list(storage_t *st, int kind, int state, int64_t scan_id, int limit, int offset,
@@ -261,7 +271,7 @@ void storage_job_list_free(storage_job_list_t *l);
 /* ---- fits and calibrations ---------------------------------------------------------------- */
 
 typedef struct storage_fit {
-    int64_t id, scan_id;
+    int64_t id, scan_id;     /* scan_id 0: a fit of an uploaded scan file (then dcol = drow = 0) */
     int dcol, drow;          /* fitted sub-frame pixel, relative to the POI */
     char *noise_model;       /* "paper", "shot+read" (fit_noise_name) */
     int best_r_aic, best_r_bic; /* 0: none */

@@ -60,14 +60,17 @@ static int fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t 
     if (!f->result) return err_set(err, -EINVAL, "fit result: NULL");
     if (f->best_r_aic < 0 || f->best_r_bic < 0)
         return err_set(err, -EINVAL, "fit best_r: need >= 0 (0: none)");
-    if ((ret = stg_scan_load(st, f->scan_id, &sc, err))) return ret;
-    int h = (sc.sub_px - 1) / 2;
-    storage_scan_free(&sc);
+    int h = 0; /* a fit of an uploaded scan file (no scan) is of its one pixel, (0, 0) */
+    if (f->scan_id) {
+        if ((ret = stg_scan_load(st, f->scan_id, &sc, err))) return ret;
+        h = (sc.sub_px - 1) / 2;
+        storage_scan_free(&sc);
+    }
     if (abs(f->dcol) > h || abs(f->drow) > h)
         return err_set(err, -EINVAL, "fit pixel: (%d, %d) is outside scan %lld's sub-frame "
                        "(offsets -%d..%d)", f->dcol, f->drow, (long long)f->scan_id, h, h);
     if ((ret = stg_stmt(st, STG_FIT_INSERT, &q, err))) return ret;
-    stg_bind_int(q, 1, f->scan_id, &rc);
+    stg_bind_id(q, 1, f->scan_id, &rc);
     stg_bind_int(q, 2, f->dcol, &rc);
     stg_bind_int(q, 3, f->drow, &rc);
     stg_bind_text(q, 4, f->noise_model, &rc);

@@ -237,6 +237,21 @@ int storage_job_finish(storage_t *st, int64_t id, storage_state_t state, const c
     return sqlite3_changes(st->db) ? 0 : not_running(st, id, "job finish", err);
 }
 
+int storage_job_release(storage_t *st, int64_t id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st) return err_set(err, -EINVAL, "job release: NULL handle");
+    if ((ret = stg_stmt(st, STG_JOB_RELEASE, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "job release");
+    }
+    if ((ret = stg_run(st, q, err, "job release"))) return ret;
+    return sqlite3_changes(st->db) ? 0 : not_running(st, id, "job release", err);
+}
+
 /* Inside the cancel transaction, after the job changed: cancels its scan if it has one. */
 static int cancel_scan_of(storage_t *st, int64_t id, err_t *err)
 {

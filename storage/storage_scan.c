@@ -367,3 +367,40 @@ int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, con
         return err_set(err, -ENOENT, "scan %lld does not exist", (long long)id);
     return 0;
 }
+
+/* ---- the scan's setup (schema 2) ---------------------------------------------------------- */
+
+int storage_scan_set_setup(storage_t *st, int64_t id, const char *json, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !json) return err_set(err, -EINVAL, "scan setup: NULL argument");
+    if ((ret = stg_stmt(st, STG_SCAN_SET_SETUP, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    stg_bind_text(q, 2, json, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "storing a scan setup");
+    }
+    ret = stg_run(st, q, err, "storing a scan setup");
+    if (ret == -EINVAL) return err_set(err, ret, "scan setup: not valid JSON text");
+    if (ret == 0 && sqlite3_changes(st->db) == 0)
+        ret = err_set(err, -ENOENT, "scan %lld does not exist", (long long)id);
+    return ret;
+}
+
+int storage_scan_get_setup(storage_t *st, int64_t id, char **json, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK, oom = 0;
+    if (!st || !json) return err_set(err, -EINVAL, "scan setup: NULL argument");
+    *json = NULL;
+    if ((ret = stg_stmt(st, STG_SCAN_GET_SETUP, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a scan setup")
+                          : stg_error(st, rc, err, "reading a scan setup");
+    if (ret == 0) *json = stg_col_text(q, 0, &oom);
+    stg_reset(q);
+    if (oom) return err_set(err, -ENOMEM, "scan setup: out of memory");
+    return ret == -ENOENT ? err_set(err, ret, "scan %lld does not exist", (long long)id) : ret;
+}

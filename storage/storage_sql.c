@@ -119,6 +119,35 @@ const char *const stg_migrations[] = {
     "CREATE INDEX calibrations_pixel ON calibrations (sensor_id, pixel_row, pixel_col, id);\n"
     "CREATE INDEX calibrations_created ON calibrations (created_ms);\n"
     "PRAGMA user_version = 1;\n",
+
+    /* 2: scans.setup (what the scan procedure found: the centre, exposure and sensor constants a
+     * resumed raster and the pixel extraction need), and fits.scan_id may be NULL (a fit of an
+     * uploaded scan file). SQLite cannot drop a NOT NULL, so fits is rebuilt the documented way
+     * (storage_open runs migrations with foreign keys off and checks them before turning them
+     * on); its ids are kept, so the references of jobs and calibrations stay valid. */
+    "ALTER TABLE scans ADD COLUMN setup TEXT\n"
+    "    CONSTRAINT setup_json CHECK (setup IS NULL OR json_valid(setup));\n"
+    "CREATE TABLE fits_v2 (\n"
+    "    id          INTEGER PRIMARY KEY,\n"
+    "    scan_id     INTEGER REFERENCES scans (id),\n"
+    "    dcol        INTEGER NOT NULL,\n"
+    "    drow        INTEGER NOT NULL,\n"
+    "    noise_model TEXT    NOT NULL CHECK (length(noise_model) > 0),\n"
+    "    best_r_aic  INTEGER,\n"
+    "    best_r_bic  INTEGER,\n"
+    "    f_value     REAL,\n"
+    "    p_value     REAL,\n"
+    "    result      TEXT    NOT NULL CONSTRAINT result_json CHECK (json_valid(result)),\n"
+    "    created_ms  INTEGER NOT NULL\n"
+    ");\n"
+    "INSERT INTO fits_v2 (id, scan_id, dcol, drow, noise_model, best_r_aic, best_r_bic, f_value,\n"
+    "    p_value, result, created_ms)\n"
+    "    SELECT id, scan_id, dcol, drow, noise_model, best_r_aic, best_r_bic, f_value, p_value,\n"
+    "    result, created_ms FROM fits;\n"
+    "DROP TABLE fits;\n"
+    "ALTER TABLE fits_v2 RENAME TO fits;\n"
+    "CREATE INDEX fits_scan_pixel ON fits (scan_id, drow, dcol);\n"
+    "PRAGMA user_version = 2;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -165,6 +194,8 @@ const char *const stg_sql[STG_N] = {
         "finished_ms = CASE WHEN ?2 IN " FINAL_STATES " THEN ?4 ELSE NULL END "
         "WHERE id = ?1",
     [STG_SCAN_ADD_POINT] = "UPDATE scans SET points_done = points_done + 1 WHERE id = ?1",
+    [STG_SCAN_SET_SETUP] = "UPDATE scans SET setup = ?2 WHERE id = ?1",
+    [STG_SCAN_GET_SETUP] = "SELECT setup FROM scans WHERE id = ?1",
     [STG_SCAN_CANCEL] = "UPDATE scans SET state = 'cancelled', finished_ms = ?2 "
                         "WHERE id = ?1 AND state IN ('queued', 'running')",
 
@@ -203,6 +234,9 @@ const char *const stg_sql[STG_N] = {
         "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1 AND ?2 > 0 AND attempts >= ?2",
     [STG_JOB_REQUEUE] = "UPDATE jobs SET state = 'queued', heartbeat_ms = NULL "
                         "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1",
+    /* a graceful stop gives the claim back: the job runs again as if never claimed */
+    [STG_JOB_RELEASE] = "UPDATE jobs SET state = 'queued', heartbeat_ms = NULL, "
+                        "attempts = max(attempts - 1, 0) WHERE id = ?1 AND state = 'running'",
     [STG_JOB_COUNT] = "SELECT count(*) FROM jobs " JOB_FILTER,
     [STG_JOB_LIST] =
         "SELECT " STG_JOB_COLS " FROM jobs " JOB_FILTER " ORDER BY id DESC LIMIT ?4 OFFSET ?5",

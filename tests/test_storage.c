@@ -18,6 +18,7 @@
 
 #include "check.h"
 #include "storage.h"
+#include "storage_int.h" /* stg_migrations[0]: to make a schema-1 database by hand */
 
 static char tmpdir[512];
 static int64_t fake_now = 1700000000000; /* the clock of the handles that install it */
@@ -70,6 +71,13 @@ static void raw_text(const char *name, const char *sql, char *out, size_t n)
         snprintf(out, n, "%s", (const char *)sqlite3_column_text(s, 0));
     sqlite3_finalize(s);
     sqlite3_close(db);
+}
+
+static int raw_text_eq(const char *name, const char *sql, const char *want)
+{
+    char got[256];
+    raw_text(name, sql, got, sizeof got);
+    return strcmp(got, want) == 0;
 }
 
 static int raw_exec(const char *name, const char *sql)
@@ -787,6 +795,99 @@ static void test_pagination(void)
 
 /* ---- driver --------------------------------------------------------------------------------- */
 
+/* ---- schema 2 (ipsd server): scan setup, job release, fits of uploaded scans --------------- */
+
+/* A schema-1 database as ipsd 0.1 made it (migration 1 run by hand on a raw connection), with a
+ * fit referenced by a job and a calibration, migrates to the current schema keeping its rows,
+ * ids and references, and foreign keys are on afterwards. */
+static void test_migrate_v1(void)
+{
+    CHECK(raw_exec("v1.db", stg_migrations[0]) == SQLITE_OK);
+    CHECK(raw_exec("v1.db",
+                   "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"
+                   "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, "
+                   "spot_radius_um, area_px, step_um, sub_px, frames, exposure_us, points_total, "
+                   "created_ms) VALUES (1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 1);"
+                   "INSERT INTO fits (id, scan_id, dcol, drow, noise_model, result, created_ms) "
+                   "VALUES (7, 1, 0, 0, 'paper', '{\"k\": 1}', 2);"
+                   "INSERT INTO jobs (id, kind, params, created_ms, scan_id, fit_id) "
+                   "VALUES (3, 'fit', '{}', 2, 1, 7);"
+                   "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, "
+                   "status, scan_id, fit_id, noise_model, software_version, created_ms) VALUES "
+                   "(4, 1, 5, 5, 1, zeroblob(8), zeroblob(8), 'ok', 1, 7, 'paper', '0.1', 3);") ==
+          SQLITE_OK);
+    CHECK(raw_int("v1.db", "PRAGMA user_version") == 1);
+    storage_t *st = open_db("v1.db");
+    CHECK(raw_int("v1.db", "PRAGMA user_version") == storage_schema_version());
+    storage_fit_t f;
+    CHECK(st && storage_fit_get(st, 7, &f, NULL) == 0 && f.scan_id == 1);
+    CHECK(f.result && strcmp(f.result, "{\"k\": 1}") == 0);
+    storage_fit_free(&f);
+    CHECK(raw_int("v1.db", "SELECT fit_id FROM jobs WHERE id = 3") == 7);
+    CHECK(raw_int("v1.db", "SELECT count(*) FROM pragma_foreign_key_check") == 0);
+    CHECK(raw_int("v1.db", "SELECT count(*) FROM pragma_index_list('fits') "
+                           "WHERE name = 'fits_scan_pixel'") == 1);
+    /* foreign keys are enforced on the handle: a fit of a scan that does not exist is refused */
+    err_t err = {{0}};
+    storage_fit_t bad = {.scan_id = 99, .noise_model = "paper", .result = "{}"};
+    CHECK(storage_fit_put(st, &bad, NULL, 0, NULL, NULL, &err) == -ENOENT);
+    storage_close(st);
+}
+
+static void test_setup_release_upload(void)
+{
+    storage_t *st = open_db("v2.db");
+    int64_t sensor = make_sensor(st, "IMX-V2", "1"), scan = make_running_scan(st, sensor);
+    char *json = (char *)"x";
+    err_t err = {{0}};
+    CHECK(storage_scan_get_setup(st, scan, &json, NULL) == 0 && json == NULL);
+    CHECK(storage_scan_set_setup(st, scan, "{\"centre\": [1.5, -2]}", NULL) == 0);
+    CHECK(storage_scan_get_setup(st, scan, &json, NULL) == 0 && json);
+    CHECK(json && strcmp(json, "{\"centre\": [1.5, -2]}") == 0);
+    free(json);
+    CHECK(storage_scan_set_setup(st, scan, "{nope", &err) == -EINVAL && strstr(err.msg, "JSON"));
+    CHECK(storage_scan_set_setup(st, 999, "{}", &err) == -ENOENT && strstr(err.msg, "999"));
+    CHECK(storage_scan_get_setup(st, 999, &json, &err) == -ENOENT);
+
+    /* release: a claimed job goes back, its claim not counted; only running jobs */
+    int64_t job;
+    storage_job_t j;
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_SCAN, "{}", scan, &job, NULL) == 0);
+    CHECK(storage_job_release(st, job, &err) == -ESTALE && strstr(err.msg, "queued"));
+    CHECK(storage_job_claim(st, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == job);
+    storage_job_free(&j);
+    CHECK(storage_job_release(st, job, NULL) == 0);
+    CHECK(raw_int("v2.db", "SELECT attempts FROM jobs WHERE id = 1") == 0);
+    CHECK(raw_text_eq("v2.db", "SELECT state FROM jobs WHERE id = 1", "queued"));
+    CHECK(raw_int("v2.db", "SELECT heartbeat_ms IS NULL FROM jobs WHERE id = 1") == 1);
+    CHECK(storage_job_claim(st, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == job);
+    CHECK(j.attempts == 1);
+    storage_job_free(&j);
+    int changed = 0;
+    CHECK(storage_job_cancel(st, job, &changed, NULL) == 0 && changed == 1);
+    CHECK(storage_job_release(st, job, &err) == -ECANCELED);
+    CHECK(storage_job_release(st, 999, &err) == -ENOENT);
+
+    /* a fit of an uploaded scan file: no scan, pixel (0, 0), with a calibration */
+    double S[1] = {1.0}, E[1] = {0.25};
+    storage_fit_t f = {.scan_id = 0, .noise_model = "paper", .result = "{}"}, g;
+    storage_calib_t c = {.sensor_id = sensor, .pixel_col = 3, .pixel_row = 4, .r = 1, .S = S,
+                         .S_err = E, .I0 = 2.0, .chi2_red = 1.0, .status = "ok",
+                         .noise_model = "paper", .wavelength_um = NAN, .na = NAN,
+                         .spot_radius_um = 1.342}, got;
+    int64_t fit_id = 0, calib_id = 0;
+    CHECK(storage_fit_put(st, &f, &c, 0, &fit_id, &calib_id, NULL) == 0 && fit_id && calib_id);
+    CHECK(storage_fit_get(st, fit_id, &g, NULL) == 0 && g.scan_id == 0);
+    storage_fit_free(&g);
+    CHECK(raw_int("v2.db", "SELECT scan_id IS NULL FROM fits") == 1);
+    CHECK(storage_calib_get(st, calib_id, &got, NULL) == 0 && got.scan_id == 0);
+    CHECK(got.fit_id == fit_id && got.S_err[0] == 0.25);
+    storage_calib_free(&got);
+    f.dcol = 1; /* an upload has one pixel */
+    CHECK(storage_fit_put(st, &f, NULL, 0, NULL, NULL, &err) == -EINVAL);
+    storage_close(st);
+}
+
 static void remove_tmpdir(void)
 {
     DIR *d = opendir(tmpdir);
@@ -821,6 +922,8 @@ int main(void)
     test_fits();
     test_calibrations();
     test_pagination();
+    test_migrate_v1();
+    test_setup_release_upload();
     remove_tmpdir();
     CHECK_DONE();
 }

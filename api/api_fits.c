@@ -1,0 +1,237 @@
+/* api_fits.c: fits: request a fit of any pixel of a finished scan, or of an uploaded scan file
+ * (data measured on other benches, optionally stored as the calibration of a sensor pixel), both
+ * answered 202 with the queued job; get a fit with its whole result (the `ips fit` document). */
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "api_int.h"
+
+#define FIT_OPTION_KEYS "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg"
+
+/* Reads the fit options shared by both requests into p; -1 after replying. */
+static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
+{
+    long long r_min = p->r_min, r_max = p->r_max, ftest_r = p->ftest_r;
+    const char *sigma = NULL, *method = NULL;
+    json_t *ftest = json_object_get(o, "ftest");
+    if (api_get_int(q, o, "r_min", "r_min", 0, 1, 32, &r_min) ||
+        api_get_int(q, o, "r_max", "r_max", 0, 1, 32, &r_max) ||
+        api_get_str(q, o, "sigma", "sigma", 0, 16, &sigma) ||
+        api_get_int(q, o, "ftest_r", "ftest_r", 0, 1, 32, &ftest_r) ||
+        api_get_bool(q, o, "wiener", "wiener", &p->wiener) ||
+        api_get_str(q, o, "method", "method", 0, 16, &method) ||
+        api_get_bool(q, o, "nonneg", "nonneg", &p->opts.nonneg))
+        return -1;
+    if (r_min > r_max) {
+        api_error(q, 422, "out_of_range", "r_min", "r_min (%lld) must not exceed r_max (%lld)",
+                  r_min, r_max);
+        return -1;
+    }
+    if (sigma && fit_noise_parse(sigma, &p->opts.noise)) {
+        api_error(q, 422, "out_of_range", "sigma", "sigma must be paper or shot+read (got '%s')",
+                  sigma);
+        return -1;
+    }
+    static const char *const methods[] = {"linear", "lm", "both"};
+    int m = method ? -1 : (int)p->opts.method;
+    for (int i = 0; method && i < 3; i++)
+        if (strcmp(method, methods[i]) == 0) m = i;
+    if (m < 0) {
+        api_error(q, 422, "out_of_range", "method", "method must be linear, lm or both (got '%s')",
+                  method);
+        return -1;
+    }
+    p->opts.method = (fit_method_t)m;
+    if (ftest && !json_is_null(ftest)) {
+        err_t err = {{0}};
+        if (!json_is_string(ftest)) {
+            api_error(q, 400, "bad_type", "ftest",
+                      "ftest must be a string like \"top,left,bottom\""
+                      " or null");
+            return -1;
+        }
+        if (fit_edges_parse(json_string_value(ftest), &p->ftest_edges, &err) || !p->ftest_edges) {
+            api_error(q, 422, "out_of_range", "ftest", "ftest: %s",
+                      err.msg[0] ? err.msg : "name at least one of top, left, bottom, right");
+            return -1;
+        }
+    }
+    p->r_min = (int)r_min;
+    p->r_max = (int)r_max;
+    p->ftest_r = (int)ftest_r;
+    return 0;
+}
+
+/* {"job": ...} of a queued job, 202. */
+static void reply_job(api_req_t *q, storage_t *st, int64_t job_id)
+{
+    storage_job_t j;
+    err_t err = {{0}};
+    int ret = storage_job_get(st, job_id, &j, &err);
+    if (ret) {
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    api_reply_json(q, 202, json_pack("{s:o}", "job", api_enc_job(&j)));
+    char loc[64];
+    snprintf(loc, sizeof loc, "/api/jobs/%lld", (long long)job_id);
+    if (q->resp) MHD_add_response_header(q->resp, MHD_HTTP_HEADER_LOCATION, loc);
+    storage_job_free(&j);
+}
+
+static void submit(api_req_t *q, storage_t *st, srv_fit_params_t *p)
+{
+    int64_t job_id;
+    err_t err = {{0}};
+    int ret = srv_fit_submit(q->srv, st, p, &job_id, &err);
+    if (ret)
+        api_error_rc(q, ret, NULL, err.msg);
+    else
+        reply_job(q, st, job_id);
+}
+
+void api_h_scan_fit_create(api_req_t *q)
+{
+    static const char *const keys[] = {"dcol", "drow", FIT_OPTION_KEYS, NULL};
+    srv_fit_params_t p = srv_fit_params_default();
+    storage_scan_t sc;
+    storage_t *st;
+    int64_t id;
+    long long dcol = 0, drow = 0;
+    err_t err = {{0}};
+    json_t *o = api_body_object(q);
+    if (!o || api_arg_id(q, 0, "scan", &id) || !(st = api_db(q))) goto out;
+    int ret = storage_scan_get(st, id, &sc, &err);
+    if (ret) {
+        api_error_rc(q, ret, NULL, err.msg);
+        goto out;
+    }
+    int h = sc.sub_px / 2;
+    if (api_no_unknown(q, o, "", keys) == 0 &&
+        api_get_int(q, o, "dcol", "dcol", 0, -h, h, &dcol) == 0 &&
+        api_get_int(q, o, "drow", "drow", 0, -h, h, &drow) == 0 && read_options(q, o, &p) == 0) {
+        if (sc.state != STORAGE_DONE) {
+            api_error(q, 409, "conflict", NULL, "scan %lld is %s: only a done scan can be fitted",
+                      (long long)id, storage_state_name(sc.state));
+        } else {
+            p.scan_id = id;
+            p.dcol = (int)dcol;
+            p.drow = (int)drow;
+            submit(q, st, &p);
+        }
+    }
+    storage_scan_free(&sc);
+out:
+    json_decref(o);
+}
+
+/* The uploaded scan file, checked as `ips fit` reads it: its pitch into *pitch; -1 after
+ * replying. */
+static int read_upload(api_req_t *q, json_t *o, double *pitch)
+{
+    json_t *scan;
+    const char *field = NULL;
+    size_t n = 0;
+    err_t err = {{0}};
+    if (api_get_obj(q, o, "scan", "scan", &scan)) return -1;
+    if (!scan) {
+        api_error(q, 422, "missing", "scan", "scan (a scan file object) is required");
+        return -1;
+    }
+    int ret = srv_upload_check(scan, pitch, &n, &field, &err);
+    if (ret == 0 && n == 0) ret = err_set(&err, -EINVAL, "the scan has no points");
+    char path[64];
+    snprintf(path, sizeof path, "scan.%s", field ? field : "x_um");
+    if (ret) api_error(q, ret == -ENOMEM ? 500 : 422, "invalid", path, "scan: %s", err.msg);
+    return ret ? -1 : 0;
+}
+
+/* The optional calibration target of an upload: sensor_id, pixel {col, row}, optics. */
+static int read_target(api_req_t *q, json_t *o, storage_t *st, double pitch, srv_fit_params_t *p)
+{
+    static const char *const pixel_keys[] = {"col", "row", NULL};
+    static const char *const optics_keys[] = {"wavelength_nm", "na", NULL};
+    long long sensor_id = 0, col = 0, row = 0;
+    double nm = NAN, na = NAN;
+    json_t *pixel, *optics;
+    storage_sensor_t sn;
+    if (api_get_int(q, o, "sensor_id", "sensor_id", 0, 1, INT64_MAX, &sensor_id) ||
+        api_get_obj(q, o, "pixel", "pixel", &pixel) ||
+        api_get_obj(q, o, "optics", "optics", &optics) ||
+        (optics &&
+         (api_no_unknown(q, optics, "optics.", optics_keys) ||
+          api_get_num(q, optics, "wavelength_nm", "optics.wavelength_nm", 0, 0, 1e5, 1, &nm) ||
+          api_get_num(q, optics, "na", "optics.na", 0, 0, 1.7, 1, &na))))
+        return -1;
+    if (!sensor_id != !pixel) {
+        api_error(q, 422, "missing", sensor_id ? "pixel" : "sensor_id",
+                  "sensor_id and pixel {col, row} go together (the calibration's target)");
+        return -1;
+    }
+    p->wavelength_um = nm * 1e-3;
+    p->na = na;
+    if (!sensor_id) return 0;
+    if (api_no_unknown(q, pixel, "pixel.", pixel_keys) ||
+        api_get_int(q, pixel, "col", "pixel.col", 1, 0, 1000000, &col) ||
+        api_get_int(q, pixel, "row", "pixel.row", 1, 0, 1000000, &row))
+        return -1;
+    err_t err = {{0}};
+    int ret = storage_sensor_get(st, sensor_id, &sn, &err);
+    if (ret) {
+        api_error_rc(q, ret == -ENOENT ? -EINVAL : ret, "sensor_id", err.msg);
+        return -1;
+    }
+    const char *f = col >= sn.n_cols ? "pixel.col" : row >= sn.n_rows ? "pixel.row" : NULL;
+    if (f)
+        api_error(q, 422, "out_of_range", f, "pixel (%lld, %lld) is outside the %d x %d sensor",
+                  col, row, sn.n_cols, sn.n_rows);
+    else if (pitch != sn.pitch_um)
+        api_error(q, 422, "invalid", "scan.pitch_um",
+                  "scan.pitch_um (%g) is not the sensor's "
+                  "pitch (%g)",
+                  pitch, sn.pitch_um);
+    storage_sensor_free(&sn);
+    if (q->resp) return -1;
+    p->sensor_id = sensor_id;
+    p->pixel_col = (int)col;
+    p->pixel_row = (int)row;
+    return 0;
+}
+
+void api_h_fit_upload(api_req_t *q)
+{
+    static const char *const keys[] = {"scan",   "sensor_id",     "pixel",
+                                       "optics", FIT_OPTION_KEYS, NULL};
+    srv_fit_params_t p = srv_fit_params_default();
+    storage_t *st;
+    double pitch = 0;
+    json_t *o = api_body_object(q);
+    if (o && api_no_unknown(q, o, "", keys) == 0 && read_options(q, o, &p) == 0 &&
+        read_upload(q, o, &pitch) == 0 && (st = api_db(q)) &&
+        read_target(q, o, st, pitch, &p) == 0) {
+        p.scan_file = json_incref(json_object_get(o, "scan"));
+        submit(q, st, &p);
+    }
+    srv_fit_params_free(&p);
+    json_decref(o);
+}
+
+void api_h_fit_get(api_req_t *q)
+{
+    storage_t *st;
+    storage_fit_t f;
+    int64_t id;
+    err_t err = {{0}};
+    if (api_arg_id(q, 0, "fit", &id) || !(st = api_db(q))) return;
+    int ret = storage_fit_get(st, id, &f, &err);
+    if (ret) {
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    api_reply_json(q, 200, api_enc_fit(&f, 1));
+    storage_fit_free(&f);
+}

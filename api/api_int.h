@@ -1,0 +1,147 @@
+/* api_int.h: what the files of api/ share: the request being served, the reply helpers, the
+ * input helpers that name the offending field, and the handlers the router calls. */
+#ifndef IPSD_API_API_INT_H
+#define IPSD_API_API_INT_H
+
+#include <jansson.h>
+#include <microhttpd.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "api.h"
+#include "srv.h"
+#include "storage.h"
+
+#define API_MAX_ARGS 4
+
+typedef struct api_req api_req_t;
+typedef void (*api_handler_fn)(api_req_t *q);
+
+/* A route: method, pattern, handler, and whether it takes a JSON body. */
+typedef struct api_route {
+    const char *method;
+    const char *pattern;
+    api_handler_fn fn;
+    int json_body;
+} api_route_t;
+
+/* One request, from its first callback to its completion. */
+struct api_req {
+    srv_t *srv;
+    struct MHD_Connection *conn;
+    const api_route_t *route;
+    int64_t arg[API_MAX_ARGS]; /* the route's {name} segments, in order */
+    char *body;                /* the request body (NUL-terminated), NULL when none */
+    size_t body_len, body_cap;
+    int too_big;     /* the body exceeded --max-body: it is read and dropped */
+    int started;     /* the first callback (headers) has been handled */
+    storage_t *st;   /* borrowed by api_db, given back when the reply is queued */
+    unsigned status; /* the reply */
+    struct MHD_Response *resp;
+};
+
+/* ---- routing (api_router.c) ---- */
+
+/* Matches method and path. Returns the route with its arguments in arg, or NULL with
+ * *path_known = 1 when the path exists for another method (405), 0 when it does not (404). */
+const api_route_t *api_route_find(const char *method, const char *path, int64_t *arg,
+                                  int *path_known);
+/* The methods a known path allows ("GET, POST"), into buf. */
+const char *api_route_allow(const char *path, char *buf, size_t n);
+
+/* ---- replies (api_reply.c) ---- */
+
+/* Replies with JSON (takes the reference of body; NULL body: 500 out of memory). */
+void api_reply_json(api_req_t *q, unsigned status, json_t *body);
+/* Replies with text of a content type (takes buf, malloc'ed, len bytes). */
+void api_reply_text(api_req_t *q, unsigned status, const char *ctype, char *buf, size_t len);
+/* Replies with the error body {"error": {"code", "message", "field"}} (field may be NULL). */
+void api_error(api_req_t *q, unsigned status, const char *code, const char *field, const char *fmt,
+               ...) __attribute__((format(printf, 5, 6)));
+/* Replies with the error of a storage or server call: -ENOENT 404, -EINVAL 422, -EEXIST and
+ * -ESTALE 409, -EBUSY and -ESHUTDOWN 503, -ENOMEM and others 500. */
+void api_error_rc(api_req_t *q, int rc, const char *field, const char *msg);
+/* The request's database handle (borrowed once per request); NULL after replying 503. */
+storage_t *api_db(api_req_t *q);
+
+/* ---- input (api_input.c) ---- */
+
+/* A query-string value, NULL when absent. */
+const char *api_query(api_req_t *q, const char *key);
+/* Query integer in lo..hi (def when absent); replies 400/422 and returns -1 when bad. */
+int api_query_int(api_req_t *q, const char *key, long long def, long long lo, long long hi,
+                  long long *v);
+/* The parsed JSON object body; replies 400 and returns NULL when it is not one. */
+json_t *api_body_object(api_req_t *q);
+/* Reads member key of o (named path for errors, e.g. "raster.step_um"):
+ *   present = 0 when absent (then *v keeps its default, unless required: 422);
+ *   wrong type: 400; out of range: 422. Returns 0, or -1 after replying. */
+int api_get_int(api_req_t *q, json_t *o, const char *key, const char *path, int required,
+                long long lo, long long hi, long long *v);
+int api_get_num(api_req_t *q, json_t *o, const char *key, const char *path, int required, double lo,
+                double hi, int open_lo, double *v);
+int api_get_str(api_req_t *q, json_t *o, const char *key, const char *path, int required,
+                size_t max_len, const char **v);
+int api_get_bool(api_req_t *q, json_t *o, const char *key, const char *path, int *v);
+/* An object member (absent: NULL and 0; another type: 400 and -1). */
+int api_get_obj(api_req_t *q, json_t *o, const char *key, const char *path, json_t **v);
+/* Replies 422 when o has a member not in the NULL-terminated list keys. */
+int api_no_unknown(api_req_t *q, json_t *o, const char *prefix, const char *const *keys);
+/* The client asked for CSV (?format=csv or Accept: text/csv); -1 after replying 400 to a bad
+ * format value. */
+int api_wants_csv(api_req_t *q);
+/* ?state=NAME into *state (STORAGE_ANY when absent); -1 after replying 422. */
+int api_query_state(api_req_t *q, int *state);
+/* ?limit= (1..1000, default 50) and ?offset= (>= 0); -1 after replying. */
+int api_query_page(api_req_t *q, long long *limit, long long *offset);
+/* Path argument i as an id (>= 1); replies 404 naming what and returns -1 when it is not. */
+int api_arg_id(api_req_t *q, int i, const char *what, int64_t *id);
+
+/* ---- JSON / CSV encodings (api_enc.c) ---- */
+
+json_t *api_enc_sensor(const storage_sensor_t *s);
+json_t *api_enc_scan(const storage_scan_t *sc);
+json_t *api_enc_job(const storage_job_t *j);
+/* with_result: include the whole fit document (result), else leave it out (lists) */
+json_t *api_enc_fit(const storage_fit_t *f, int with_result);
+json_t *api_enc_calib(const storage_calib_t *c);
+/* {"items": [...], "total", "limit", "offset"} (takes items). */
+json_t *api_enc_page(json_t *items, int64_t total, long long limit, long long offset);
+/* Calibrations as CSV, one line per sub-pixel (docs/api.md); malloc'ed text, *len bytes. */
+char *api_csv_calibs(const storage_calib_t *c, size_t n, size_t *len);
+/* A number or null (NaN), a time or null (0). */
+json_t *api_num(double v);
+json_t *api_time(int64_t ms);
+
+/* ---- handlers ---- */
+
+void api_h_health(api_req_t *q);
+void api_h_openapi(api_req_t *q);
+void api_h_sensors_list(api_req_t *q);
+void api_h_sensors_create(api_req_t *q);
+void api_h_sensor_get(api_req_t *q);
+void api_h_pixel_calib(api_req_t *q);
+void api_h_pixel_history(api_req_t *q);
+void api_h_scans_list(api_req_t *q);
+void api_h_scans_create(api_req_t *q);
+void api_h_scan_get(api_req_t *q);
+void api_h_scan_cancel(api_req_t *q);
+void api_h_scan_pixel(api_req_t *q);
+void api_h_scan_point(api_req_t *q);
+void api_h_scan_fits_list(api_req_t *q);
+void api_h_scan_fit_create(api_req_t *q);
+void api_h_fit_upload(api_req_t *q);
+void api_h_fit_get(api_req_t *q);
+void api_h_calibs_search(api_req_t *q);
+void api_h_calib_get(api_req_t *q);
+void api_h_jobs_list(api_req_t *q);
+void api_h_job_get(api_req_t *q);
+void api_h_job_cancel(api_req_t *q);
+void api_h_events(api_req_t *q);
+/* GET / and static files of the web directory (not under /api/). */
+void api_h_static(api_req_t *q, const char *path);
+
+/* The event streams must end before the daemon stops (api_sse.c): waits up to ms for them. */
+void api_sse_drain(srv_t *srv, int ms);
+
+#endif

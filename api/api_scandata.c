@@ -1,0 +1,110 @@
+/* api_scandata.c: the data of a scan: the response raster of any pixel of the sub-frame (in the
+ * scan-file format, so it feeds `ips fit`), the frames of one point (mean and raw), and the fits
+ * made of the scan. */
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "api_int.h"
+#include "srv_setup.h"
+
+/* Reads scan arg 0 into *sc; -1 after replying 404. */
+static int load_scan(api_req_t *q, storage_t *st, storage_scan_t *sc)
+{
+    int64_t id;
+    err_t err = {{0}};
+    if (api_arg_id(q, 0, "scan", &id)) return -1;
+    int ret = storage_scan_get(st, id, sc, &err);
+    if (ret) api_error_rc(q, ret, NULL, err.msg);
+    return ret ? -1 : 0;
+}
+
+void api_h_scan_pixel(api_req_t *q)
+{
+    storage_t *st = api_db(q);
+    storage_scan_t sc;
+    long long all;
+    err_t err = {{0}};
+    if (!st || api_query_int(q, "all", 0, 0, 1, &all) || load_scan(q, st, &sc)) return;
+    int dcol = (int)q->arg[1], drow = (int)q->arg[2], h = sc.sub_px / 2;
+    if (q->arg[1] < -h || q->arg[1] > h || q->arg[2] < -h || q->arg[2] > h) {
+        api_error(q, 404, "not_found", q->arg[1] < -h || q->arg[1] > h ? "dcol" : "drow",
+                  "pixel (%lld, %lld) is outside scan %lld's %dx%d sub-frame (offsets %d..%d)",
+                  (long long)q->arg[1], (long long)q->arg[2], (long long)sc.id, sc.sub_px,
+                  sc.sub_px, -h, h);
+        storage_scan_free(&sc);
+        return;
+    }
+    json_t *extra =
+        json_pack("{s:s, s:I, s:I, s:i, s:i, s:{s:i, s:i}, s:s, s:i}", "description",
+                  "response of one pixel over a scan's raster (ipsd)", "scan_id", (json_int_t)sc.id,
+                  "sensor_id", (json_int_t)sc.sensor_id, "dcol", dcol, "drow", drow, "pixel", "col",
+                  sc.poi_col + dcol, "row", sc.poi_row + drow, "scan_state",
+                  storage_state_name(sc.state), "inside_only", all ? 0 : 1);
+    char *text = NULL;
+    size_t len = 0;
+    int ret = srv_pixel_scan_text(st, &sc, dcol, drow, (int)all, extra, &text, &len, &err);
+    json_decref(extra);
+    if (ret)
+        api_error_rc(q, ret, NULL, err.msg);
+    else
+        api_reply_text(q, 200, "application/json", text, len);
+    storage_scan_free(&sc);
+}
+
+void api_h_scan_point(api_req_t *q)
+{
+    storage_t *st = api_db(q);
+    storage_scan_t sc;
+    storage_frame_t f;
+    err_t err = {{0}};
+    if (!st || load_scan(q, st, &sc)) return;
+    int64_t i = q->arg[1];
+    int ret = i < 0 || i >= sc.points_total
+                  ? err_set(&err, -ENOENT, "point %lld is outside scan %lld's 0..%d", (long long)i,
+                            (long long)sc.id, sc.points_total - 1)
+                  : storage_frame_get(st, sc.id, (int)i, &f, &err);
+    storage_scan_free(&sc);
+    if (ret) {
+        api_error_rc(q, ret, ret == -ENOENT ? "index" : NULL, err.msg);
+        return;
+    }
+    size_t mm = (size_t)f.sub_px * f.sub_px;
+    json_t *mean = json_array(), *raw = json_array();
+    for (size_t k = 0; mean && k < mm; k++)
+        json_array_append_new(mean, api_num(f.mean[k]));
+    for (int k = 0; raw && k < f.frames; k++) {
+        json_t *frame = json_array();
+        for (size_t j = 0; frame && j < mm; j++)
+            json_array_append_new(frame, json_integer(f.raw[(size_t)k * mm + j]));
+        json_array_append_new(raw, frame);
+    }
+    api_reply_json(q, 200,
+                   json_pack("{s:I, s:i, s:[f, f, f], s:f, s:o, s:i, s:i, s:o, s:o}", "scan_id",
+                             (json_int_t)f.scan_id, "point_index", f.point_index, "stage_um",
+                             f.stage_x_um, f.stage_y_um, f.stage_z_um, "exposure_us", f.exposure_us,
+                             "captured_ms", api_time(f.captured_ms), "frames", f.frames, "sub_px",
+                             f.sub_px, "mean", mean, "raw", raw));
+    storage_frame_free(&f);
+}
+
+void api_h_scan_fits_list(api_req_t *q)
+{
+    storage_t *st = api_db(q);
+    storage_scan_t sc;
+    storage_fit_list_t l;
+    long long limit, offset;
+    err_t err = {{0}};
+    if (!st || api_query_page(q, &limit, &offset) || load_scan(q, st, &sc)) return;
+    int ret = storage_fit_list(st, sc.id, (int)limit, (int)offset, &l, &err);
+    storage_scan_free(&sc);
+    if (ret) {
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    json_t *items = json_array();
+    for (size_t i = 0; items && i < l.n; i++)
+        json_array_append_new(items, api_enc_fit(&l.items[i], 0));
+    api_reply_json(q, 200, api_enc_page(items, l.total, limit, offset));
+    storage_fit_list_free(&l);
+}

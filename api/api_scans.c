@@ -1,0 +1,286 @@
+/* api_scans.c: scans: create (every field validated and named in errors; 202 with the scan and
+ * its queued job, committed before the answer), list (filter by sensor and state, paginated),
+ * get (state, progress, setup), cancel. The data of a scan (a pixel's raster, a point's frames,
+ * its fits) is in api_scandata.c. */
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "api_int.h"
+
+#define PAPER_WAVELENGTH_NM 550.0 /* the paper's illumination, default optics */
+#define PAPER_NA 0.25
+
+/* Reads optics {wavelength_nm, na} or {spot_radius_um} into sc; -1 after replying. */
+static int read_optics(api_req_t *q, json_t *body, storage_scan_t *sc)
+{
+    static const char *const keys[] = {"wavelength_nm", "na", "spot_radius_um", NULL};
+    json_t *o;
+    double nm = PAPER_WAVELENGTH_NM, na = NAN, R = NAN;
+    if (api_get_obj(q, body, "optics", "optics", &o)) return -1;
+    if (o && (api_no_unknown(q, o, "optics.", keys) ||
+              api_get_num(q, o, "wavelength_nm", "optics.wavelength_nm", 0, 0, 1e5, 1, &nm) ||
+              api_get_num(q, o, "na", "optics.na", 0, 0, 1.7, 1, &na) ||
+              api_get_num(q, o, "spot_radius_um", "optics.spot_radius_um", 0, 0, 1000, 1, &R)))
+        return -1;
+    if (isfinite(na) && isfinite(R)) {
+        api_error(q, 422, "invalid", "optics.spot_radius_um",
+                  "give optics.na or optics.spot_radius_um, not both");
+        return -1;
+    }
+    /* paper eq. 1: R = 1.22 lambda / (2 NA), solved for whichever is not given */
+    if (isfinite(R)) na = 1.22 * nm * 1e-3 / (2 * R);
+    if (!isfinite(na)) na = PAPER_NA;
+    if (!isfinite(R)) R = 1.22 * nm * 1e-3 / (2 * na);
+    if (!(na > 0 && na <= 1.7)) {
+        api_error(q, 422, "out_of_range", "optics.spot_radius_um",
+                  "a spot radius of %g um at %g nm needs NA %g, outside 0..1.7", R, nm, na);
+        return -1;
+    }
+    sc->wavelength_um = nm * 1e-3;
+    sc->na = na;
+    sc->spot_radius_um = R;
+    return 0;
+}
+
+/* Reads raster {area_px, step_um, sub_px, frames} into sc; -1 after replying. */
+static int read_raster(api_req_t *q, json_t *body, storage_scan_t *sc)
+{
+    static const char *const keys[] = {"area_px", "step_um", "sub_px", "frames", NULL};
+    json_t *o;
+    long long area = 5, sub = 9, frames = 12;
+    double step = 0.6;
+    if (api_get_obj(q, body, "raster", "raster", &o)) return -1;
+    if (o && (api_no_unknown(q, o, "raster.", keys) ||
+              api_get_int(q, o, "area_px", "raster.area_px", 0, 1, 101, &area) ||
+              api_get_num(q, o, "step_um", "raster.step_um", 0, 0, 1000, 1, &step) ||
+              api_get_int(q, o, "sub_px", "raster.sub_px", 0, 3, 99, &sub) ||
+              api_get_int(q, o, "frames", "raster.frames", 0, 1, 1000, &frames)))
+        return -1;
+    if (area % 2 == 0 || sub % 2 == 0) {
+        const char *f = area % 2 == 0 ? "raster.area_px" : "raster.sub_px";
+        api_error(q, 422, "out_of_range", f, "%s must be odd (got %lld)", f,
+                  area % 2 == 0 ? area : sub);
+        return -1;
+    }
+    sc->area_px = (int)area;
+    sc->step_um = step;
+    sc->sub_px = (int)sub;
+    sc->frames = (int)frames;
+    return 0;
+}
+
+/* The POI must be on the sensor with the whole sub-frame, and the raster must be whole steps. */
+static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storage_scan_t *sc)
+{
+    int h = sc->sub_px / 2;
+    const char *f = NULL;
+    if (sc->poi_col - h < 0 || sc->poi_col + h >= sn->n_cols)
+        f = "poi.col";
+    else if (sc->poi_row - h < 0 || sc->poi_row + h >= sn->n_rows)
+        f = "poi.row";
+    if (f) {
+        api_error(q, 422, "out_of_range", f,
+                  "the %dx%d sub-frame around pixel (%d, %d) must lie "
+                  "on the %d x %d sensor",
+                  sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row, sn->n_cols, sn->n_rows);
+        return -1;
+    }
+    int nx = srv_raster_points(sn->pitch_um, sc->area_px, sc->step_um);
+    if (nx < 1 || (long long)nx * nx > 1000000) {
+        api_error(q, 422, "out_of_range", "raster.step_um",
+                  nx < 1 ? "%g um steps do not divide %d pixels of %g um into whole steps"
+                         : "%g um steps over %d pixels of %g um make more than 10^6 points",
+                  sc->step_um, sc->area_px, sn->pitch_um);
+        return -1;
+    }
+    return 0;
+}
+
+/* Reads and checks a scan request; -1 after replying. */
+static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
+                     srv_scan_params_t *p)
+{
+    static const char *const keys[] = {"sensor_id",   "poi",   "optics", "raster",
+                                       "exposure_us", "scene", "seed",   NULL};
+    static const char *const poi_keys[] = {"col", "row", NULL};
+    long long sensor_id, col, row, seed = 1;
+    const char *scene = NULL;
+    json_t *poi;
+    storage_sensor_t sn;
+    *sc = (storage_scan_t){.exposure_us = 10000};
+    *p = srv_scan_params_default();
+    if (api_no_unknown(q, o, "", keys) ||
+        api_get_int(q, o, "sensor_id", "sensor_id", 1, 1, INT64_MAX, &sensor_id) ||
+        api_get_obj(q, o, "poi", "poi", &poi))
+        return -1;
+    if (!poi) {
+        api_error(q, 422, "missing", "poi", "poi {col, row} is required");
+        return -1;
+    }
+    if (api_no_unknown(q, poi, "poi.", poi_keys) ||
+        api_get_int(q, poi, "col", "poi.col", 1, 0, 1000000, &col) ||
+        api_get_int(q, poi, "row", "poi.row", 1, 0, 1000000, &row) || read_optics(q, o, sc) ||
+        read_raster(q, o, sc) ||
+        api_get_num(q, o, "exposure_us", "exposure_us", 0, 0, 1e9, 1, &sc->exposure_us) ||
+        api_get_str(q, o, "scene", "scene", 0, 31, &scene) ||
+        api_get_int(q, o, "seed", "seed", 0, 0, 4294967295LL, &seed))
+        return -1;
+    if (scene && strcmp(scene, "uniform") && strcmp(scene, "paperlike")) {
+        api_error(q, 422, "out_of_range", "scene", "scene must be one of " SRV_SCENES " (got '%s')",
+                  scene);
+        return -1;
+    }
+    if (scene && strcmp(srv_config(q->srv)->bench, "sim")) {
+        api_error(q, 422, "invalid", "scene", "scene is for the simulated bench only");
+        return -1;
+    }
+    if (scene) snprintf(p->scene, sizeof p->scene, "%s", scene);
+    p->seed = (unsigned long)seed;
+    sc->sensor_id = sensor_id;
+    sc->poi_col = (int)col;
+    sc->poi_row = (int)row;
+    err_t err = {{0}};
+    int ret = storage_sensor_get(st, sensor_id, &sn, &err);
+    if (ret) {
+        api_error_rc(q, ret == -ENOENT ? -EINVAL : ret, "sensor_id", err.msg);
+        return -1;
+    }
+    ret = check_geometry(q, &sn, sc);
+    storage_sensor_free(&sn);
+    return ret;
+}
+
+/* The scan job of a scan (0 when it has none). */
+static int64_t scan_job_id(storage_t *st, int64_t scan_id)
+{
+    storage_job_list_t l;
+    int64_t id = 0;
+    if (storage_job_list(st, STORAGE_JOB_SCAN, STORAGE_ANY, scan_id, 1, 0, &l, NULL)) return 0;
+    if (l.n) id = l.items[0].id;
+    storage_job_list_free(&l);
+    return id;
+}
+
+/* {"scan": ..., "job": ...} of a scan and a job, read back from the database. */
+static void reply_scan_job(api_req_t *q, storage_t *st, unsigned status, int64_t scan_id,
+                           int64_t job_id)
+{
+    storage_scan_t sc;
+    storage_job_t j;
+    err_t err = {{0}};
+    int ret = storage_scan_get(st, scan_id, &sc, &err);
+    if (ret) {
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    if (job_id && (ret = storage_job_get(st, job_id, &j, &err))) {
+        storage_scan_free(&sc);
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    api_reply_json(q, status,
+                   json_pack("{s:o, s:o}", "scan", api_enc_scan(&sc), "job",
+                             job_id ? api_enc_job(&j) : json_null()));
+    if (job_id) storage_job_free(&j);
+    storage_scan_free(&sc);
+}
+
+void api_h_scans_create(api_req_t *q)
+{
+    json_t *o = api_body_object(q);
+    storage_t *st = o ? api_db(q) : NULL;
+    storage_scan_t sc;
+    srv_scan_params_t p;
+    int64_t scan_id, job_id;
+    err_t err = {{0}};
+    if (st && read_scan(q, o, st, &sc, &p) == 0) {
+        int ret = srv_scan_submit(q->srv, st, &sc, &p, &scan_id, &job_id, &err);
+        if (ret) {
+            api_error_rc(q, ret, NULL, err.msg);
+        } else {
+            reply_scan_job(q, st, 202, scan_id, job_id);
+            char loc[64];
+            snprintf(loc, sizeof loc, "/api/scans/%lld", (long long)scan_id);
+            if (q->resp) MHD_add_response_header(q->resp, MHD_HTTP_HEADER_LOCATION, loc);
+        }
+    }
+    json_decref(o);
+}
+
+void api_h_scans_list(api_req_t *q)
+{
+    long long sensor, limit, offset;
+    int state;
+    storage_t *st;
+    storage_scan_list_t l;
+    err_t err = {{0}};
+    if (api_query_int(q, "sensor", 0, 0, INT64_MAX, &sensor) ||
+        api_query_page(q, &limit, &offset) || api_query_state(q, &state) || !(st = api_db(q)))
+        return;
+    int ret = storage_scan_list(st, sensor, state, (int)limit, (int)offset, &l, &err);
+    if (ret) {
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    json_t *items = json_array();
+    for (size_t i = 0; items && i < l.n; i++)
+        json_array_append_new(items, api_enc_scan(&l.items[i]));
+    api_reply_json(q, 200, api_enc_page(items, l.total, limit, offset));
+    storage_scan_list_free(&l);
+}
+
+void api_h_scan_get(api_req_t *q)
+{
+    storage_t *st;
+    storage_scan_t sc;
+    int64_t id;
+    char *setup = NULL;
+    err_t err = {{0}};
+    if (api_arg_id(q, 0, "scan", &id) || !(st = api_db(q))) return;
+    int ret = storage_scan_get(st, id, &sc, &err);
+    if (ret == 0) ret = storage_scan_get_setup(st, id, &setup, &err);
+    if (ret) {
+        if (ret != -ENOENT) storage_scan_free(&sc);
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    json_t *o = api_enc_scan(&sc);
+    int64_t job = scan_job_id(st, id);
+    if (o) {
+        json_object_set_new(o, "job_id", job ? json_integer(job) : json_null());
+        json_t *su = setup ? json_loads(setup, 0, NULL) : NULL;
+        json_object_set_new(o, "setup", su ? su : json_null());
+    }
+    api_reply_json(q, 200, o);
+    free(setup);
+    storage_scan_free(&sc);
+}
+
+void api_h_scan_cancel(api_req_t *q)
+{
+    storage_t *st;
+    storage_scan_t sc;
+    int64_t id;
+    int changed = 0;
+    err_t err = {{0}};
+    if (api_arg_id(q, 0, "scan", &id) || !(st = api_db(q))) return;
+    int ret = storage_scan_get(st, id, &sc, &err);
+    if (ret) {
+        api_error_rc(q, ret, NULL, err.msg);
+        return;
+    }
+    int64_t job = scan_job_id(st, id);
+    if (job) ret = srv_job_cancel(q->srv, st, job, &changed, &err);
+    if (ret)
+        api_error_rc(q, ret, NULL, err.msg);
+    else if (!changed)
+        api_error(q, 409, "conflict", NULL, "scan %lld is %s: nothing to cancel", (long long)id,
+                  storage_state_name(sc.state));
+    else
+        reply_scan_job(q, st, 200, id, job);
+    storage_scan_free(&sc);
+}

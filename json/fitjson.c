@@ -1,0 +1,133 @@
+/* fitjson.c: JSON encoding of fit results, the `ips fit` output schema (see fitjson.h). */
+#include "fitjson.h"
+
+#include <errno.h>
+#include <math.h>
+
+json_t *fitjson_num(double v)
+{
+    return isfinite(v) ? json_real(v) : json_null();
+}
+
+json_t *fitjson_array(const double *v, size_t n)
+{
+    if (!v) return json_null();
+    json_t *a = json_array();
+    for (size_t k = 0; a && k < n; k++)
+        json_array_append_new(a, fitjson_num(v[k]));
+    return a;
+}
+
+json_t *fitjson_int_or_null(int v)
+{
+    return v ? json_integer(v) : json_null();
+}
+
+static const struct {
+    unsigned bit;
+    const char *name;
+} flag_names[] = {
+    {FIT_NO_POINTS, "no_points"},
+    {FIT_UNDERDETERMINED, "underdetermined"},
+    {FIT_NO_SIGNAL, "no_signal"},
+    {FIT_ILL_CONDITIONED, "ill_conditioned"},
+    {FIT_UNCONSTRAINED, "unconstrained"},
+    {FIT_LM_NOT_GLOBAL, "lm_not_global"},
+    {FIT_LM_NOT_CONVERGED, "lm_not_converged"},
+    {FIT_NONFINITE, "nonfinite_input"},
+    {FIT_SATURATED, "saturated"},
+};
+
+json_t *fitjson_flags(unsigned flags)
+{
+    json_t *a = json_array();
+    for (size_t i = 0; a && i < sizeof flag_names / sizeof flag_names[0]; i++)
+        if (flags & flag_names[i].bit) json_array_append_new(a, json_string(flag_names[i].name));
+    return a;
+}
+
+/* The counters and cost of one fit, added to its object o. */
+static void fit_details(json_t *o, const fit_result_t *f, fit_method_t method)
+{
+    json_object_set_new(o, "n_used", json_integer((json_int_t)f->n_used));
+    json_object_set_new(o, "n_saturated", json_integer((json_int_t)f->n_saturated));
+    json_object_set_new(o, "n_nonfinite", json_integer((json_int_t)f->n_nonfinite));
+    json_object_set_new(o, "n_unconstrained", json_integer((json_int_t)f->n_unconstrained));
+    if (method != FIT_LINEAR) {
+        json_object_set_new(o, "lm_chi2", fitjson_num(f->lm_chi2));
+        json_object_set_new(o, "lm_iterations", json_integer(f->lm_iterations));
+    }
+    json_object_set_new(o, "design",
+                        json_pack("{s:I, s:I, s:o, s:I}", "entries", (json_int_t)f->design.entries,
+                                  "skipped", (json_int_t)f->design.skipped, "max_skipped_bound",
+                                  fitjson_num(f->design.max_skipped_bound), "radial_evals",
+                                  (json_int_t)f->design.radial_evals));
+    json_object_set_new(o, "timing_ms",
+                        json_pack("{s:o, s:o}", "design", fitjson_num(f->design_ms), "solve",
+                                  fitjson_num(f->solve_ms)));
+}
+
+json_t *fitjson_fit(const fit_result_t *f, fit_method_t method)
+{
+    size_t m = (size_t)f->r * f->r;
+    json_t *o = json_pack("{s:i, s:o, s:i, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:s, s:o}", "r",
+                          f->r, "chi2", fitjson_num(f->chi2), "params", f->params, "aic",
+                          fitjson_num(f->aic), "bic", fitjson_num(f->bic), "I0", fitjson_num(f->I0),
+                          "I0_err", fitjson_num(f->I0_err), "S", fitjson_array(f->S, m), "S_err",
+                          fitjson_array(f->S_err, m), "cond", fitjson_num(f->cond), "chi2_red",
+                          fitjson_num(f->chi2_red), "status", fit_status_name(f->flags), "flags",
+                          fitjson_flags(f->flags));
+    if (o) fit_details(o, f, method);
+    return o;
+}
+
+json_t *fitjson_ftest(const fit_ftest_t *t)
+{
+    static const struct {
+        unsigned bit;
+        const char *name;
+    } edge_names[] = {{FIT_EDGE_TOP, "top"},
+                      {FIT_EDGE_LEFT, "left"},
+                      {FIT_EDGE_BOTTOM, "bottom"},
+                      {FIT_EDGE_RIGHT, "right"}};
+    json_t *edges = json_array();
+    for (size_t i = 0; edges && i < sizeof edge_names / sizeof edge_names[0]; i++)
+        if (t->edges & edge_names[i].bit)
+            json_array_append_new(edges, json_string(edge_names[i].name));
+    return json_pack("{s:i, s:o, s:o, s:i, s:o, s:i, s:o, s:o, s:I, s:s, s:o}", "r", t->r, "edges",
+                     edges, "chi2_H0", fitjson_num(t->chi2_h0), "params_H0", t->params_h0,
+                     "chi2_H1", fitjson_num(t->chi2_h1), "params_H1", t->params_h1, "F",
+                     fitjson_num(t->F), "p_value", fitjson_num(t->p_value), "N", (json_int_t)t->n,
+                     "status", fit_status_name(t->flags), "flags", fitjson_flags(t->flags));
+}
+
+json_t *fitjson_wiener(const fit_wiener_t *w)
+{
+    return json_pack("{s:i, s:i, s:[o, o], s:o, s:o, s:o, s:o}", "nx", w->nx, "ny", w->ny,
+                     "step_um", fitjson_num(w->step_x_um), fitjson_num(w->step_y_um), "x0_um",
+                     fitjson_num(w->x0_um), "y0_um", fitjson_num(w->y0_um), "nsr",
+                     fitjson_num(w->nsr), "S", fitjson_array(w->S, (size_t)w->nx * w->ny));
+}
+
+json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,
+                      double full_scale_dn)
+{
+    static const char *const methods[] = {"linear", "lm", "both"};
+    json_t *fits = json_array();
+    for (int r = sw->r_min; fits && r <= sw->r_max; r++)
+        json_array_append_new(fits, fitjson_fit(&sw->fits[r - sw->r_min], opts->method));
+    return json_pack("{s:I, s:I, s:s, s:s, s:b, s:o, s:o, s:o, s:{s:o, s:o}}", "N",
+                     (json_int_t)sw->fits[0].n_used, "n_points", (json_int_t)n_points, "sigma",
+                     fit_noise_name(opts->noise), "method", methods[opts->method], "nonneg",
+                     opts->nonneg, "design_tol", fitjson_num(opts->design_tol), "full_scale_dn",
+                     fitjson_num(full_scale_dn), "fits", fits, "best_r", "aic",
+                     fitjson_int_or_null(sw->best_aic), "bic", fitjson_int_or_null(sw->best_bic));
+}
+
+int fitjson_print(const json_t *root, FILE *f)
+{
+    if (json_dumpf(root, f, JSON_INDENT(2) | JSON_REAL_PRECISION(17)) || fputc('\n', f) == EOF ||
+        fflush(f) == EOF)
+        return -EIO;
+    return 0;
+}

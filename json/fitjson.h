@@ -1,0 +1,50 @@
+/* fitjson.h: the JSON form of fit results (fit/model.h, fit/wiener.h) as the `ips fit` output
+ * contract of ARCHITECTURE.md defines it: numbers at full precision, non-finite values as null
+ * (JSON has no NaN), the status word and flag names of every fit. Used by `ips fit` and by ipsd,
+ * which stores the same document in fits.result. Every function returns a new reference owned by
+ * the caller (hand it to jansson with a _set_new / _append_new), or NULL when out of memory. */
+#ifndef IPSD_JSON_FITJSON_H
+#define IPSD_JSON_FITJSON_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+#include <jansson.h>
+
+#include "model.h"
+#include "wiener.h"
+
+/* A JSON real, or null when v is not finite. */
+json_t *fitjson_num(double v);
+
+/* A JSON array of n numbers (non-finite as null), or null when v is NULL. */
+json_t *fitjson_array(const double *v, size_t n);
+
+/* A JSON integer, or null when v is 0 (for "no such r" answers). */
+json_t *fitjson_int_or_null(int v);
+
+/* The names of the set bits of flags (enum fit_flag), most severe first. */
+json_t *fitjson_flags(unsigned flags);
+
+/* One fit of the sweep: r, chi2, params, aic, bic, I0, I0_err, S, S_err, cond, chi2_red, status,
+ * flags, n_used, n_saturated, n_nonfinite, n_unconstrained, design, timing_ms (and lm_chi2,
+ * lm_iterations when method is not linear). */
+json_t *fitjson_fit(const fit_result_t *f, fit_method_t method);
+
+/* The F-test: r, edges (names), chi2_H0, params_H0, chi2_H1, params_H1, F, p_value, N, status,
+ * flags. */
+json_t *fitjson_ftest(const fit_ftest_t *t);
+
+/* The Wiener baseline: nx, ny, step_um [x, y], x0_um, y0_um, nsr, S. */
+json_t *fitjson_wiener(const fit_wiener_t *w);
+
+/* The root document of a sweep: N, n_points, sigma, method, nonneg, design_tol, full_scale_dn,
+ * fits[], best_r {aic, bic}. The caller adds "ftest", "wiener", "interp" and "timing_ms". */
+json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,
+                      double full_scale_dn);
+
+/* Prints root to f, indented, every real with 17 significant digits, and a newline.
+ * Returns 0 or -EIO. root stays the caller's. */
+int fitjson_print(const json_t *root, FILE *f);
+
+#endif

@@ -1,0 +1,263 @@
+/* srv.c: the server core's life cycle and the operations the API asks for (see srv.h). The
+ * workers live in srv_scanner.c and srv_fitter.c. */
+#include "srv_int.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "../instrument/scan.h" /* instrument/scan.h, not fit/scan.h */
+#include "srv_bench.h"
+
+#define EVENT_RING 4096 /* events kept for slow readers */
+
+double srv_now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + (double)t.tv_nsec / 1e9;
+}
+
+/* Start-up housekeeping on one handle: every job left running was interrupted by a crash (a
+ * graceful stop gives jobs back), so it runs again unless it has used up its attempts. */
+static int requeue_interrupted(srv_t *srv, err_t *err)
+{
+    storage_t *st = srv_db_get(srv, err);
+    if (!st) return -EIO;
+    int requeued = 0, failed = 0;
+    int ret = storage_job_requeue_stale(st, 0, srv->cfg.max_attempts, &requeued, &failed, err);
+    srv_db_put(srv, st);
+    if (ret == 0 && (requeued || failed))
+        fprintf(stderr,
+                "ipsd: %d interrupted job(s) queued again, %d abandoned after %d "
+                "attempts\n",
+                requeued, failed, srv->cfg.max_attempts);
+    return ret;
+}
+
+int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
+{
+    srv_t *srv = calloc(1, sizeof *srv);
+    *out = NULL;
+    if (!srv) return err_set(err, -ENOMEM, "out of memory");
+    srv->cfg = *cfg;
+    srv->cfg.token = NULL;
+    pthread_mutex_init(&srv->mu, NULL);
+    pthread_cond_init(&srv->cv, NULL);
+    int ret = 0;
+    if (cfg->token && !(srv->cfg.token = strdup(cfg->token))) ret = -ENOMEM;
+    if (ret || (ret = srv_bench_check(cfg->bench, err)) ||
+        (ret = srv_dbpool_open(cfg->db_path, &srv->pool, err)) ||
+        (ret = requeue_interrupted(srv, err)) ||
+        (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
+        if (ret == -ENOMEM) err_set(err, ret, "out of memory");
+        srv->stopped = 1;
+        srv_close(srv);
+        return ret;
+    }
+    *out = srv;
+    return 0;
+}
+
+int srv_start(srv_t *srv, err_t *err)
+{
+    int n = 1 + srv->cfg.workers, ret = 0;
+    srv->workers = calloc((size_t)n, sizeof *srv->workers);
+    if (!srv->workers) return err_set(err, -ENOMEM, "out of memory");
+    srv->n_workers = n;
+    for (int i = 0; i < n && ret == 0; i++) {
+        srv_worker_t *w = &srv->workers[i];
+        w->srv = srv;
+        if ((ret = storage_open(srv->cfg.db_path, &w->st, err))) break;
+        int rc = pthread_create(&w->thread, NULL, i == 0 ? srv_scanner_main : srv_fitter_main, w);
+        if (rc) ret = err_set(err, -rc, "cannot start a worker thread: %s", strerror(rc));
+        w->running = rc == 0;
+    }
+    return ret;
+}
+
+void srv_stop(srv_t *srv)
+{
+    if (!srv || srv->stopped) return;
+    srv->stopped = 1;
+    atomic_store(&srv->stopping, 1);
+    for (int i = 0; i < srv->n_workers; i++)
+        atomic_store(&srv->workers[i].stop, 1);
+    srv_notify_work(srv);
+    for (int i = 0; i < srv->n_workers; i++) {
+        if (srv->workers[i].running) pthread_join(srv->workers[i].thread, NULL);
+        srv->workers[i].running = 0;
+        storage_close(srv->workers[i].st);
+        srv->workers[i].st = NULL;
+    }
+    srv_events_shutdown(srv->events);
+}
+
+void srv_close(srv_t *srv)
+{
+    if (!srv) return;
+    srv_stop(srv);
+    free(srv->workers);
+    srv_events_close(srv->events);
+    srv_dbpool_close(srv->pool);
+    pthread_cond_destroy(&srv->cv);
+    pthread_mutex_destroy(&srv->mu);
+    free(srv->cfg.token);
+    free(srv);
+}
+
+const srv_config_t *srv_config(const srv_t *srv)
+{
+    return &srv->cfg;
+}
+int srv_stopping(const srv_t *srv)
+{
+    return atomic_load(&srv->stopping);
+}
+srv_events_t *srv_events(srv_t *srv)
+{
+    return srv->events;
+}
+storage_t *srv_db_get(srv_t *srv, err_t *err)
+{
+    return srv_dbpool_get(srv->pool, err);
+}
+void srv_db_put(srv_t *srv, storage_t *st)
+{
+    srv_dbpool_put(srv->pool, st);
+}
+
+void srv_worker_begin(srv_worker_t *w, int64_t id)
+{
+    /* srv_stop sets stopping, then the stop flags: clearing the flag first and reading stopping
+     * after cannot lose a stop that lands in between */
+    atomic_store(&w->stop, 0);
+    if (atomic_load(&w->srv->stopping)) atomic_store(&w->stop, 1);
+    atomic_store(&w->job, id);
+}
+
+void srv_worker_end(srv_worker_t *w)
+{
+    atomic_store(&w->job, 0);
+}
+
+void srv_notify_work(srv_t *srv)
+{
+    pthread_mutex_lock(&srv->mu);
+    srv->work_seq++;
+    pthread_cond_broadcast(&srv->cv);
+    pthread_mutex_unlock(&srv->mu);
+}
+
+void srv_wait_work(srv_t *srv, int ms)
+{
+    struct timespec until;
+    clock_gettime(CLOCK_REALTIME, &until);
+    until.tv_sec += ms / 1000;
+    until.tv_nsec += (long)(ms % 1000) * 1000000L;
+    if (until.tv_nsec >= 1000000000L) {
+        until.tv_sec++;
+        until.tv_nsec -= 1000000000L;
+    }
+    pthread_mutex_lock(&srv->mu);
+    unsigned long seen = srv->work_seq;
+    int rc = 0;
+    while (rc == 0 && seen == srv->work_seq && !atomic_load(&srv->stopping))
+        rc = pthread_cond_timedwait(&srv->cv, &srv->mu, &until);
+    pthread_mutex_unlock(&srv->mu);
+}
+
+void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int points_total,
+                     double eta_s)
+{
+    srv_event_t ev = {.job_id = j->id,
+                      .scan_id = j->scan_id,
+                      .fit_id = j->fit_id,
+                      .kind = j->kind,
+                      .state = j->state,
+                      .progress = j->progress,
+                      .points_done = j->points_done,
+                      .points_total = points_total,
+                      .eta_s = eta_s};
+    snprintf(ev.phase, sizeof ev.phase, "%s", phase ? phase : storage_state_name(j->state));
+    if (j->error) snprintf(ev.error, sizeof ev.error, "%s", j->error);
+    srv_events_publish(srv->events, &ev);
+}
+
+int srv_raster_points(double pitch_um, int area_px, double step_um)
+{
+    scan_config_t c = scan_config_default();
+    c.area_px = area_px;
+    c.step_um = step_um;
+    return scan_points_per_axis(&c, pitch_um);
+}
+
+/* Publishes the stored state of job id (quietly nothing when it cannot be read). */
+static void publish_stored(srv_t *srv, storage_t *st, int64_t id, int points_total)
+{
+    storage_job_t j;
+    if (storage_job_get(st, id, &j, NULL)) return;
+    srv_publish_job(srv, &j, NULL, points_total, NAN);
+    storage_job_free(&j);
+}
+
+int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const srv_scan_params_t *p,
+                    int64_t *scan_id, int64_t *job_id, err_t *err)
+{
+    storage_sensor_t sn;
+    if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
+    int ret = storage_sensor_get(st, sc->sensor_id, &sn, err);
+    if (ret) return ret;
+    int nx = srv_raster_points(sn.pitch_um, sc->area_px, sc->step_um);
+    storage_sensor_free(&sn);
+    if (nx < 1)
+        return err_set(err, -EINVAL,
+                       "raster.step_um: %g um does not divide the %d-pixel area "
+                       "into whole steps",
+                       sc->step_um, sc->area_px);
+    storage_scan_t row = *sc;
+    row.points_total = nx * nx;
+    char *params = srv_scan_params_dump(p);
+    if (!params) return err_set(err, -ENOMEM, "out of memory");
+    ret = storage_scan_submit(st, &row, params, scan_id, job_id, err);
+    free(params);
+    if (ret) return ret;
+    publish_stored(srv, st, *job_id, row.points_total);
+    srv_notify_work(srv);
+    return 0;
+}
+
+int srv_fit_submit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t *job_id,
+                   err_t *err)
+{
+    if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
+    return srv_enqueue_fit(srv, st, p, job_id, err);
+}
+
+int srv_enqueue_fit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t *job_id,
+                    err_t *err)
+{
+    char *params = srv_fit_params_dump(p);
+    if (!params) return err_set(err, -ENOMEM, "out of memory");
+    int ret = storage_job_enqueue(st, STORAGE_JOB_FIT, params, p->scan_id, job_id, err);
+    free(params);
+    if (ret) return ret;
+    publish_stored(srv, st, *job_id, 0);
+    srv_notify_work(srv);
+    return 0;
+}
+
+int srv_job_cancel(srv_t *srv, storage_t *st, int64_t job_id, int *changed, err_t *err)
+{
+    int ret = storage_job_cancel(st, job_id, changed, err);
+    if (ret || !*changed) return ret;
+    /* the worker running it stops at its next check: a raster before its next point (whose
+     * frame_put would be refused anyway), a fit before its next r */
+    for (int i = 0; i < srv->n_workers; i++)
+        if (atomic_load(&srv->workers[i].job) == job_id) atomic_store(&srv->workers[i].stop, 1);
+    publish_stored(srv, st, job_id, 0);
+    return 0;
+}

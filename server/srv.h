@@ -1,0 +1,67 @@
+/* srv.h: the ipsd server core: the database, the job queue and its workers (one scan worker that
+ * owns the instrument, a pool of fit workers), the event hub, and the operations the HTTP API
+ * asks of them. The API (api/) calls in here; nothing here knows about HTTP.
+ *
+ * Life cycle: srv_open (database and migrations, requeue of the jobs a crashed run left running,
+ * bench check, event hub) -> srv_start (worker threads) -> ... -> srv_stop (graceful: writes are
+ * refused, the scan worker stores the point in flight and gives its job back to the queue so the
+ * scan resumes at the next start, fit workers finish their fit, event streams end) -> srv_close.
+ *
+ * Threads: every worker has its own storage_t; request handlers borrow one from the pool
+ * (srv_db_get / srv_db_put). All functions here are thread-safe. */
+#ifndef IPSD_SERVER_SRV_H
+#define IPSD_SERVER_SRV_H
+
+#include <stdint.h>
+
+#include "err.h"
+#include "srv_config.h"
+#include "srv_events.h"
+#include "srv_params.h"
+#include "storage.h"
+
+typedef struct srv srv_t;
+
+/* Opens the server on a copy of cfg (the token string is copied too). *out is the caller's
+ * (srv_close). Returns 0 or a negative errno with err: the database cannot be opened or migrated,
+ * or the bench cannot run (-ENODEV: no camera). */
+int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err);
+
+/* Starts the scan worker and the fit workers. */
+int srv_start(srv_t *srv, err_t *err);
+
+/* Graceful stop (see above); blocks until the workers have stopped. Idempotent. */
+void srv_stop(srv_t *srv);
+
+/* Stops (if not yet) and frees everything. Accepts NULL. */
+void srv_close(srv_t *srv);
+
+const srv_config_t *srv_config(const srv_t *srv);
+/* Non-zero once srv_stop has begun: the API answers writes with 503. */
+int srv_stopping(const srv_t *srv);
+srv_events_t *srv_events(srv_t *srv);
+
+/* A database handle for the calling thread's request, or NULL with err. Give it back. */
+storage_t *srv_db_get(srv_t *srv, err_t *err);
+void srv_db_put(srv_t *srv, storage_t *st);
+
+/* Raster points per axis for a sensor pitch, area and step (area_px * pitch / step + 1), or 0
+ * when that is not a whole number of steps. */
+int srv_raster_points(double pitch_um, int area_px, double step_um);
+
+/* Queues a scan: the scan row (points_total is computed here from the sensor's pitch) and its
+ * scan job in one transaction (storage_scan_submit), then wakes the scan worker and publishes
+ * the queued job. -EINVAL (e.g. step not dividing the area), -ENOENT (sensor), -ESHUTDOWN when
+ * stopping. */
+int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const srv_scan_params_t *p,
+                    int64_t *scan_id, int64_t *job_id, err_t *err);
+
+/* Queues a fit job (linked to p->scan_id when it has one) and wakes the fit workers. */
+int srv_fit_submit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t *job_id,
+                   err_t *err);
+
+/* Cancels a queued or running job (a running scan stops after the point in flight; its scan is
+ * cancelled with it). *changed = 0 when the job had already ended. -ENOENT unknown job. */
+int srv_job_cancel(srv_t *srv, storage_t *st, int64_t job_id, int *changed, err_t *err);
+
+#endif

@@ -1,0 +1,69 @@
+/* srv_bench.c: opening the instrument of a scan (see srv_bench.h). */
+#include "srv_bench.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+int srv_bench_check(const char *kind, err_t *err)
+{
+    if (strcmp(kind, "sim") == 0) return 0;
+    cam_info_t *infos = NULL;
+    size_t n = 0;
+    int ret = cam_list(kind, &infos, &n, err);
+    free(infos);
+    if (ret) return ret;
+    if (n == 0) return err_set(err, -ENODEV, "--bench %s: no camera found by libcamera", kind);
+    return 0;
+}
+
+/* The simulated bench as the scan's sensor (from the database), optics, scene and seed. */
+static int open_sim(const storage_sensor_t *sn, const storage_scan_t *sc,
+                    const srv_scan_params_t *p, srv_bench_t *b, err_t *err)
+{
+    sim_config_t c = sim_config_default();
+    c.scene = p->scene;
+    c.sensor.cols = sn->n_cols;
+    c.sensor.rows = sn->n_rows;
+    c.sensor.pitch_um = sn->pitch_um;
+    c.sensor.gain_e_per_dn = sn->gain_e_per_dn;
+    c.sensor.read_noise_e = sn->read_noise_e;
+    c.sensor.bias_dn = sn->bias_dn;
+    c.sensor.full_scale_dn = sn->full_scale_dn;
+    c.wavelength_um = sc->wavelength_um;
+    c.na = sc->na;
+    c.radius_um = sc->spot_radius_um;
+    c.seed = p->seed;
+    c.stage.seed = p->seed;
+    int ret = sim_open(&c, &b->sim, err);
+    if (ret) return ret;
+    b->cam = sim_camera(b->sim);
+    b->stage = sim_stage(b->sim);
+    b->start = sim_pixel_centre(b->sim, sc->poi_col, sc->poi_row);
+    return 0;
+}
+
+int srv_bench_open(const char *kind, const storage_sensor_t *sn, const storage_scan_t *sc,
+                   const srv_scan_params_t *p, srv_bench_t *b, err_t *err)
+{
+    memset(b, 0, sizeof *b);
+    if (strcmp(kind, "sim") == 0) return open_sim(sn, sc, p, b, err);
+    int ret = cam_open(kind, NULL, &b->cam, err);
+    if (ret == 0) ret = stage_open("sim", NULL, &b->stage, err);
+    /* no stage driver: the POI's centre in stage coordinates is its sensor position */
+    b->start =
+        (stage_pos_t){(sc->poi_col + 0.5) * sn->pitch_um, (sc->poi_row + 0.5) * sn->pitch_um, 0};
+    return ret;
+}
+
+void srv_bench_close(srv_bench_t *b)
+{
+    if (!b) return;
+    if (b->sim) {
+        sim_close(b->sim);
+    } else {
+        cam_close(b->cam);
+        stage_close(b->stage);
+    }
+    memset(b, 0, sizeof *b);
+}

@@ -1,0 +1,33 @@
+/* srv_bench.h: the instrument a scan runs on: the simulated bench (instrument/sim.h) configured as
+ * the scan's sensor, optics, scene and seed, or a libcamera camera. ipsd has no driver for a real
+ * motion stage yet, so a libcamera bench moves a simulated stage (stage.h): the frames are real,
+ * the positions are the commanded ones. */
+#ifndef IPSD_SERVER_SRV_BENCH_H
+#define IPSD_SERVER_SRV_BENCH_H
+
+#include "cam.h"
+#include "err.h"
+#include "sim.h"
+#include "srv_params.h"
+#include "stage.h"
+#include "storage.h"
+
+typedef struct srv_bench {
+    sim_t *sim; /* the simulated bench (NULL for libcamera); owns cam and stage */
+    cam_t *cam; /* borrowed from sim, or owned (libcamera) */
+    stage_t *stage;
+    stage_pos_t start; /* where the scan procedure starts: the POI's centre, focus guess */
+} srv_bench_t;
+
+/* Checks at start-up that the bench kind ("sim" or "libcamera") can run: for libcamera, that the
+ * backend is built in and finds a camera. Returns 0, -ENOTSUP or -ENODEV with a clear message. */
+int srv_bench_check(const char *kind, err_t *err);
+
+/* Opens the bench for scan sc of sensor sn with the job's parameters. *b is released with
+ * srv_bench_close (also after an error). */
+int srv_bench_open(const char *kind, const storage_sensor_t *sn, const storage_scan_t *sc,
+                   const srv_scan_params_t *p, srv_bench_t *b, err_t *err);
+
+void srv_bench_close(srv_bench_t *b);
+
+#endif

@@ -1,0 +1,223 @@
+/* srv_config.c: ipsd's command line (see srv_config.h). getopt_long does the parsing; every value
+ * is checked here so that the daemon never starts half-configured. */
+#include "srv_config.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#ifndef IPSD_WEB_DIR
+#define IPSD_WEB_DIR "web"
+#endif
+
+static const char usage[] =
+    "usage: ipsd [options]\n"
+    "  --listen ADDR:PORT   address to serve HTTP on (default 127.0.0.1:8080; [::1]:PORT for\n"
+    "                       IPv6; port 0 picks a free port)\n"
+    "  --db FILE            SQLite database (default var/ipsd.db; its directory must exist)\n"
+    "  --bench sim|libcamera  the instrument: the simulated bench (default) or a libcamera\n"
+    "                       camera (fails at start when none is found)\n"
+    "  --workers N          fit worker threads (default 2)\n"
+    "  --http-threads N     HTTP thread pool size (default 2)\n"
+    "  --token FILE         writes (POST, DELETE) need 'Authorization: Bearer TOKEN', TOKEN the\n"
+    "                       file's content without surrounding whitespace\n"
+    "  --web DIR            static files of the dashboard (default the source tree's web/)\n"
+    "  --max-body BYTES     largest request body (default 4194304); larger ones get 413\n"
+    "  --port-file FILE     write the bound port number to FILE once listening\n"
+    "  --heartbeat S        seconds between event-stream heartbeats (default 15)\n"
+    "  --max-attempts N     a job interrupted by N crashes fails instead of running again (3)\n"
+    "SIGINT / SIGTERM stop gracefully: running scans resume at the next start.\n";
+
+const char *srv_config_usage(void)
+{
+    return usage;
+}
+
+srv_config_t srv_config_default(void)
+{
+    srv_config_t c = {.port = 8080,
+                      .workers = 2,
+                      .http_threads = 2,
+                      .max_body = 4u << 20,
+                      .heartbeat_s = 15,
+                      .max_attempts = 3};
+    snprintf(c.host, sizeof c.host, "127.0.0.1");
+    snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
+    snprintf(c.bench, sizeof c.bench, "sim");
+    struct stat sb;
+    snprintf(c.web_dir, sizeof c.web_dir, "%s",
+             stat(IPSD_WEB_DIR, &sb) == 0 && S_ISDIR(sb.st_mode) ? IPSD_WEB_DIR : "web");
+    return c;
+}
+
+void srv_config_free(srv_config_t *cfg)
+{
+    if (!cfg) return;
+    free(cfg->token);
+    cfg->token = NULL;
+}
+
+/* A whole decimal integer in lo..hi. */
+static int parse_long(const char *text, long long lo, long long hi, long long *v)
+{
+    char *end;
+    errno = 0;
+    long long x = strtoll(text, &end, 10);
+    if (errno || end == text || *end || x < lo || x > hi) return -EINVAL;
+    *v = x;
+    return 0;
+}
+
+/* "HOST:PORT" or "[V6]:PORT" into cfg->host / cfg->port. */
+static int parse_listen(const char *text, srv_config_t *cfg, err_t *err)
+{
+    const char *colon = strrchr(text, ':'), *host = text;
+    size_t hlen = colon ? (size_t)(colon - text) : 0;
+    if (hlen >= 2 && text[0] == '[' && text[hlen - 1] == ']') {
+        host++;
+        hlen -= 2;
+    }
+    long long port;
+    if (!colon || hlen == 0 || hlen >= sizeof cfg->host || parse_long(colon + 1, 0, 65535, &port))
+        return err_set(err, -EINVAL, "--listen: need ADDR:PORT with a port 0..65535 (got '%s')",
+                       text);
+    memcpy(cfg->host, host, hlen);
+    cfg->host[hlen] = 0;
+    cfg->port = (int)port;
+    return 0;
+}
+
+/* Reads the token file: its content with surrounding whitespace removed, not empty. */
+static int read_token(const char *path, srv_config_t *cfg, err_t *err)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) return err_set(err, -errno, "--token: cannot read %s: %s", path, strerror(errno));
+    char buf[1024];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    int more = fgetc(f) != EOF;
+    fclose(f);
+    if (more) return err_set(err, -EINVAL, "--token: %s is longer than 1023 bytes", path);
+    buf[n] = 0;
+    char *s = buf, *e = buf + n;
+    while (*s && strchr(" \t\r\n", *s))
+        s++;
+    while (e > s && strchr(" \t\r\n", e[-1]))
+        *--e = 0;
+    if (!*s) return err_set(err, -EINVAL, "--token: %s is empty", path);
+    for (char *p = s; *p; p++)
+        if ((unsigned char)*p < 0x21 || (unsigned char)*p > 0x7e)
+            return err_set(err, -EINVAL,
+                           "--token: %s holds whitespace or non-ASCII inside the "
+                           "token",
+                           path);
+    free(cfg->token);
+    cfg->token = strdup(s);
+    return cfg->token ? 0 : err_set(err, -ENOMEM, "out of memory");
+}
+
+/* A path option into a fixed buffer. */
+static int copy_path(const char *opt, const char *text, char *dst, size_t n, err_t *err)
+{
+    if (!*text || strlen(text) >= n) return err_set(err, -EINVAL, "--%s: bad path", opt);
+    memcpy(dst, text, strlen(text) + 1);
+    return 0;
+}
+
+enum {
+    O_LISTEN = 256,
+    O_DB,
+    O_BENCH,
+    O_WORKERS,
+    O_HTTP,
+    O_TOKEN,
+    O_WEB,
+    O_MAXBODY,
+    O_PORTFILE,
+    O_HEARTBEAT,
+    O_ATTEMPTS,
+    O_HELP
+};
+
+static const struct option opts[] = {
+    {"listen", required_argument, NULL, O_LISTEN},
+    {"db", required_argument, NULL, O_DB},
+    {"bench", required_argument, NULL, O_BENCH},
+    {"workers", required_argument, NULL, O_WORKERS},
+    {"http-threads", required_argument, NULL, O_HTTP},
+    {"token", required_argument, NULL, O_TOKEN},
+    {"web", required_argument, NULL, O_WEB},
+    {"max-body", required_argument, NULL, O_MAXBODY},
+    {"port-file", required_argument, NULL, O_PORTFILE},
+    {"heartbeat", required_argument, NULL, O_HEARTBEAT},
+    {"max-attempts", required_argument, NULL, O_ATTEMPTS},
+    {"help", no_argument, NULL, O_HELP},
+    {NULL, 0, NULL, 0},
+};
+
+/* One option with its value. */
+static int one_option(int c, const char *arg, srv_config_t *cfg, err_t *err)
+{
+    long long v;
+    switch (c) {
+    case O_LISTEN:
+        return parse_listen(arg, cfg, err);
+    case O_DB:
+        return copy_path("db", arg, cfg->db_path, sizeof cfg->db_path, err);
+    case O_WEB:
+        return copy_path("web", arg, cfg->web_dir, sizeof cfg->web_dir, err);
+    case O_PORTFILE:
+        return copy_path("port-file", arg, cfg->port_file, sizeof cfg->port_file, err);
+    case O_TOKEN:
+        return read_token(arg, cfg, err);
+    case O_BENCH:
+        if (strcmp(arg, "sim") && strcmp(arg, "libcamera"))
+            return err_set(err, -EINVAL, "--bench must be sim or libcamera (got '%s')", arg);
+        snprintf(cfg->bench, sizeof cfg->bench, "%s", arg);
+        return 0;
+    case O_WORKERS:
+    case O_HTTP:
+        if (parse_long(arg, 1, 64, &v))
+            return err_set(err, -EINVAL, "--%s must be 1..64 (got '%s')",
+                           c == O_WORKERS ? "workers" : "http-threads", arg);
+        *(c == O_WORKERS ? &cfg->workers : &cfg->http_threads) = (int)v;
+        return 0;
+    case O_MAXBODY:
+        if (parse_long(arg, 1024, 1LL << 30, &v))
+            return err_set(err, -EINVAL, "--max-body must be 1024..1073741824 bytes (got '%s')",
+                           arg);
+        cfg->max_body = (size_t)v;
+        return 0;
+    case O_HEARTBEAT:
+    case O_ATTEMPTS:
+        if (parse_long(arg, 1, 3600, &v))
+            return err_set(err, -EINVAL, "--%s must be 1..3600 (got '%s')",
+                           c == O_HEARTBEAT ? "heartbeat" : "max-attempts", arg);
+        *(c == O_HEARTBEAT ? &cfg->heartbeat_s : &cfg->max_attempts) = (int)v;
+        return 0;
+    default:
+        return err_set(err, -EINVAL, "unknown option");
+    }
+}
+
+int srv_config_parse(int argc, char **argv, srv_config_t *cfg, err_t *err)
+{
+    int c, ret;
+    opterr = 0;
+    optind = 1;
+    while ((c = getopt_long(argc, argv, ":", opts, NULL)) != -1) {
+        if (c == O_HELP) {
+            fputs(usage, stdout);
+            return 1;
+        }
+        if (c == ':') return err_set(err, -EINVAL, "%s needs a value", argv[optind - 1]);
+        if (c == '?')
+            return err_set(err, -EINVAL, "unknown option '%s' (see ipsd --help)", argv[optind - 1]);
+        if ((ret = one_option(c, optarg, cfg, err))) return ret;
+    }
+    if (optind < argc) return err_set(err, -EINVAL, "unexpected argument '%s'", argv[optind]);
+    return 0;
+}

@@ -1,0 +1,43 @@
+/* srv_fit.h: one fit as ipsd runs it: the model-selection sweep over r (fit/model.h), optionally
+ * the F-test of an edge model and the Wiener baseline, encoded as the `ips fit` JSON document
+ * (json/fitjson.h) so that the stored fits.result reads like the command-line tool's output, plus
+ * the map that becomes the calibration (the best-BIC fit). Pure computation, thread-safe. */
+#ifndef IPSD_SERVER_SRV_FIT_H
+#define IPSD_SERVER_SRV_FIT_H
+
+#include <jansson.h>
+#include <stdatomic.h>
+
+#include "err.h"
+#include "model.h" /* fit_scan_t */
+#include "srv_params.h"
+
+typedef struct srv_fit_out {
+    json_t *result;          /* the `ips fit` document (owned) */
+    int best_aic, best_bic;  /* 0: none */
+    double f_value, p_value; /* NaN without an F-test */
+    /* the best-BIC map, when there is one (r = 0: none) */
+    int r;
+    double *S, *S_err; /* r*r each (owned) */
+    double I0, chi2_red;
+    const char *status; /* static status word of that fit */
+} srv_fit_out_t;
+
+/* How a running fit is watched: stop (may be NULL) is read before every r and every further step,
+ * progress (may be NULL) is told the fraction done after each. */
+typedef struct srv_fit_hooks {
+    const atomic_int *stop;
+    void (*progress)(double fraction, void *user);
+    void *user;
+} srv_fit_hooks_t;
+
+/* Fits scan as p asks (r range, options, F-test, Wiener). A failing F-test or Wiener baseline
+ * (too few points, no regular grid) does not fail the fit: the document holds
+ * {"error": "..."} in its place. Returns 0, -ECANCELED (stopped), -EINVAL (bad scan or options)
+ * or -ENOMEM; *out is released with srv_fit_out_free (also after an error). */
+int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit_hooks_t *hooks,
+                srv_fit_out_t *out, err_t *err);
+
+void srv_fit_out_free(srv_fit_out_t *o);
+
+#endif

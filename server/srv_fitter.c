@@ -1,0 +1,187 @@
+/* srv_fitter.c: the fit workers. Each takes the oldest queued fit job, builds the scan the fit
+ * needs (the pixel's response over a finished scan's stored points, srv_pixel_scan, or the
+ * uploaded scan file), runs it (srv_fit_run) and stores the fit with the calibration of that
+ * sensor pixel from the best-BIC map, linked to the job, in one transaction (storage_fit_put).
+ * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) when it is
+ * cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
+ * by a crash is requeued at the next start and simply runs again. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include "scanfile.h"
+#include "srv_fit.h"
+#include "srv_int.h"
+#include "srv_setup.h"
+
+#define IDLE_POLL_MS 1000
+#define FIT_NICE 10 /* CFS weight 110 against the HTTP threads' 1024 */
+
+/* What a fit job works on: the scan, its optics and where the calibration goes. */
+struct fit_input {
+    scanfile_t sf;
+    storage_calib_t calib; /* the target pixel and provenance (no map yet); sensor_id 0: none */
+};
+
+/* The scan file of the job: a finished scan's pixel, or the upload. */
+static int load_input(storage_t *st, const srv_fit_params_t *p, struct fit_input *in, err_t *err)
+{
+    storage_calib_t *c = &in->calib;
+    c->wavelength_um = c->na = c->spot_radius_um = c->I0 = c->chi2_red = NAN;
+    if (p->scan_file) {
+        char *text = json_dumps(p->scan_file, JSON_COMPACT | JSON_REAL_PRECISION(17));
+        if (!text) return err_set(err, -ENOMEM, "out of memory");
+        int ret = scanfile_parse(text, strlen(text), &in->sf, NULL, err);
+        free(text);
+        c->sensor_id = p->sensor_id;
+        c->pixel_col = p->pixel_col;
+        c->pixel_row = p->pixel_row;
+        c->wavelength_um = p->wavelength_um;
+        c->na = p->na;
+        c->spot_radius_um = in->sf.scan.spot_radius_um;
+        return ret;
+    }
+    storage_scan_t sc;
+    int ret = storage_scan_get(st, p->scan_id, &sc, err);
+    if (ret) return ret;
+    if (sc.state != STORAGE_DONE)
+        ret = err_set(err, -ESTALE, "scan %lld is %s, not done", (long long)sc.id,
+                      storage_state_name(sc.state));
+    if (ret == 0) ret = srv_pixel_scan(st, &sc, p->dcol, p->drow, 0, &in->sf, err);
+    c->sensor_id = sc.sensor_id;
+    c->pixel_col = sc.poi_col + p->dcol;
+    c->pixel_row = sc.poi_row + p->drow;
+    c->scan_id = sc.id;
+    c->wavelength_um = sc.wavelength_um;
+    c->na = sc.na;
+    c->spot_radius_um = sc.spot_radius_um;
+    storage_scan_free(&sc);
+    return ret;
+}
+
+/* Stores the fit (and its calibration when it has a map and a sensor pixel to go to). */
+static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struct fit_input *in,
+                 srv_fit_out_t *out, err_t *err)
+{
+    char *result = json_dumps(out->result, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    if (!result) return err_set(err, -ENOMEM, "out of memory");
+    storage_fit_t f = {.scan_id = p->scan_id,
+                       .dcol = p->dcol,
+                       .drow = p->drow,
+                       .noise_model = (char *)fit_noise_name(p->opts.noise),
+                       .best_r_aic = out->best_aic,
+                       .best_r_bic = out->best_bic,
+                       .f_value = out->f_value,
+                       .p_value = out->p_value,
+                       .result = result};
+    storage_calib_t *c = &in->calib;
+    int with_calib = out->r > 0 && c->sensor_id > 0;
+    if (with_calib) {
+        c->r = out->r;
+        c->S = out->S;
+        c->S_err = out->S_err;
+        c->I0 = out->I0;
+        c->chi2_red = out->chi2_red;
+        c->status = (char *)out->status;
+        c->noise_model = f.noise_model;
+    }
+    int ret = storage_fit_put(st, &f, with_calib ? c : NULL, job_id, NULL, NULL, err);
+    free(result);
+    return ret;
+}
+
+/* Progress of a running fit: an event per step, the heartbeat at most once a second. */
+struct fit_watch {
+    srv_worker_t *w;
+    storage_job_t *job;
+    double last_beat;
+};
+
+static void on_progress(double fraction, void *user)
+{
+    struct fit_watch *fw = user;
+    storage_job_t j = *fw->job;
+    j.state = STORAGE_RUNNING;
+    j.progress = fraction < 1 ? fraction : 0.99;
+    j.error = NULL;
+    double now = srv_now_s();
+    if (now - fw->last_beat >= 1.0) {
+        fw->last_beat = now;
+        /* a cancel seen here stops the fit at its next step */
+        if (storage_job_heartbeat(fw->w->st, j.id, j.progress, 0, NULL) == -ECANCELED)
+            atomic_store(&fw->w->stop, 1);
+    }
+    srv_publish_job(fw->w->srv, &j, "fit", 0, NAN);
+}
+
+/* After a stopped fit: cancelled by the user (nothing to do), else the shutdown (or a cancel
+ * meant for a previous job): the job goes back to the queue and runs again. */
+static void stopped(storage_t *st, int64_t id)
+{
+    if (storage_job_heartbeat(st, id, 0, 0, NULL) == 0) storage_job_release(st, id, NULL);
+}
+
+/* Runs one claimed job to its end state. */
+static void run_job(srv_worker_t *w, storage_job_t *job)
+{
+    srv_fit_params_t p;
+    struct fit_input in = {0};
+    srv_fit_out_t out = {0};
+    err_t err = {{0}};
+    struct fit_watch fw = {.w = w, .job = job, .last_beat = srv_now_s()};
+    srv_fit_hooks_t hooks = {.stop = &w->stop, .progress = on_progress, .user = &fw};
+    srv_worker_begin(w, job->id);
+    srv_publish_job(w->srv, job, "fit", 0, NAN);
+    int ret = srv_fit_params_parse(job->params, &p, &err);
+    if (ret == 0) ret = load_input(w->st, &p, &in, &err);
+    if (ret == 0) ret = srv_fit_run(&in.sf.scan, &p, &hooks, &out, &err);
+    /* cancelled meanwhile? then the result is dropped */
+    if (ret == 0) ret = storage_job_heartbeat(w->st, job->id, 0.99, 0, &err);
+    if (ret == 0) ret = store(w->st, job->id, &p, &in, &out, &err);
+    if (ret == 0) ret = storage_job_finish(w->st, job->id, STORAGE_DONE, NULL, &err);
+    if (ret == -ECANCELED) {
+        stopped(w->st, job->id);
+    } else if (ret) {
+        fprintf(stderr, "ipsd: fit job %lld failed: %s\n", (long long)job->id, err.msg);
+        storage_job_finish(w->st, job->id, STORAGE_FAILED, err.msg, NULL);
+    }
+    srv_worker_end(w);
+    storage_job_t j;
+    if (storage_job_get(w->st, job->id, &j, NULL) == 0) {
+        srv_publish_job(w->srv, &j, NULL, 0, NAN);
+        storage_job_free(&j);
+    }
+    srv_fit_out_free(&out);
+    scanfile_free(&in.sf);
+    srv_fit_params_free(&p);
+}
+
+void *srv_fitter_main(void *arg)
+{
+    srv_worker_t *w = arg;
+    err_t err;
+    /* fits are background work: on Linux the nice value is per thread, so this thread yields the
+     * CPU to the HTTP threads (reads stay fast while fits run) without starving (CFS weights) */
+    if (setpriority(PRIO_PROCESS, (id_t)syscall(SYS_gettid), FIT_NICE) != 0)
+        fprintf(stderr, "ipsd: fit worker: cannot lower its priority: %s\n", strerror(errno));
+    while (!atomic_load(&w->srv->stopping)) {
+        storage_job_t job;
+        if (storage_job_claim(w->st, STORAGE_JOB_FIT, &job, &err)) {
+            fprintf(stderr, "ipsd: fit worker: %s\n", err.msg);
+            srv_wait_work(w->srv, IDLE_POLL_MS);
+            continue;
+        }
+        if (job.id == 0) {
+            srv_wait_work(w->srv, IDLE_POLL_MS);
+            continue;
+        }
+        run_job(w, &job);
+        storage_job_free(&job);
+    }
+    return NULL;
+}

@@ -1,0 +1,62 @@
+/* srv_int.h: what the files of server/ share and the API does not see: the server struct, the
+ * work queue's wake-up, the event helper, and the worker thread entry points. */
+#ifndef IPSD_SERVER_SRV_INT_H
+#define IPSD_SERVER_SRV_INT_H
+
+#include <pthread.h>
+#include <stdatomic.h>
+
+#include "srv.h"
+#include "srv_dbpool.h"
+
+/* A worker thread and its own database handle. */
+typedef struct srv_worker {
+    srv_t *srv;
+    storage_t *st;
+    pthread_t thread;
+    int running;
+    atomic_llong job; /* the job it runs, 0 when idle */
+    atomic_int stop;  /* stops that job at its next check (cancel or shutdown) */
+} srv_worker_t;
+
+struct srv {
+    srv_config_t cfg; /* a copy; cfg.token is owned */
+    srv_dbpool_t *pool;
+    srv_events_t *events;
+    pthread_mutex_t mu; /* guards work_seq; cv signals new work or stopping */
+    pthread_cond_t cv;
+    unsigned long work_seq; /* bumped by every submit */
+    atomic_int stopping;
+    srv_worker_t *workers; /* [0] the scan worker, then the fit workers */
+    int n_workers, stopped;
+};
+
+/* Wakes every worker waiting for work. */
+void srv_notify_work(srv_t *srv);
+
+/* Waits until new work is signalled, the server stops, or ms pass (workers also poll, so jobs
+ * queued by another process are found). */
+void srv_wait_work(srv_t *srv, int ms);
+
+/* Publishes the state of job j (as stored) with the extra fields the stored row lacks. */
+void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int points_total,
+                     double eta_s);
+
+/* srv_fit_submit without the shutdown check: the scan worker queues the automatic fit of a scan
+ * it just finished even while stopping. */
+int srv_enqueue_fit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t *job_id,
+                    err_t *err);
+
+/* A worker takes job id: its stop flag is cleared (unless the server is stopping) and cancels of
+ * that job reach it. srv_worker_end: idle again. */
+void srv_worker_begin(srv_worker_t *w, int64_t id);
+void srv_worker_end(srv_worker_t *w);
+
+/* Worker threads (arg: their srv_worker_t). */
+void *srv_scanner_main(void *arg);
+void *srv_fitter_main(void *arg);
+
+/* Monotonic clock, seconds. */
+double srv_now_s(void);
+
+#endif

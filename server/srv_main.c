@@ -1,0 +1,91 @@
+/* srv_main.c: ipsd's main program (see srv_main.h). Signals are blocked in every thread and taken
+ * by sigwait in the main thread, so no handler runs inside a worker or a library. */
+#include "srv_main.h"
+
+#include <errno.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+
+#include <gsl/gsl_errno.h>
+
+/* Writes the bound port to cfg->port_file (written to FILE.tmp, then renamed: a reader never
+ * sees a half-written number). */
+static int write_port_file(const srv_config_t *cfg, int port, err_t *err)
+{
+    if (!cfg->port_file[0]) return 0;
+    char tmp[SRV_PATH_MAX + 8];
+    snprintf(tmp, sizeof tmp, "%s.tmp", cfg->port_file);
+    FILE *f = fopen(tmp, "w");
+    if (!f || fprintf(f, "%d\n", port) < 0 || fclose(f) != 0 || rename(tmp, cfg->port_file)) {
+        int e = errno;
+        return err_set(err, -e, "--port-file %s: %s", cfg->port_file, strerror(e));
+    }
+    return 0;
+}
+
+/* Serves until SIGINT / SIGTERM; returns the exit code. */
+static int serve(srv_t *srv, const srv_frontend_t *fe, const sigset_t *sigs)
+{
+    const srv_config_t *cfg = srv_config(srv);
+    void *front = NULL;
+    int port = 0, sig = 0;
+    err_t err = {{0}};
+    if (srv_start(srv, &err) || fe->start(srv, &front, &port, &err) ||
+        write_port_file(cfg, port, &err)) {
+        fprintf(stderr, "ipsd: %s\n", err.msg);
+        if (front) fe->quiesce(front);
+        srv_stop(srv);
+        if (front) fe->stop(front);
+        return 1;
+    }
+    fprintf(stderr,
+            "ipsd: listening on http://%s%s%s:%d/ (database %s, bench %s, %d fit "
+            "worker%s)\n",
+            strchr(cfg->host, ':') ? "[" : "", cfg->host, strchr(cfg->host, ':') ? "]" : "", port,
+            cfg->db_path, cfg->bench, cfg->workers, cfg->workers == 1 ? "" : "s");
+    sigwait(sigs, &sig);
+    fprintf(stderr, "ipsd: %s: stopping (running scans resume at the next start)\n",
+            sig == SIGINT ? "SIGINT" : "SIGTERM");
+    fe->quiesce(front);
+    srv_stop(srv);
+    fe->stop(front);
+    fprintf(stderr, "ipsd: stopped\n");
+    return 0;
+}
+
+int srv_main(int argc, char **argv, const srv_frontend_t *fe)
+{
+    gsl_set_error_handler_off();
+    srv_config_t cfg = srv_config_default();
+    err_t err = {{0}};
+    int rc = srv_config_parse(argc, argv, &cfg, &err);
+    if (rc) {
+        srv_config_free(&cfg);
+        if (rc > 0) return 0;
+        fprintf(stderr, "ipsd: %s\n", err.msg);
+        return 2;
+    }
+    /* before any thread exists: every thread inherits the mask. The default disposition first:
+     * a shell starts background jobs with SIGINT ignored, and an ignored signal is discarded
+     * before sigwait could take it. */
+    signal(SIGINT, SIG_DFL);
+    signal(SIGTERM, SIG_DFL);
+    sigset_t sigs;
+    sigemptyset(&sigs);
+    sigaddset(&sigs, SIGINT);
+    sigaddset(&sigs, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+    signal(SIGPIPE, SIG_IGN);
+    srv_t *srv = NULL;
+    if (srv_open(&cfg, &srv, &err)) {
+        fprintf(stderr, "ipsd: %s\n", err.msg);
+        srv_config_free(&cfg);
+        return 1;
+    }
+    srv_config_free(&cfg);
+    rc = serve(srv, fe, &sigs);
+    srv_close(srv);
+    return rc;
+}

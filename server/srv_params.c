@@ -1,0 +1,178 @@
+/* srv_params.c: job parameters to and from jobs.params JSON (see srv_params.h). The API validates
+ * requests before they become parameters; parsing here guards against rows written by others. */
+#include "srv_params.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "scanfile.h"
+
+srv_scan_params_t srv_scan_params_default(void)
+{
+    srv_scan_params_t p = {.seed = 1};
+    snprintf(p.scene, sizeof p.scene, "paperlike");
+    return p;
+}
+
+char *srv_scan_params_dump(const srv_scan_params_t *p)
+{
+    json_t *o = json_pack("{s:s, s:I}", "scene", p->scene, "seed", (json_int_t)p->seed);
+    char *text = o ? json_dumps(o, JSON_COMPACT) : NULL;
+    json_decref(o);
+    return text;
+}
+
+int srv_scan_params_parse(const char *text, srv_scan_params_t *p, err_t *err)
+{
+    *p = srv_scan_params_default();
+    json_t *o = json_loads(text, 0, NULL), *scene, *seed;
+    if (!json_is_object(o)) {
+        json_decref(o);
+        return err_set(err, -EINVAL, "scan job params: not a JSON object");
+    }
+    if ((scene = json_object_get(o, "scene")) && json_is_string(scene))
+        snprintf(p->scene, sizeof p->scene, "%s", json_string_value(scene));
+    if ((seed = json_object_get(o, "seed")) && json_is_integer(seed))
+        p->seed = (unsigned long)json_integer_value(seed);
+    json_decref(o);
+    return 0;
+}
+
+srv_fit_params_t srv_fit_params_default(void)
+{
+    return (srv_fit_params_t){.r_min = 1,
+                              .r_max = 8,
+                              .opts = fit_options_default(),
+                              .ftest_r = 7,
+                              .wiener = 0,
+                              .wavelength_um = NAN,
+                              .na = NAN};
+}
+
+srv_fit_params_t srv_fit_params_auto(int64_t scan_id)
+{
+    srv_fit_params_t p = srv_fit_params_default();
+    p.scan_id = scan_id;
+    p.ftest_edges = FIT_EDGE_TOP | FIT_EDGE_LEFT | FIT_EDGE_BOTTOM;
+    p.wiener = 1;
+    return p;
+}
+
+void srv_fit_params_free(srv_fit_params_t *p)
+{
+    if (!p) return;
+    json_decref(p->scan_file);
+    p->scan_file = NULL;
+}
+
+const char *srv_edges_text(unsigned edges, char *buf, size_t n)
+{
+    static const char *const names[] = {"top", "left", "bottom", "right"};
+    size_t at = 0;
+    buf[0] = 0;
+    for (int i = 0; i < 4; i++)
+        if (edges & (1u << i))
+            at += (size_t)snprintf(buf + at, at < n ? n - at : 0, "%s%s", at ? "," : "", names[i]);
+    return buf;
+}
+
+static const char *const methods[] = {"linear", "lm", "both"};
+
+char *srv_fit_params_dump(const srv_fit_params_t *p)
+{
+    char edges[64];
+    json_t *o = json_pack("{s:i, s:i, s:i, s:i, s:s, s:s, s:b, s:i, s:b}", "dcol", p->dcol, "drow",
+                          p->drow, "r_min", p->r_min, "r_max", p->r_max, "sigma",
+                          fit_noise_name(p->opts.noise), "method", methods[p->opts.method],
+                          "nonneg", p->opts.nonneg, "ftest_r", p->ftest_r, "wiener", p->wiener);
+    if (!o) return NULL;
+    json_object_set_new(o, "ftest",
+                        p->ftest_edges
+                            ? json_string(srv_edges_text(p->ftest_edges, edges, sizeof edges))
+                            : json_null());
+    if (p->scan_id) json_object_set_new(o, "scan_id", json_integer(p->scan_id));
+    if (p->scan_file) json_object_set(o, "scan", p->scan_file);
+    if (p->sensor_id) {
+        json_object_set_new(o, "sensor_id", json_integer(p->sensor_id));
+        json_object_set_new(o, "pixel",
+                            json_pack("{s:i, s:i}", "col", p->pixel_col, "row", p->pixel_row));
+    }
+    if (isfinite(p->wavelength_um))
+        json_object_set_new(o, "wavelength_um", json_real(p->wavelength_um));
+    if (isfinite(p->na)) json_object_set_new(o, "na", json_real(p->na));
+    char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    json_decref(o);
+    return text;
+}
+
+/* Integer member into *v when present. */
+static void opt_int(json_t *o, const char *key, int *v)
+{
+    json_t *x = json_object_get(o, key);
+    if (json_is_integer(x)) *v = (int)json_integer_value(x);
+}
+
+/* The string members: sigma, method, ftest. */
+static int parse_words(json_t *o, srv_fit_params_t *p, err_t *err)
+{
+    const char *sigma = json_string_value(json_object_get(o, "sigma"));
+    const char *method = json_string_value(json_object_get(o, "method"));
+    const char *ftest = json_string_value(json_object_get(o, "ftest"));
+    if (sigma && fit_noise_parse(sigma, &p->opts.noise))
+        return err_set(err, -EINVAL, "fit job params: sigma '%s' unknown", sigma);
+    for (int m = 0; method && m < 3; m++)
+        if (strcmp(method, methods[m]) == 0) p->opts.method = (fit_method_t)m;
+    if (ftest && fit_edges_parse(ftest, &p->ftest_edges, err)) return -EINVAL;
+    return 0;
+}
+
+int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
+{
+    *p = srv_fit_params_default();
+    json_t *o = json_loads(text, 0, NULL), *x;
+    int ret = 0;
+    if (!json_is_object(o)) {
+        ret = err_set(err, -EINVAL, "fit job params: not a JSON object");
+        goto out;
+    }
+    p->scan_id = json_integer_value(json_object_get(o, "scan_id"));
+    p->sensor_id = json_integer_value(json_object_get(o, "sensor_id"));
+    opt_int(o, "dcol", &p->dcol);
+    opt_int(o, "drow", &p->drow);
+    opt_int(o, "r_min", &p->r_min);
+    opt_int(o, "r_max", &p->r_max);
+    opt_int(o, "ftest_r", &p->ftest_r);
+    opt_int(json_object_get(o, "pixel"), "col", &p->pixel_col);
+    opt_int(json_object_get(o, "pixel"), "row", &p->pixel_row);
+    p->wiener = json_is_true(json_object_get(o, "wiener"));
+    p->opts.nonneg = json_is_true(json_object_get(o, "nonneg"));
+    if ((x = json_object_get(o, "wavelength_um")) && json_is_number(x))
+        p->wavelength_um = json_number_value(x);
+    if ((x = json_object_get(o, "na")) && json_is_number(x)) p->na = json_number_value(x);
+    if ((ret = parse_words(o, p, err))) goto out;
+    if ((x = json_object_get(o, "scan"))) p->scan_file = json_incref(x);
+    if (!p->scan_id && !p->scan_file)
+        ret = err_set(err, -EINVAL, "fit job params: neither scan_id nor scan");
+out:
+    json_decref(o);
+    return ret;
+}
+
+int srv_upload_check(json_t *scan, double *pitch_um, size_t *n_points, const char **field,
+                     err_t *err)
+{
+    scanfile_t sf;
+    *field = NULL;
+    char *text = json_dumps(scan, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    if (!text) return err_set(err, -ENOMEM, "out of memory");
+    int ret = scanfile_parse(text, strlen(text), &sf, field, err);
+    free(text);
+    if (ret) return ret;
+    *pitch_um = sf.scan.pitch_um;
+    *n_points = sf.scan.n;
+    scanfile_free(&sf);
+    return 0;
+}

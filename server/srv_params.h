@@ -1,0 +1,62 @@
+/* srv_params.h: the parameters of ipsd's jobs as they are stored in jobs.params (JSON): what a scan
+ * job needs besides its scan row (the simulated scene and the noise seed), and what a fit job fits
+ * (a pixel of a finished scan, or an uploaded scan file) and how (r range, noise model, F-test,
+ * Wiener), with where its calibration goes. */
+#ifndef IPSD_SERVER_SRV_PARAMS_H
+#define IPSD_SERVER_SRV_PARAMS_H
+
+#include <jansson.h>
+#include <stdint.h>
+
+#include "err.h"
+#include "model.h"
+
+/* Scenes the simulated bench offers to scans. */
+#define SRV_SCENES "uniform, paperlike"
+
+typedef struct srv_scan_params {
+    char scene[32];     /* "paperlike" (default) or "uniform" */
+    unsigned long seed; /* noise of the simulated frames (1) */
+} srv_scan_params_t;
+
+srv_scan_params_t srv_scan_params_default(void);
+/* JSON object text of p (caller frees), NULL when out of memory. */
+char *srv_scan_params_dump(const srv_scan_params_t *p);
+/* Reads text made by srv_scan_params_dump; missing members keep their defaults. */
+int srv_scan_params_parse(const char *text, srv_scan_params_t *p, err_t *err);
+
+typedef struct srv_fit_params {
+    int64_t scan_id;      /* the scan whose pixel is fitted; 0: an uploaded scan file */
+    int dcol, drow;       /* the sub-frame pixel, offset from the POI (0, 0 for uploads) */
+    int r_min, r_max;     /* 1..32 (1..8) */
+    fit_options_t opts;   /* noise model (paper), method (linear), nonneg (0) */
+    unsigned ftest_edges; /* F-test edges (enum fit_edge); 0: no F-test */
+    int ftest_r;          /* r of the F-test (7) */
+    int wiener;           /* run the Wiener baseline */
+    json_t *scan_file;    /* the uploaded scan file (owned reference), NULL for a scan's pixel */
+    int64_t sensor_id;    /* uploads: the sensor the calibration is of, 0: store none */
+    int pixel_col, pixel_row; /* uploads: that sensor pixel */
+    double wavelength_um, na; /* uploads: optics for the calibration's provenance; NaN unknown */
+} srv_fit_params_t;
+
+/* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload. */
+srv_fit_params_t srv_fit_params_default(void);
+/* What the server queues when a scan finishes: its POI, r 1..8, paper noise, the F-test of the
+ * paper's edge model (top, left, bottom at r = 7) and the Wiener baseline. */
+srv_fit_params_t srv_fit_params_auto(int64_t scan_id);
+/* JSON object text of p (caller frees), NULL when out of memory. */
+char *srv_fit_params_dump(const srv_fit_params_t *p);
+/* Reads text made by srv_fit_params_dump into *p (release with srv_fit_params_free). */
+int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err);
+void srv_fit_params_free(srv_fit_params_t *p);
+
+/* Checks an uploaded scan file (the "scan" member of a fit request) as `ips fit` reads it
+ * (instrument/scanfile.h): returns 0 with its pitch and number of points, or -EINVAL with err and
+ * *field naming the offending key (static; NULL when not one key's fault), or -ENOMEM. */
+int srv_upload_check(json_t *scan, double *pitch_um, size_t *n_points, const char **field,
+                     err_t *err);
+
+/* The comma list of edge names of a mask ("top,left,bottom"), into buf. */
+const char *srv_edges_text(unsigned edges, char *buf, size_t n);
+
+#endif

@@ -1,0 +1,263 @@
+/* srv_scanner.c: the scan worker, the one thread that owns the instrument. It takes scan jobs in
+ * order, runs the scan procedure (instrument/scan.h: exposure, centring, focus, then the raster)
+ * on the configured bench and stores every raster point as it comes, one transaction per point
+ * (storage_frame_put), so a crash loses at most the point in flight. The setup is stored before
+ * the raster: a resumed scan continues at the point after its last stored one with the same
+ * positions. When the raster is complete the scan is done and the fit of its POI is queued.
+ * Cancel (the worker's stop flag, or the database refusing the next point) stops between points;
+ * a graceful shutdown gives the job back to the queue. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../instrument/scan.h" /* instrument/scan.h, not fit/scan.h */
+#include "srv_bench.h"
+#include "srv_int.h"
+#include "srv_setup.h"
+
+#define HEARTBEAT_S 1.0 /* a running scan job writes its heartbeat and progress this often */
+#define IDLE_POLL_MS 1000
+
+/* One scan job being run. */
+struct scan_run {
+    srv_t *srv;
+    srv_worker_t *w;
+    storage_t *st;
+    storage_job_t *job;
+    storage_scan_t scan;
+    storage_sensor_t sensor;
+    srv_bench_t bench;
+    scan_config_t cfg;
+    scan_setup_t setup;
+    int first;            /* first raster point captured by this run */
+    double t0, last_beat; /* when this run's raster started, last heartbeat (srv_now_s) */
+    int store_rc;         /* why store_point stopped the raster, 0 if it did not */
+    err_t err;
+};
+
+/* Publishes the job's progress (the row is not re-read: the run knows it). */
+static void publish(struct scan_run *r, const char *phase, int done, double eta_s)
+{
+    storage_job_t j = *r->job;
+    j.state = STORAGE_RUNNING;
+    j.points_done = done;
+    j.progress = r->scan.points_total ? (double)done / r->scan.points_total : 0;
+    j.error = NULL;
+    srv_publish_job(r->srv, &j, phase, r->scan.points_total, eta_s);
+}
+
+static void on_progress(const char *phase, size_t done, size_t total, void *user)
+{
+    (void)done;
+    (void)total;
+    struct scan_run *r = user;
+    if (strcmp(phase, "raster") != 0) publish(r, phase, r->first, NAN);
+}
+
+/* hooks->point: stores one captured point, beats the heart, publishes the progress. A non-zero
+ * return stops the raster; store_rc says why. */
+static int store_point(const scan_point_t *pt, void *user)
+{
+    struct scan_run *r = user;
+    if (!pt->raw) {
+        r->store_rc = err_set(&r->err, -EINVAL, "the scan procedure did not keep raw frames");
+        return 1;
+    }
+    storage_frame_t f = {.scan_id = r->scan.id,
+                         .point_index = (int)pt->index,
+                         .stage_x_um = pt->reported.x_um,
+                         .stage_y_um = pt->reported.y_um,
+                         .stage_z_um = pt->reported.z_um,
+                         .exposure_us = pt->exposure_us,
+                         .frames = pt->frames,
+                         .sub_px = pt->width,
+                         .raw = (uint16_t *)pt->raw,
+                         .mean = (double *)pt->mean_dn};
+    int rc = storage_frame_put(r->st, &f, &r->err);
+    if (rc && rc != -EEXIST) {
+        r->store_rc = rc;
+        return 1;
+    }
+    int done = (int)pt->index + 1, total = r->scan.points_total;
+    double now = srv_now_s();
+    if (now - r->last_beat >= HEARTBEAT_S || done == total) {
+        r->last_beat = now;
+        rc = storage_job_heartbeat(r->st, r->job->id, (double)done / total, done, &r->err);
+        if (rc) {
+            r->store_rc = rc;
+            return 1;
+        }
+    }
+    int run_done = done - r->first;
+    double eta = run_done > 0 ? (now - r->t0) / run_done * (total - done) : NAN;
+    publish(r, "raster", done, eta);
+    return 0;
+}
+
+/* The scan procedure's configuration for this scan on this bench. */
+static void make_config(struct scan_run *r)
+{
+    scan_config_t *c = &r->cfg;
+    *c = scan_config_default();
+    c->poi_col = r->scan.poi_col;
+    c->poi_row = r->scan.poi_row;
+    c->start = r->bench.start;
+    c->area_px = r->scan.area_px;
+    c->step_um = r->scan.step_um;
+    c->subframe_px = r->scan.sub_px;
+    c->frames = r->scan.frames;
+    c->exposure_us = r->scan.exposure_us;
+    c->keep_frames = 1; /* the database keeps the raw frames */
+    c->pitch_um = r->sensor.pitch_um;
+    c->bias_dn = r->sensor.bias_dn;
+    c->gain_e_per_dn = r->sensor.gain_e_per_dn;
+    c->read_noise_e = r->sensor.read_noise_e;
+    c->full_scale_dn = r->sensor.full_scale_dn;
+    /* the default 16000 DN of a 14-bit ADC, scaled to this sensor's full scale */
+    c->saturation_dn = r->sensor.full_scale_dn * (16000.0 / 16383.0);
+    c->spot_radius_um = r->scan.spot_radius_um;
+}
+
+/* The stored setup, or a new one from scan_prepare, stored before the raster starts. */
+static int setup(struct scan_run *r, const scan_hooks_t *hooks)
+{
+    char *text = NULL;
+    int ret = storage_scan_get_setup(r->st, r->scan.id, &text, &r->err);
+    if (ret) return ret;
+    if (text) {
+        ret = srv_setup_parse(text, &r->setup, &r->err);
+        free(text);
+        return ret;
+    }
+    if ((ret = scan_prepare(r->bench.cam, r->bench.stage, &r->cfg, hooks, &r->setup, &r->err)))
+        return ret;
+    if (!(text = srv_setup_dump(&r->setup))) return err_set(&r->err, -ENOMEM, "out of memory");
+    ret = storage_scan_set_setup(r->st, r->scan.id, text, &r->err);
+    free(text);
+    return ret;
+}
+
+/* Queues the automatic fit of the scan's POI unless the scan has a fit job already (a restart
+ * between finishing the raster and finishing the job must not queue a second one). */
+static int queue_auto_fit(struct scan_run *r)
+{
+    storage_job_list_t l;
+    int ret = storage_job_list(r->st, STORAGE_JOB_FIT, STORAGE_ANY, r->scan.id, 1, 0, &l, &r->err);
+    if (ret) return ret;
+    int64_t total = l.total, id;
+    storage_job_list_free(&l);
+    if (total) return 0;
+    srv_fit_params_t p = srv_fit_params_auto(r->scan.id);
+    return srv_enqueue_fit(r->srv, r->st, &p, &id, &r->err);
+}
+
+/* The scan's points are all stored: done, fit queued, job finished. */
+static int finish_done(struct scan_run *r)
+{
+    int ret = 0;
+    if (r->scan.state != STORAGE_DONE)
+        ret = storage_scan_set_state(r->st, r->scan.id, STORAGE_DONE, NULL, &r->err);
+    if (ret == 0) ret = queue_auto_fit(r);
+    if (ret == 0) ret = storage_job_finish(r->st, r->job->id, STORAGE_DONE, NULL, &r->err);
+    return ret;
+}
+
+/* Loads the scan and its sensor, opens the bench, and marks the scan running. */
+static int begin(struct scan_run *r)
+{
+    srv_scan_params_t p;
+    int ret;
+    if (!r->job->scan_id) return err_set(&r->err, -EINVAL, "scan job without a scan");
+    if ((ret = srv_scan_params_parse(r->job->params, &p, &r->err)) ||
+        (ret = storage_scan_get(r->st, r->job->scan_id, &r->scan, &r->err)) ||
+        (ret = storage_sensor_get(r->st, r->scan.sensor_id, &r->sensor, &r->err)))
+        return ret;
+    if (r->scan.state == STORAGE_DONE) return 0;
+    /* the job must still be ours (not cancelled meanwhile) before the scan is marked running */
+    if ((ret = storage_job_heartbeat(r->st, r->job->id, r->job->progress, r->job->points_done,
+                                     &r->err)) ||
+        (ret = srv_bench_open(r->srv->cfg.bench, &r->sensor, &r->scan, &p, &r->bench, &r->err)))
+        return ret;
+    make_config(r);
+    return storage_scan_set_state(r->st, r->scan.id, STORAGE_RUNNING, NULL, &r->err);
+}
+
+/* Setup and raster from the point after the last stored one. */
+static int capture(struct scan_run *r)
+{
+    scan_hooks_t hooks = {
+        .point = store_point, .progress = on_progress, .user = r, .stop = &r->w->stop};
+    int last = -1, count = 0;
+    int ret = storage_frame_last(r->st, r->scan.id, &last, &count, &r->err);
+    r->first = last + 1;
+    if (ret == 0) ret = setup(r, &hooks);
+    if (ret || r->first >= r->scan.points_total) return ret;
+    r->t0 = r->last_beat = srv_now_s();
+    publish(r, "raster", r->first, NAN);
+    ret = scan_raster_run(r->bench.cam, r->bench.stage, &r->cfg, &r->setup, (size_t)r->first,
+                          &hooks, NULL, &r->err);
+    return r->store_rc ? r->store_rc : ret;
+}
+
+/* After the run stopped with ret: done, cancelled by the user, stopped by the shutdown, or
+ * failed. The job row is brought to its final (or queued) state and the event published. */
+static void conclude(struct scan_run *r, int ret)
+{
+    storage_t *st = r->st;
+    int64_t id = r->job->id;
+    if (ret == 0) ret = finish_done(r);
+    if (ret == -ECANCELED) {
+        /* who stopped us: the user (the job is cancelled), else the shutdown (or a cancel meant
+         * for the previous job): the job goes back to the queue and resumes where it stopped */
+        int beat = storage_job_heartbeat(st, id, r->job->progress, r->job->points_done, NULL);
+        if (beat == -ECANCELED)
+            storage_scan_set_state(st, r->scan.id, STORAGE_CANCELLED, NULL, NULL);
+        else if (beat == 0)
+            storage_job_release(st, id, NULL);
+    } else if (ret) {
+        fprintf(stderr, "ipsd: scan job %lld failed: %s\n", (long long)id, r->err.msg);
+        if (r->scan.id) storage_scan_set_state(st, r->scan.id, STORAGE_FAILED, r->err.msg, NULL);
+        storage_job_finish(st, id, STORAGE_FAILED, r->err.msg, NULL);
+    }
+    storage_job_t j;
+    if (storage_job_get(st, id, &j, NULL) == 0) {
+        srv_publish_job(r->srv, &j, NULL, r->scan.points_total, NAN);
+        storage_job_free(&j);
+    }
+}
+
+static void run_job(srv_worker_t *w, storage_job_t *job)
+{
+    struct scan_run r = {.srv = w->srv, .w = w, .st = w->st, .job = job};
+    srv_worker_begin(w, job->id);
+    int ret = begin(&r);
+    if (ret == 0 && r.scan.state != STORAGE_DONE) ret = capture(&r);
+    conclude(&r, ret);
+    srv_worker_end(w);
+    srv_bench_close(&r.bench);
+    storage_sensor_free(&r.sensor);
+    storage_scan_free(&r.scan);
+}
+
+void *srv_scanner_main(void *arg)
+{
+    srv_worker_t *w = arg;
+    err_t err;
+    while (!atomic_load(&w->srv->stopping)) {
+        storage_job_t job;
+        if (storage_job_claim(w->st, STORAGE_JOB_SCAN, &job, &err)) {
+            fprintf(stderr, "ipsd: scan worker: %s\n", err.msg);
+            srv_wait_work(w->srv, IDLE_POLL_MS);
+            continue;
+        }
+        if (job.id == 0) {
+            srv_wait_work(w->srv, IDLE_POLL_MS);
+            continue;
+        }
+        run_job(w, &job);
+        storage_job_free(&job);
+    }
+    return NULL;
+}

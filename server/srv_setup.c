@@ -1,0 +1,166 @@
+/* srv_setup.c: the scan setup as JSON and a pixel's response from the stored points (see
+ * srv_setup.h). */
+#include "srv_setup.h"
+
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The doubles of a setup, by name, for both directions. */
+#define SETUP_DOUBLES(X)                                                                           \
+    X(exposure_us)                                                                                 \
+    X(gain)                                                                                        \
+    X(pitch_um)                                                                                    \
+    X(bias_dn) X(gain_e_per_dn) X(read_noise_e) X(full_scale_dn) X(spot_radius_um) X(imbalance_x)  \
+        X(imbalance_y) X(neighbour_fraction) X(peak_dn)
+
+/* NaN (unknown diagnostics) is written as null. */
+static json_t *num(double v)
+{
+    return isfinite(v) ? json_real(v) : json_null();
+}
+
+char *srv_setup_dump(const scan_setup_t *su)
+{
+    json_t *o = json_pack("{s:[o, o, o], s:i, s:i}", "centre_um", num(su->centre.x_um),
+                          num(su->centre.y_um), num(su->centre.z_um), "centre_iterations",
+                          su->centre_iterations, "focus_evaluations", su->focus_evaluations);
+    if (!o) return NULL;
+#define PUT(f) json_object_set_new(o, #f, num(su->f));
+    SETUP_DOUBLES(PUT)
+#undef PUT
+    char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    json_decref(o);
+    return text;
+}
+
+/* A number member (null reads as NaN); -EINVAL when missing or of another type. */
+static int get_num(json_t *o, const char *key, double *v, err_t *err)
+{
+    json_t *x = json_object_get(o, key);
+    if (json_is_null(x)) {
+        *v = NAN;
+        return 0;
+    }
+    if (!json_is_number(x)) return err_set(err, -EINVAL, "scan setup: %s missing", key);
+    *v = json_number_value(x);
+    return 0;
+}
+
+int srv_setup_parse(const char *text, scan_setup_t *su, err_t *err)
+{
+    json_error_t je;
+    json_t *o = json_loads(text, 0, &je), *c = json_object_get(o, "centre_um");
+    int ret = 0;
+    memset(su, 0, sizeof *su);
+    if (!json_is_array(c) || json_array_size(c) != 3) {
+        ret = err_set(err, -EINVAL, "scan setup: centre_um missing");
+        goto out;
+    }
+    su->centre.x_um = json_number_value(json_array_get(c, 0));
+    su->centre.y_um = json_number_value(json_array_get(c, 1));
+    su->centre.z_um = json_number_value(json_array_get(c, 2));
+    su->centre_iterations = (int)json_integer_value(json_object_get(o, "centre_iterations"));
+    su->focus_evaluations = (int)json_integer_value(json_object_get(o, "focus_evaluations"));
+#define GET(f)                                                                                     \
+    if (!ret) ret = get_num(o, #f, &su->f, err);
+    SETUP_DOUBLES(GET)
+#undef GET
+out:
+    json_decref(o);
+    return ret;
+}
+
+/* Allocates the arrays of a scan file of n points with the setup's constants (scan.c does the
+ * same in scan_extract_pixel: gain_e_per_dn / analogue gain). */
+static int pixel_file_new(const scan_setup_t *su, int frames, size_t n, scanfile_t *out, err_t *err)
+{
+    memset(out, 0, sizeof *out);
+    if (n) {
+        out->x_um = malloc(sizeof(double) * n);
+        out->y_um = malloc(sizeof(double) * n);
+        out->signal_dn = malloc(sizeof(double) * n);
+        if (!out->x_um || !out->y_um || !out->signal_dn) {
+            scanfile_free(out);
+            return err_set(err, -ENOMEM, "out of memory for a scan of %zu points", n);
+        }
+    }
+    out->scan = (fit_scan_t){.n = n,
+                             .x_um = out->x_um,
+                             .y_um = out->y_um,
+                             .signal_dn = out->signal_dn,
+                             .pitch_um = su->pitch_um,
+                             .spot_radius_um = su->spot_radius_um,
+                             .bias_dn = su->bias_dn,
+                             .gain_e_per_dn = su->gain_e_per_dn / su->gain,
+                             .read_noise_e = su->read_noise_e,
+                             .frames = frames,
+                             .full_scale_dn = su->full_scale_dn};
+    return 0;
+}
+
+int srv_pixel_scan(storage_t *st, const storage_scan_t *sc, int dcol, int drow, int all,
+                   scanfile_t *out, err_t *err)
+{
+    char *text = NULL;
+    storage_raster_t r = {0};
+    scan_setup_t su;
+    int h = sc->sub_px / 2, ret;
+    memset(out, 0, sizeof *out);
+    if (abs(dcol) > h || abs(drow) > h)
+        return err_set(err, -EINVAL, "pixel (%+d, %+d) is outside the %dx%d sub-frame", dcol, drow,
+                       sc->sub_px, sc->sub_px);
+    if ((ret = storage_scan_get_setup(st, sc->id, &text, err))) return ret;
+    if (!text)
+        return err_set(err, -ENODATA, "scan %lld has not been set up yet (no points)",
+                       (long long)sc->id);
+    if ((ret = srv_setup_parse(text, &su, err)) ||
+        (ret = storage_frame_raster(st, sc->id, dcol, drow, &r, err)))
+        goto out;
+    /* the pixel spans [ox, ox + p] x [oy, oy + p] in stage coordinates (scan.h) */
+    double p = su.pitch_um, eps = 1e-6 * p;
+    double ox = su.centre.x_um - p / 2 + dcol * p, oy = su.centre.y_um - p / 2 + drow * p;
+    size_t n = 0;
+    for (size_t i = 0; i < r.n; i++) {
+        double x = r.stage_x_um[i] - ox, y = r.stage_y_um[i] - oy;
+        if (all || (x > eps && x < p - eps && y > eps && y < p - eps)) n++;
+    }
+    if ((ret = pixel_file_new(&su, sc->frames, n, out, err))) goto out;
+    for (size_t i = 0, k = 0; i < r.n; i++) {
+        double x = r.stage_x_um[i] - ox, y = r.stage_y_um[i] - oy;
+        if (!(all || (x > eps && x < p - eps && y > eps && y < p - eps))) continue;
+        out->x_um[k] = x;
+        out->y_um[k] = y;
+        out->signal_dn[k++] = r.mean_dn[i];
+    }
+out:
+    storage_raster_free(&r);
+    free(text);
+    return ret;
+}
+
+int srv_pixel_scan_text(storage_t *st, const storage_scan_t *sc, int dcol, int drow, int all,
+                        json_t *extra, char **text, size_t *len, err_t *err)
+{
+    scanfile_t sf;
+    *text = NULL;
+    *len = 0;
+    int ret = srv_pixel_scan(st, sc, dcol, drow, all, &sf, err);
+    if (ret) return ret;
+    FILE *f = open_memstream(text, len);
+    if (!f) {
+        scanfile_free(&sf);
+        return err_set(err, -ENOMEM, "out of memory");
+    }
+    ret = scanfile_dump(f, &sf.scan, extra, err);
+    if (fclose(f) && ret == 0) ret = err_set(err, -ENOMEM, "out of memory");
+    scanfile_free(&sf);
+    if (ret) {
+        free(*text);
+        *text = NULL;
+    }
+    return ret;
+}

@@ -1,0 +1,355 @@
+// dashboard.test.mjs: the dashboard's end-to-end test in a real browser. Starts a real ipsd on a
+// free loopback port with a temporary database and --web pointing at web/, drives Debian's
+// chromium through playwright-core like a person (clicks and typing): creates a sensor, makes a
+// bad scan request and checks the API's own error message is shown at the form, submits a small
+// scan, waits for the progress to reach done on the page, opens the automatic fit through the
+// scan page, and checks what the page shows against GET /api/fits/{id} fetched independently
+// (best r, status, F-test, the heatmap's colours at the map's extreme cells, the hover readout),
+// the calibration search and its CSV link, and that the page logged no console errors.
+//
+// usage: node dashboard.test.mjs IPSD WEBDIR     exit 0 pass, 1 fail, 77 skip (no node_modules
+// or no chromium). Screenshots go to /tmp (ipsd-dashboard-*.png).
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const HERE = path.dirname(fileURLToPath(import.meta.url));
+const CHROMIUM = '/usr/bin/chromium';
+const [ipsdBin, webDir] = process.argv.slice(2);
+const VIRIDIS_TOP = [0xfd, 0xe7, 0x25]; // the colour map's ends: a map's max and min cells
+const VIRIDIS_BOTTOM = [0x44, 0x01, 0x54];
+const TOKEN = 'e2e-Token-7f3a'; // ipsd runs with --token: writes need it
+
+function skip(why) {
+    console.log(`SKIP: ${why}`);
+    process.exit(77);
+}
+
+if (!ipsdBin || !webDir) {
+    console.error('usage: node dashboard.test.mjs IPSD WEBDIR');
+    process.exit(2);
+}
+if (!fs.existsSync(path.join(HERE, 'node_modules', 'playwright-core'))) {
+    skip('tests/web/node_modules is missing: run `npm ci --prefix tests/web` (needs the npm ' +
+        'registry) to enable the browser test');
+}
+if (!fs.existsSync(CHROMIUM)) skip(`${CHROMIUM} is missing: apt-get install chromium`);
+const { chromium } = await import('playwright-core');
+
+let passed = 0, failed = 0;
+function check(cond, what, detail = '') {
+    if (cond) {
+        passed++;
+        console.log(`ok - ${what}`);
+    } else {
+        failed++;
+        console.log(`not ok - ${what}${detail ? `: ${detail}` : ''}`);
+    }
+    return cond;
+}
+const near = (a, b, rel) => Math.abs(a - b) <= rel * Math.max(Math.abs(a), Math.abs(b), 1e-300);
+
+// ---- the daemon ----
+
+async function startIpsd(tmp) {
+    const portFile = path.join(tmp, 'port');
+    const log = fs.openSync(path.join(tmp, 'ipsd.log'), 'w');
+    fs.writeFileSync(path.join(tmp, 'token'), `${TOKEN}\n`);
+    const proc = spawn(ipsdBin, ['--listen', '127.0.0.1:0', '--port-file', portFile, '--db',
+        path.join(tmp, 'ipsd.db'), '--web', webDir, '--token', path.join(tmp, 'token')],
+    { stdio: ['ignore', log, log] });
+    let exited = null;
+    proc.on('exit', (code, sig) => { exited = { code, sig }; });
+    for (let i = 0; i < 200; i++) { // up to 20 s (sanitizer builds start slowly)
+        if (exited) break;
+        const text = fs.existsSync(portFile) ? fs.readFileSync(portFile, 'utf8').trim() : '';
+        if (/^\d+$/.test(text)) return { proc, port: Number(text), exited: () => exited };
+        await new Promise((r) => setTimeout(r, 100));
+    }
+    proc.kill('SIGKILL');
+    throw new Error(`ipsd did not start: ${fs.readFileSync(path.join(tmp, 'ipsd.log'), 'utf8')}`);
+}
+
+async function stopIpsd(d) {
+    if (!d || d.exited()) return;
+    d.proc.kill('SIGTERM');
+    for (let i = 0; i < 100 && !d.exited(); i++) await new Promise((r) => setTimeout(r, 100));
+    if (!d.exited()) d.proc.kill('SIGKILL');
+    else if (d.exited().code !== 0) {
+        console.log(`# note: ipsd exited with ${JSON.stringify(d.exited())}`);
+    }
+}
+
+// ---- the steps ----
+
+async function typeInto(locator, text) {
+    await locator.click();
+    await locator.fill('');
+    await locator.pressSequentially(String(text));
+}
+
+// Colours of a canvas: the number of distinct RGB values and the RGB at fractions (fx, fy).
+async function canvasInfo(page, selector, probes = []) {
+    return page.$eval(selector, (c, probes) => {
+        const ctx = c.getContext('2d');
+        const d = ctx.getImageData(0, 0, c.width, c.height).data;
+        const seen = new Set();
+        for (let k = 0; k < d.length; k += 4) seen.add((d[k] << 16) | (d[k + 1] << 8) | d[k + 2]);
+        const at = probes.map(([fx, fy]) => {
+            const x = Math.floor(fx * c.width), y = Math.floor(fy * c.height);
+            return Array.from(ctx.getImageData(x, y, 1, 1).data.slice(0, 3));
+        });
+        return { distinct: seen.size, at, width: c.width, height: c.height };
+    }, probes);
+}
+
+const sameColour = (a, b) => a.every((v, k) => Math.abs(v - b[k]) <= 2);
+
+async function run(base, page, api) {
+    await page.goto(`${base}/#/scans`);
+    await page.locator('#live[data-state="live"]').waitFor({ timeout: 10000 });
+    check(true, 'dashboard loads and its event stream connects');
+
+    // a sensor, through the "New sensor" form
+    await page.getByText('New sensor…').click();
+    const sf = page.locator('[data-testid="sensor-form"]');
+    await typeInto(sf.getByLabel('Model'), 'E2E-CAM');
+    await typeInto(sf.getByLabel('Serial'), 'WEB-0001');
+    await typeInto(sf.getByLabel('Columns'), 64);
+    await typeInto(sf.getByLabel('Rows'), 48);
+    // without the token the server refuses the write, and the form says why
+    await sf.getByRole('button', { name: 'Create sensor' }).click();
+    await sf.locator('.form-error').waitFor({ state: 'visible', timeout: 10000 });
+    const denied = await api('POST', '/api/sensors', { model: 'x', serial: 'y' }, false, '');
+    const deniedText = await sf.locator('.form-error').textContent();
+    check(denied.status === 401 && deniedText.includes(denied.body.error.message),
+        'a write without the token shows the API\'s 401 message at the form',
+        `page: "${deniedText}", API: ${JSON.stringify(denied.body)}`);
+    await typeInto(page.getByLabel('Token', { exact: true }), TOKEN);
+    await page.locator('#token-form').getByRole('button', { name: 'Save' }).click();
+    await sf.getByRole('button', { name: 'Create sensor' }).click();
+    const sensors = async () => (await api('GET', '/api/sensors')).body.items;
+    await page.waitForFunction(() => document.querySelector('#scan-sensor')?.selectedOptions[0]
+        ?.textContent.includes('E2E-CAM WEB-0001'), null, { timeout: 10000 });
+    const sensor = (await sensors()).find((s) => s.serial === 'WEB-0001');
+    check(sensor && sensor.n_cols === 64 && sensor.n_rows === 48,
+        'the sensor typed into the form is stored (64 x 48)', JSON.stringify(sensor));
+
+    // the scan form: a bad request first (even raster area), then a good one
+    const form = page.locator('[data-testid="scan-form"]');
+    await typeInto(form.getByLabel('Column'), 10);
+    await typeInto(form.getByLabel('Row', { exact: true }), 12);
+    await typeInto(form.getByLabel('Area (pixels, odd)'), 4);
+    await typeInto(form.getByLabel('Step (µm)'), 0.5);
+    await typeInto(form.getByLabel('Sub-frame (pixels, odd)'), 3);
+    await typeInto(form.getByLabel('Frames per point'), 2);
+    await form.getByLabel('Scene').selectOption('paperlike');
+    await form.getByRole('button', { name: 'Start scan' }).click();
+    const errBox = form.locator('.form-error');
+    await errBox.waitFor({ state: 'visible', timeout: 10000 });
+    const bad = await api('POST', '/api/scans', { sensor_id: sensor.id, poi: { col: 10, row: 12 },
+        optics: { wavelength_nm: 550, na: 0.25 },
+        raster: { area_px: 4, step_um: 0.5, sub_px: 3, frames: 2 }, scene: 'paperlike' });
+    const shown = await errBox.textContent();
+    check(bad.status === 422 && shown.includes(bad.body.error.message) &&
+        shown.includes(bad.body.error.field),
+    'a bad request shows the API\'s error message and field next to the form',
+    `page: "${shown}", API: ${JSON.stringify(bad.body)}`);
+    const areaInput = form.locator('input[data-field="raster.area_px"]');
+    check(await areaInput.getAttribute('aria-invalid') === 'true',
+        'the offending input is marked invalid');
+    check((await api('GET', '/api/scans')).body.total === 0, 'the bad request stored no scan');
+
+    await typeInto(form.getByLabel('Area (pixels, odd)'), 1);
+    await form.getByRole('button', { name: 'Start scan' }).click();
+    await page.locator('#notice', { hasText: 'queued' }).waitFor({ timeout: 10000 });
+    check(await errBox.isHidden(), 'the error box clears on a good request');
+    const scan = (await api('GET', '/api/scans')).body.items[0];
+    check(scan && scan.poi.col === 10 && scan.poi.row === 12 && scan.raster.area_px === 1 &&
+        scan.raster.frames === 2, 'the scan typed into the form is queued', JSON.stringify(scan));
+    const total = scan.raster.points_total;
+
+    // progress on the page until done (events, or the page's own re-reads)
+    const row = page.locator(`tr[data-scan-id="${scan.id}"]`);
+    await row.and(page.locator('[data-state="done"]')).waitFor({ timeout: 60000 });
+    const progText = await row.locator('.prog-text').textContent();
+    const progVal = await row.locator('progress').evaluate((p) => p.value);
+    check(progText.startsWith(`${total} / ${total}`) && progVal === 1,
+        `the scan row reaches done with ${total} / ${total} points`, `${progText}, ${progVal}`);
+    const received = Number(await page.locator('#live').getAttribute('data-received'));
+    check(received > 0, 'job events arrived over /api/events', `${received}`);
+    console.log(`# event stream: ${await page.locator('#live').getAttribute('title')}`);
+
+    // the automatic fit, opened from the scan page
+    await row.locator('td.fit a').waitFor({ timeout: 60000 });
+    await row.getByRole('link', { name: `#${scan.id}`, exact: true }).click();
+    await page.locator('[data-testid="raster-map"] canvas.heat').waitFor({ timeout: 10000 });
+    const raster = await canvasInfo(page, '[data-testid="raster-map"] canvas.heat');
+    check(raster.distinct > 10, 'the response raster heatmap is not uniform',
+        `${raster.distinct} colours`);
+    const fitLink = page.locator('[data-testid="fit-link"]').first();
+    await fitLink.waitFor({ timeout: 60000 });
+    await fitLink.click();
+    await page.locator('[data-testid="best-r-bic"]').waitFor({ timeout: 10000 });
+    const fitId = Number(page.url().match(/#\/fits\/(\d+)/)[1]);
+    const fit = (await api('GET', `/api/fits/${fitId}`)).body;
+    const res = fit.result;
+    check(fit.scan_id === scan.id, 'the fit opened is a fit of the scan');
+    const text = async (id) => (await page.locator(`[data-testid="${id}"]`).textContent()).trim();
+    check(await text('best-r-aic') === String(res.best_r.aic), 'best r (AIC) matches the API',
+        `${await text('best-r-aic')} vs ${res.best_r.aic}`);
+    check(await text('best-r-bic') === String(res.best_r.bic), 'best r (BIC) matches the API',
+        `${await text('best-r-bic')} vs ${res.best_r.bic}`);
+    const best = res.fits.find((f) => f.r === res.best_r.bic);
+    check(await text('shown-r') === `r = ${best.r}`, 'the map shown is the best-BIC one');
+    check(await text('map-status') === best.status, 'the fit status matches the API',
+        `${await text('map-status')} vs ${best.status}`);
+    const F = Number(await text('ftest-F')), p = Number(await text('ftest-p'));
+    check(near(F, res.ftest.F, 1e-5), 'the F statistic matches the API', `${F} vs ${res.ftest.F}`);
+    check(near(p, res.ftest.p_value, 1e-3), 'the p-value matches the API',
+        `${p} vs ${res.ftest.p_value}`);
+    const sig = await page.locator('[data-testid="ftest-verdict"]')
+        .getAttribute('data-significant');
+    check(sig === String(res.ftest.p_value < 0.05), 'the F-test verdict is p < 0.05',
+        `${sig}, p = ${res.ftest.p_value}`);
+
+    // the map's heatmap: its max cell is the top of the colour map, its min cell the bottom
+    const r = best.r, S = best.S;
+    const kMax = S.indexOf(Math.max(...S)), kMin = S.indexOf(Math.min(...S));
+    const centre = (k) => [((k % r) + 0.5) / r, (Math.floor(k / r) + 0.5) / r];
+    const heat = await canvasInfo(page, '[data-testid="map-S"] canvas.heat',
+        [centre(kMax), centre(kMin)]);
+    check(heat.distinct > 1, 'the IPS map canvas is not one colour', `${heat.distinct} colours`);
+    check(sameColour(heat.at[0], VIRIDIS_TOP) && sameColour(heat.at[1], VIRIDIS_BOTTOM),
+        'the cells of max and min S have the colour bar\'s end colours', JSON.stringify(heat.at));
+    const wiener = await canvasInfo(page, '[data-testid="map-wiener"] canvas.heat');
+    check(wiener.distinct > 1 && res.wiener.nx > 0, 'the Wiener baseline map is drawn');
+    check(await page.locator('[data-testid="map-interp"] canvas.heat').count() === 1,
+        'the interpolated map is drawn');
+
+    // hover: the readout names the cell's value
+    const box = await page.locator('[data-testid="map-S"] canvas.heat').boundingBox();
+    const [fx, fy] = centre(kMax);
+    await page.mouse.move(box.x + fx * box.width, box.y + fy * box.height);
+    const readout = await page.locator('[data-testid="map-S"] output').textContent();
+    const m = readout.match(/S = ([-0-9.e]+)/);
+    check(m && near(Number(m[1]), S[kMax], 1e-4), 'hovering a cell shows its S value',
+        `"${readout}" vs ${S[kMax]}`);
+    check(await page.locator('[data-testid="sweep-table"] tbody tr').count() === res.fits.length,
+        'the model-selection table has a row per r');
+    await page.screenshot({ path: '/tmp/ipsd-dashboard-fit.png', fullPage: true });
+
+    // the calibration database: the search lists the auto fit's calibration, with its CSV
+    await page.getByRole('navigation').getByRole('link', { name: 'Calibrations' }).click();
+    await page.locator('[data-testid="calib-form"]').getByRole('button', { name: 'Search' })
+        .click();
+    const calRow = page.locator('[data-testid="calib-table"] tbody tr').first();
+    await calRow.waitFor({ timeout: 10000 });
+    const cals = (await api('GET', `/api/calibrations?sensor=${sensor.id}`)).body.items;
+    const calId = Number(await calRow.getAttribute('data-calib-id'));
+    check(cals.length === 1 && calId === cals[0].id && cals[0].fit_id === fitId,
+        'the calibration search lists the auto fit\'s calibration', JSON.stringify(cals.map((c) =>
+            [c.id, c.fit_id])));
+    const csvHref = await calRow.getByRole('link', { name: `CSV of calibration #${calId}` })
+        .getAttribute('href');
+    const csv = await api('GET', csvHref, undefined, true);
+    const lines = csv.body.trim().split('\n');
+    check(csv.status === 200 && lines[0].startsWith('calibration_id,') &&
+        lines.length === 1 + cals[0].r * cals[0].r, 'the CSV link gives one line per sub-pixel',
+    `${csv.status}, ${lines.length} lines`);
+    await calRow.getByRole('link', { name: 'map' }).click();
+    await page.locator('[data-testid="history-table"]').waitFor({ timeout: 10000 });
+    check(await page.locator('[data-testid="history-table"] tbody tr').count() === 1,
+        'the pixel view shows the history of the pixel');
+
+    await page.goto(`${base}/#/scans`);
+    await page.locator(`tr[data-scan-id="${scan.id}"]`).waitFor({ timeout: 10000 });
+    check(await page.getByLabel('Token', { exact: true }).inputValue() === TOKEN,
+        'the token is kept in the browser across page loads');
+
+    // a long scan (331 x 331 points), cancelled from its row while it runs
+    const form2 = page.locator('[data-testid="scan-form"]');
+    await typeInto(form2.getByLabel('Column'), 20);
+    await typeInto(form2.getByLabel('Row', { exact: true }), 20);
+    await typeInto(form2.getByLabel('Area (pixels, odd)'), 11);
+    await typeInto(form2.getByLabel('Step (µm)'), 0.2);
+    await typeInto(form2.getByLabel('Frames per point'), 1);
+    await form2.getByRole('button', { name: 'Start scan' }).click();
+    const long = page.locator('tbody tr').first();
+    await long.locator('button', { hasText: 'Cancel' }).waitFor({ timeout: 10000 });
+    const longId = Number(await long.getAttribute('data-scan-id'));
+    await long.getByRole('button', { name: `Cancel scan #${longId}` }).click();
+    await page.locator(`tr[data-scan-id="${longId}"][data-state="cancelled"]`)
+        .waitFor({ timeout: 20000 });
+    const cancelled = (await api('GET', `/api/scans/${longId}`)).body;
+    check(longId !== scan.id && cancelled.state === 'cancelled' &&
+        cancelled.points_done < cancelled.raster.points_total,
+    'the Cancel button cancels a running scan', `${cancelled.state}, ` +
+        `${cancelled.points_done} / ${cancelled.raster.points_total}`);
+    check(await page.locator(`tr[data-scan-id="${longId}"] button`).count() === 0,
+        'a cancelled scan has no Cancel button');
+    await page.screenshot({ path: '/tmp/ipsd-dashboard-scans.png' });
+}
+
+// ---- main ----
+
+const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'ipsd-web-'));
+const watchdog = setTimeout(() => {
+    console.log('not ok - the test took over 150 s');
+    process.exit(1);
+}, 150000);
+let daemon = null, context = null;
+const consoleErrors = [];
+try {
+    daemon = await startIpsd(tmp);
+    const base = `http://127.0.0.1:${daemon.port}`;
+    // the test's own client: fetch, with the token on writes unless told otherwise
+    const api = async (method, p, body, raw, token = TOKEN) => {
+        const headers = body ? { 'Content-Type': 'application/json' } : {};
+        if (method !== 'GET' && token) headers.Authorization = `Bearer ${token}`;
+        const res = await fetch(base + p, { method, headers,
+            body: body ? JSON.stringify(body) : undefined });
+        return { status: res.status, body: raw ? await res.text() : await res.json() };
+    };
+    context = await chromium.launchPersistentContext(path.join(tmp, 'profile'), {
+        executablePath: CHROMIUM,
+        headless: true,
+        viewport: { width: 1280, height: 800 },
+        args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+            '--disable-background-networking', '--disable-component-update', '--disable-sync',
+            '--disable-dev-shm-usage'],
+    });
+    const page = context.pages()[0] || await context.newPage();
+    page.setDefaultTimeout(20000);
+    page.on('console', (msg) => {
+        if (msg.type() === 'error') consoleErrors.push(`${msg.text()} (${msg.location().url})`);
+    });
+    page.on('pageerror', (e) => consoleErrors.push(`uncaught: ${e.message}`));
+    await run(base, page, api);
+    // expected: the browser logs the 401 and the 422 of the refused requests as failed loads
+    const expected = (e) => /status of 422 .*\/api\/scans\)$/.test(e) ||
+        /status of 401 .*\/api\/sensors\)$/.test(e);
+    const unexpected = consoleErrors.filter((e) => !expected(e));
+    consoleErrors.filter(expected).forEach((e) => console.log(`# expected: ${e}`));
+    check(unexpected.length === 0, 'no console errors', unexpected.join(' | '));
+} catch (e) {
+    failed++;
+    console.log(`not ok - ${e.stack || e}`);
+    const shot = '/tmp/ipsd-dashboard-failure.png';
+    await context?.pages()[0]?.screenshot({ path: shot, fullPage: true }).catch(() => {});
+    console.log(`# screenshot of the failure: ${shot}`);
+    if (fs.existsSync(path.join(tmp, 'ipsd.log'))) {
+        const log = fs.readFileSync(path.join(tmp, 'ipsd.log'), 'utf8');
+        console.log(`# ipsd log:\n${log.slice(-3000)}`);
+    }
+} finally {
+    await context?.close().catch(() => {});
+    await stopIpsd(daemon);
+    fs.rmSync(tmp, { recursive: true, force: true });
+    clearTimeout(watchdog);
+}
+console.log('# screenshots: /tmp/ipsd-dashboard-fit.png /tmp/ipsd-dashboard-scans.png');
+console.log(`${passed} passed, ${failed} failed`);
+process.exit(failed ? 1 : 0);

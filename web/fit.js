@@ -1,0 +1,184 @@
+// fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document): the chosen map S
+// (best BIC r by default, any r selectable) as a heatmap with its colour bar, the interpolated
+// map (bicubic, interp.js), the uncertainties S_err, the Wiener-deconvolution baseline next to
+// them, the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, and
+// the F-test verdict (paper: reject H0 when p < 0.05).
+import { get } from './api.js';
+import { failure, fill, fmt, fmtTime, h } from './dom.js';
+import { interpolate } from './interp.js';
+import { heatmap, linePlot } from './plots.js';
+
+const ALPHA = 0.05; // the paper's significance level for the F-test
+const INTERP_N = 100; // points per axis of the interpolated map
+
+// The sub-pixel readout of an r x r map over a pitch (um), or of unit coordinates when unknown.
+function cellText(r, pitch, name, err) {
+    return (i, j, v) => {
+        const w = pitch ? pitch / r : 1 / r, u = pitch ? ' µm' : '';
+        const e = err ? ` ± ${fmt(err[j * r + i], 2)}` : '';
+        return `sub-pixel (${i}, ${j}), x ${fmt(i * w, 3)}–${fmt((i + 1) * w, 3)}${u}, ` +
+            `y ${fmt(j * w, 3)}–${fmt((j + 1) * w, 3)}${u}: ${name} = ${fmt(v, 5)}${e}`;
+    };
+}
+
+// The figures of an r x r map: S, interpolated S, S_err (used by the calibration views too).
+export function mapFigures(S, S_err, r, pitch, label = 'S') {
+    const interp = interpolate(S, r, INTERP_N);
+    const figs = [
+        heatmap({ values: S, nx: r, ny: r, title: `Fitted sensitivity ${label} (${r}×${r})`,
+            testid: 'map-S', describe: cellText(r, pitch, 'S', S_err), table: true }),
+        heatmap({ values: interp, nx: INTERP_N, ny: INTERP_N, title: 'Interpolated (bicubic)',
+            testid: 'map-interp', describe: (i, j, v) => {
+                const w = pitch || 1, u = pitch ? ' µm' : '';
+                return `x = ${fmt((i + 0.5) / INTERP_N * w, 3)}${u}, ` +
+                    `y = ${fmt((j + 0.5) / INTERP_N * w, 3)}${u}: S ≈ ${fmt(v, 5)}`;
+            } }),
+    ];
+    if (S_err) {
+        figs.push(heatmap({ values: S_err, nx: r, ny: r, title: 'Uncertainty S_err (1σ)',
+            cmap: 'magma', testid: 'map-Serr', describe: cellText(r, pitch, 'S_err'),
+            table: true }));
+    }
+    return figs;
+}
+
+function wienerFigure(w, pitch) {
+    if (!w) return h('p', { class: 'muted' }, 'No Wiener baseline was requested for this fit.');
+    if (w.error) return h('p', { class: 'err' }, `Wiener baseline failed: ${w.error}`);
+    return heatmap({ values: w.S, nx: w.nx, ny: w.ny, title: `Wiener deconvolution baseline ` +
+        `(${w.nx}×${w.ny})`, testid: 'map-wiener', describe: (i, j, v) =>
+        `x = ${fmt(w.x0_um + i * w.step_um[0], 3)} µm, y = ${fmt(w.y0_um + j * w.step_um[1], 3)}` +
+        ` µm: S = ${fmt(v, 5)}`, table: w.nx * w.ny <= 144 });
+}
+
+function selection(res) {
+    const fits = res.fits, best = res.best_r || {};
+    const pts = (k) => fits.map((f) => [f.r, f[k]]);
+    const marks = [];
+    if (best.aic) marks.push({ x: best.aic, label: 'AIC', cls: 'aic', row: 0 });
+    if (best.bic) marks.push({ x: best.bic, label: 'BIC', cls: 'bic', row: 1 });
+    const xticks = fits.map((f) => f.r);
+    const chi = linePlot({ title: 'χ² against r (log scale)', xlabel: 'sub-pixels per axis r',
+        ylabel: 'χ²', log: true, xticks, marks,
+        series: [{ name: 'χ²', cls: 'chi2', points: pts('chi2') }] });
+    const ic = linePlot({ title: 'Information criteria against r', xlabel: 'sub-pixels per axis r',
+        ylabel: 'AIC, BIC', xticks, marks,
+        series: [{ name: 'AIC', cls: 'aic', points: pts('aic'), best: [best.aic] },
+            { name: 'BIC', cls: 'bic', points: pts('bic'), best: [best.bic] }] });
+    const table = h('table', { class: 'list num', 'data-testid': 'sweep-table' },
+        h('thead', {}, h('tr', {}, ['r', 'params', 'χ²', 'χ²/dof', 'AIC', 'BIC', 'cond',
+            'status'].map((t) => h('th', { scope: 'col' }, t)))),
+        h('tbody', {}, fits.map((f) => h('tr', { class: [f.r === best.aic ? 'best-aic' : '',
+            f.r === best.bic ? 'best-bic' : ''].join(' ').trim() || null },
+        h('td', {}, f.r, f.r === best.aic ? h('span', { class: 'tag aic' }, 'AIC') : null,
+            f.r === best.bic ? h('span', { class: 'tag bic' }, 'BIC') : null),
+        h('td', {}, f.params), h('td', {}, fmt(f.chi2, 6)), h('td', {}, fmt(f.chi2_red)),
+        h('td', {}, fmt(f.aic, 6)), h('td', {}, fmt(f.bic, 6)), h('td', {}, fmt(f.cond, 3)),
+        h('td', {}, f.status)))));
+    const note = h('p', { class: 'muted small' }, `Dashed lines: the best r by AIC ` +
+        `(${best.aic ?? '–'}) and by BIC (${best.bic ?? '–'}); the map above is the BIC ` +
+        'choice, as stored in the calibration.');
+    return [h('div', { class: 'plots' }, chi, ic), note, table];
+}
+
+function ftestPanel(t) {
+    if (!t) return h('p', { class: 'muted', 'data-testid': 'ftest-verdict' },
+        'No F-test was requested for this fit.');
+    if (t.error) return h('p', { class: 'err', 'data-testid': 'ftest-verdict' },
+        `F-test failed: ${t.error}`);
+    const sig = Number.isFinite(t.p_value) && t.p_value < ALPHA;
+    const edges = (t.edges || []).join(', ');
+    return h('div', {},
+        h('p', { class: `verdict ${sig ? 'sig' : 'nosig'}`, 'data-testid': 'ftest-verdict',
+            dataset: { significant: String(sig) } },
+        sig ? `Significant (p < ${ALPHA}): H₀ rejected, the sensitivity inside the pixel ` +
+            'is not constant.' : `Not significant (p ≥ ${ALPHA}): H₀ kept, the interior is ` +
+            'consistent with a constant sensitivity.'),
+        h('dl', { class: 'facts' },
+            h('dt', {}, 'F'), h('dd', { 'data-testid': 'ftest-F', dataset: { value: t.F } },
+                fmt(t.F, 6)),
+            h('dt', {}, 'p'), h('dd', { 'data-testid': 'ftest-p', dataset: { value: t.p_value } },
+                fmt(t.p_value, 4)),
+            h('dt', {}, 'H₀'), h('dd', {}, `edge sub-pixels (${edges}) free, the rest one ` +
+                `constant: ${t.params_H0} parameters, χ² = ${fmt(t.chi2_H0, 6)}`),
+            h('dt', {}, 'H₁'), h('dd', {}, `full ${t.r}×${t.r} map: ${t.params_H1} ` +
+                `parameters, χ² = ${fmt(t.chi2_H1, 6)}`),
+            h('dt', {}, 'Data points'), h('dd', {}, t.N),
+            h('dt', {}, 'Status'), h('dd', {}, t.status)));
+}
+
+export function renderFit(root, id) {
+    fill(root, h('p', { class: 'muted' }, `Loading fit #${id}…`));
+    (async () => {
+        const fit = await get(`/api/fits/${id}`);
+        const res = fit.result || {};
+        const scan = fit.scan_id ? await get(`/api/scans/${fit.scan_id}`).catch(() => null) : null;
+        const sensor = scan ? await get(`/api/sensors/${scan.sensor_id}`).catch(() => null) : null;
+        const pitch = sensor?.pitch_um;
+        const best = res.best_r || {};
+        const fits = res.fits || [];
+        const rSel = h('select', { id: 'r-select', 'data-testid': 'r-select' },
+            fits.map((f) => h('option', { value: f.r, selected: f.r === best.bic },
+                `r = ${f.r}${f.r === best.bic ? ' (best BIC)' : ''}` +
+                `${f.r === best.aic ? ' (best AIC)' : ''}`)));
+        const facts = h('dl', { class: 'facts' });
+        const maps = h('div', { class: 'maps' });
+        const wiener = wienerFigure(res.wiener, pitch);
+        const show = () => {
+            const f = fits.find((x) => x.r === Number(rSel.value));
+            if (!f) {
+                fill(maps, h('p', { class: 'muted' }, 'This fit has no maps.'));
+                return;
+            }
+            fill(facts,
+                h('dt', {}, 'Best r (AIC)'),
+                h('dd', { 'data-testid': 'best-r-aic' }, best.aic ?? '–'),
+                h('dt', {}, 'Best r (BIC)'),
+                h('dd', { 'data-testid': 'best-r-bic' }, best.bic ?? '–'),
+                h('dt', {}, 'Map shown'), h('dd', { 'data-testid': 'shown-r' }, `r = ${f.r}`),
+                h('dt', {}, 'Fit status'), h('dd', { 'data-testid': 'map-status',
+                    class: f.status === 'ok' ? 'ok' : 'warn' }, f.status),
+                h('dt', {}, 'χ² / dof'), h('dd', {}, fmt(f.chi2_red)),
+                h('dt', {}, 'I₀ (DN)'), h('dd', {}, `${fmt(f.I0, 6)} ± ${fmt(f.I0_err, 2)}`),
+                h('dt', {}, 'Condition number'), h('dd', {}, fmt(f.cond, 3)),
+                h('dt', {}, 'Points used'),
+                h('dd', {}, `${res.N ?? '–'} of ${res.n_points ?? '–'}`),
+                h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
+                    `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`));
+            fill(maps, ...mapFigures(f.S, f.S_err, f.r, pitch), wiener);
+        };
+        rSel.addEventListener('change', show);
+        const where = fit.scan_id
+            ? [h('a', { href: `#/scans/${fit.scan_id}` }, `scan #${fit.scan_id}`),
+                `, pixel offset (${fit.dcol}, ${fit.drow})`]
+            : ['an uploaded scan file'];
+        const calLink = scan ? h('a', { href: `#/sensors/${scan.sensor_id}/pixels/` +
+            `${scan.poi.col + fit.dcol}/${scan.poi.row + fit.drow}` }, 'calibration history')
+            : null;
+        fill(root,
+            h('p', { class: 'crumbs' }, h('a', { href: fit.scan_id ? `#/scans/${fit.scan_id}`
+                : '#/scans' }, fit.scan_id ? `← Scan #${fit.scan_id}` : '← Scans')),
+            h('h2', {}, `Fit #${fit.id}`),
+            h('p', { class: 'sub' }, 'Of ', where, ` · ${fmtTime(fit.created_ms)} · `,
+                h('a', { href: `/api/fits/${fit.id}`, download: `fit-${fit.id}.json` }, 'JSON'),
+                calLink ? [' · ', calLink] : null),
+            h('div', { class: 'two-col fit-top' },
+                h('section', { class: 'panel', 'aria-labelledby': 'sum-h' },
+                    h('h3', { id: 'sum-h' }, 'Result'),
+                    h('label', { class: 'fld inline', for: 'r-select' },
+                        h('span', { class: 'lbl' }, 'Map resolution '), rSel), facts),
+                h('section', { class: 'panel', 'aria-labelledby': 'ft-h' },
+                    h('h3', { id: 'ft-h' }, 'F-test: is the centre of the pixel flat?'),
+                    ftestPanel(res.ftest))),
+            h('section', { class: 'panel', 'aria-labelledby': 'maps-h' },
+                h('h3', { id: 'maps-h' }, 'IPS maps'),
+                h('p', { class: 'muted small' }, 'Row 0 is the top edge of the pixel (y grows ' +
+                    'downward). Point at a map, or focus it and use the arrow keys, for values.'),
+                maps),
+            h('section', { class: 'panel', 'aria-labelledby': 'sel-h' },
+                h('h3', { id: 'sel-h' }, 'Model selection'), fits.length ? selection(res)
+                    : h('p', { class: 'muted' }, 'No sweep in this fit.')));
+        show();
+    })().catch((err) => fill(root, failure(err)));
+    return () => {};
+}
