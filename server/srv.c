@@ -3,11 +3,14 @@
 #include "srv_int.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "../instrument/scan.h" /* instrument/scan.h, not fit/scan.h */
 #include "srv_bench.h"
@@ -19,6 +22,29 @@ double srv_now_s(void)
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
     return (double)t.tv_sec + (double)t.tv_nsec / 1e9;
+}
+
+/* One ipsd per database: start-up requeues every job left running, which would take a second
+ * instance's running jobs from it. An advisory lock on DB-ipsd.lock (released by the kernel when
+ * the process dies, so a kill -9 leaves no stale lock) makes the second one refuse to start. */
+static int lock_db(srv_t *srv, err_t *err)
+{
+    char path[4096];
+    if (snprintf(path, sizeof path, "%s-ipsd.lock", srv->cfg.db_path) >= (int)sizeof path)
+        return err_set(err, -ENAMETOOLONG, "database path too long");
+    srv->lock_fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (srv->lock_fd < 0)
+        return err_set(err, -errno, "cannot create the lock file %s: %s", path, strerror(errno));
+    if (flock(srv->lock_fd, LOCK_EX | LOCK_NB) != 0) {
+        int e = errno;
+        close(srv->lock_fd);
+        srv->lock_fd = -1;
+        if (e == EWOULDBLOCK)
+            return err_set(err, -EBUSY, "database %s is in use by another ipsd (lock %s)",
+                           srv->cfg.db_path, path);
+        return err_set(err, -e, "cannot lock %s: %s", path, strerror(e));
+    }
+    return 0;
 }
 
 /* Start-up housekeeping on one handle: every job left running was interrupted by a crash (a
@@ -45,11 +71,12 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
     if (!srv) return err_set(err, -ENOMEM, "out of memory");
     srv->cfg = *cfg;
     srv->cfg.token = NULL;
+    srv->lock_fd = -1;
     pthread_mutex_init(&srv->mu, NULL);
     pthread_cond_init(&srv->cv, NULL);
     int ret = 0;
     if (cfg->token && !(srv->cfg.token = strdup(cfg->token))) ret = -ENOMEM;
-    if (ret || (ret = srv_bench_check(cfg->bench, err)) ||
+    if (ret || (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
         (ret = srv_dbpool_open(cfg->db_path, &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||
         (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
@@ -106,6 +133,7 @@ void srv_close(srv_t *srv)
     pthread_cond_destroy(&srv->cv);
     pthread_mutex_destroy(&srv->mu);
     free(srv->cfg.token);
+    if (srv->lock_fd >= 0) close(srv->lock_fd); /* releases the flock */
     free(srv);
 }
 

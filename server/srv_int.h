@@ -29,6 +29,7 @@ struct srv {
     atomic_int stopping;
     srv_worker_t *workers; /* [0] the scan worker, then the fit workers */
     int n_workers, stopped;
+    int lock_fd; /* flock on DB-ipsd.lock: one ipsd per database, -1 when not held */
 };
 
 /* Wakes every worker waiting for work. */

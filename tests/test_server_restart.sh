@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # test_server_restart.sh IPSD: jobs survive restarts. A scan interrupted by kill -9 resumes at the
 # next start and ends with every raster point stored exactly once (rows counted and indexes
-# checked with the sqlite3 shell); SIGTERM exits 0 and gives the running scan back to the queue;
+# checked with the sqlite3 shell), and a crashed ipsd leaves no stale lock (a second ipsd on the
+# same database is refused while the first runs); SIGTERM exits 0 and gives the running scan back to the queue;
 # a fit left running by a crash runs again; cancel works on queued and running jobs (scans and
 # fits) and is refused (409) for finished ones; a long fit stops between its steps at SIGTERM and
 # runs again at the next start.
@@ -25,6 +26,12 @@ exactly_once() {
 }
 
 start
+# one ipsd per database: a second one on the same file refuses to start (it would requeue the
+# first one's running jobs), naming the reason
+"$IPSD" --listen 127.0.0.1:0 --db "$T/ipsd.db" 2>"$T/second.err"
+check "a second ipsd on the same database exits 1" -- test $? == 1
+grep -q "in use by another ipsd" "$T/second.err"
+ok $? "the second ipsd says why: $(cat "$T/second.err")"
 req POST /api/sensors '{"model": "IMX-R", "serial": "restart-1"}'
 SENSOR=$(js "d['id']")
 SMALL='{"sensor_id": '$SENSOR', "poi": {"col": 30, "row": 30},
