@@ -630,8 +630,7 @@ int scan_run(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const scan_ho
 
 /* ---- scan files ---- */
 
-/* A scanfile of n points with the setup's constants; arrays allocated, not filled. */
-static int scanfile_new(const scan_setup_t *su, int frames, size_t n, scanfile_t *out, err_t *err)
+int scan_file_new(const scan_setup_t *su, int frames, size_t n, scanfile_t *out, err_t *err)
 {
     memset(out, 0, sizeof *out);
     if (n) {
@@ -657,6 +656,15 @@ static int scanfile_new(const scan_setup_t *su, int frames, size_t n, scanfile_t
     return 0;
 }
 
+int scan_pixel_coords(const scan_setup_t *su, int dcol, int drow, double sx, double sy, double *x,
+                      double *y)
+{
+    double p = su->pitch_um, eps = 1e-6 * p; /* the pixel spans [o, o + p] in stage coordinates */
+    *x = sx - (su->centre.x_um - p / 2 + dcol * p);
+    *y = sy - (su->centre.y_um - p / 2 + drow * p);
+    return *x > eps && *x < p - eps && *y > eps && *y < p - eps;
+}
+
 int scan_extract_pixel(const scan_raster_t *r, int dcol, int drow, scanfile_t *out, err_t *err)
 {
     memset(out, 0, sizeof *out);
@@ -664,15 +672,14 @@ int scan_extract_pixel(const scan_raster_t *r, int dcol, int drow, scanfile_t *o
     if (abs(dcol) > h || abs(drow) > h)
         return err_set(err, -EINVAL, "pixel (%+d, %+d) is outside the %dx%d sub-frame", dcol, drow,
                        r->m, r->m);
-    double p = r->setup.pitch_um, eps = 1e-6 * p;
-    double ox = r->setup.centre.x_um - p / 2 + dcol * p,
-           oy = r->setup.centre.y_um - p / 2 + drow * p;
     size_t n = 0, at = (size_t)(h + drow) * r->m + (size_t)(h + dcol), mm = (size_t)r->m * r->m;
     for (int pass = 0; pass < 2; pass++) {
         size_t k = 0;
         for (size_t i = 0; i < r->count; i++) {
-            double x = r->pos[i].x_um - ox, y = r->pos[i].y_um - oy;
-            if (!r->have[i] || !(x > eps && x < p - eps && y > eps && y < p - eps)) continue;
+            double x, y;
+            if (!r->have[i] ||
+                !scan_pixel_coords(&r->setup, dcol, drow, r->pos[i].x_um, r->pos[i].y_um, &x, &y))
+                continue;
             if (pass == 1) {
                 out->x_um[k] = x;
                 out->y_um[k] = y;
@@ -682,7 +689,7 @@ int scan_extract_pixel(const scan_raster_t *r, int dcol, int drow, scanfile_t *o
         }
         if (pass == 0) {
             n = k;
-            int rc = scanfile_new(&r->setup, r->cfg.frames, n, out, err);
+            int rc = scan_file_new(&r->setup, r->cfg.frames, n, out, err);
             if (rc) return rc;
         }
     }
@@ -701,7 +708,7 @@ int scan_grid_pixel(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const 
                        "a %dx%d grid in %g um steps spans %g um: it must fit inside "
                        "the %g um pixel",
                        n, n, cfg->step_um, 2 * half, p);
-    int rc = scanfile_new(su, cfg->frames, (size_t)n * n, out, err);
+    int rc = scan_file_new(su, cfg->frames, (size_t)n * n, out, err);
     if (rc == 0) rc = cam_set_gain(cam, su->gain, err);
     if (rc == 0) rc = cam_set_exposure(cam, su->exposure_us, err);
     if (rc) goto fail;

@@ -181,6 +181,15 @@ int scan_run(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const scan_ho
 int scan_extract_pixel(const scan_raster_t *r, int dcol, int drow, struct scanfile *out,
                        err_t *err);
 
+/* Building blocks of scan_extract_pixel, for rasters kept elsewhere (the server's database):
+ * a scan file of n points with the setup's sensor constants (arrays allocated, not filled; the
+ * caller's, scanfile_free), and the position of stage point (sx, sy) relative to the corner of
+ * sub-frame pixel (dcol, drow), returning 1 when it lies strictly inside that pixel. */
+int scan_file_new(const scan_setup_t *setup, int frames, size_t n, struct scanfile *out,
+                  err_t *err);
+int scan_pixel_coords(const scan_setup_t *setup, int dcol, int drow, double sx, double sy,
+                      double *x, double *y);
+
 /* A direct raster inside the POI (the paper's 9 x 9 of fig. 9): n x n points at step_um spacing
  * centred on the POI's centre (they must all lie strictly inside it), k frames of the POI alone
  * at each, with the setup's exposure; no raster of the neighbours. *out as above. */

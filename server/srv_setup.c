@@ -74,34 +74,6 @@ out:
     return ret;
 }
 
-/* Allocates the arrays of a scan file of n points with the setup's constants (scan.c does the
- * same in scan_extract_pixel: gain_e_per_dn / analogue gain). */
-static int pixel_file_new(const scan_setup_t *su, int frames, size_t n, scanfile_t *out, err_t *err)
-{
-    memset(out, 0, sizeof *out);
-    if (n) {
-        out->x_um = malloc(sizeof(double) * n);
-        out->y_um = malloc(sizeof(double) * n);
-        out->signal_dn = malloc(sizeof(double) * n);
-        if (!out->x_um || !out->y_um || !out->signal_dn) {
-            scanfile_free(out);
-            return err_set(err, -ENOMEM, "out of memory for a scan of %zu points", n);
-        }
-    }
-    out->scan = (fit_scan_t){.n = n,
-                             .x_um = out->x_um,
-                             .y_um = out->y_um,
-                             .signal_dn = out->signal_dn,
-                             .pitch_um = su->pitch_um,
-                             .spot_radius_um = su->spot_radius_um,
-                             .bias_dn = su->bias_dn,
-                             .gain_e_per_dn = su->gain_e_per_dn / su->gain,
-                             .read_noise_e = su->read_noise_e,
-                             .frames = frames,
-                             .full_scale_dn = su->full_scale_dn};
-    return 0;
-}
-
 int srv_pixel_scan(storage_t *st, const storage_scan_t *sc, int dcol, int drow, int all,
                    scanfile_t *out, err_t *err)
 {
@@ -120,18 +92,15 @@ int srv_pixel_scan(storage_t *st, const storage_scan_t *sc, int dcol, int drow, 
     if ((ret = srv_setup_parse(text, &su, err)) ||
         (ret = storage_frame_raster(st, sc->id, dcol, drow, &r, err)))
         goto out;
-    /* the pixel spans [ox, ox + p] x [oy, oy + p] in stage coordinates (scan.h) */
-    double p = su.pitch_um, eps = 1e-6 * p;
-    double ox = su.centre.x_um - p / 2 + dcol * p, oy = su.centre.y_um - p / 2 + drow * p;
+    /* points strictly inside the pixel (instrument/scan.h), or all of them */
     size_t n = 0;
-    for (size_t i = 0; i < r.n; i++) {
-        double x = r.stage_x_um[i] - ox, y = r.stage_y_um[i] - oy;
-        if (all || (x > eps && x < p - eps && y > eps && y < p - eps)) n++;
-    }
-    if ((ret = pixel_file_new(&su, sc->frames, n, out, err))) goto out;
+    double x, y;
+    for (size_t i = 0; i < r.n; i++)
+        n += all || scan_pixel_coords(&su, dcol, drow, r.stage_x_um[i], r.stage_y_um[i], &x, &y);
+    if ((ret = scan_file_new(&su, sc->frames, n, out, err))) goto out;
     for (size_t i = 0, k = 0; i < r.n; i++) {
-        double x = r.stage_x_um[i] - ox, y = r.stage_y_um[i] - oy;
-        if (!(all || (x > eps && x < p - eps && y > eps && y < p - eps))) continue;
+        int inside = scan_pixel_coords(&su, dcol, drow, r.stage_x_um[i], r.stage_y_um[i], &x, &y);
+        if (!(all || inside)) continue;
         out->x_um[k] = x;
         out->y_um[k] = y;
         out->signal_dn[k++] = r.mean_dn[i];
