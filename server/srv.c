@@ -16,6 +16,7 @@
 #include "srv_bench.h"
 
 #define EVENT_RING 4096 /* events kept for slow readers */
+#define IDLE_POLL_MS 1000 /* workers also poll: jobs may be queued by another process */
 
 double srv_now_s(void)
 {
@@ -170,6 +171,26 @@ void srv_worker_begin(srv_worker_t *w, int64_t id)
 void srv_worker_end(srv_worker_t *w)
 {
     atomic_store(&w->job, 0);
+}
+
+void srv_worker_loop(srv_worker_t *w, storage_job_kind_t kind, const char *name,
+                     void (*run)(srv_worker_t *w, storage_job_t *job))
+{
+    err_t err;
+    while (!atomic_load(&w->srv->stopping)) {
+        storage_job_t job;
+        if (storage_job_claim(w->st, kind, &job, &err)) {
+            fprintf(stderr, "ipsd: %s: %s\n", name, err.msg);
+            srv_wait_work(w->srv, IDLE_POLL_MS);
+            continue;
+        }
+        if (job.id == 0) {
+            srv_wait_work(w->srv, IDLE_POLL_MS);
+            continue;
+        }
+        run(w, &job);
+        storage_job_free(&job);
+    }
 }
 
 void srv_notify_work(srv_t *srv)

@@ -19,7 +19,6 @@
 #include "srv_int.h"
 #include "srv_setup.h"
 
-#define IDLE_POLL_MS 1000
 #define FIT_NICE 10 /* CFS weight 110 against the HTTP threads' 1024 */
 
 /* What a fit job works on: the scan, its optics and where the calibration goes. */
@@ -164,24 +163,10 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
 void *srv_fitter_main(void *arg)
 {
     srv_worker_t *w = arg;
-    err_t err;
     /* fits are background work: on Linux the nice value is per thread, so this thread yields the
      * CPU to the HTTP threads (reads stay fast while fits run) without starving (CFS weights) */
     if (setpriority(PRIO_PROCESS, (id_t)syscall(SYS_gettid), FIT_NICE) != 0)
         fprintf(stderr, "ipsd: fit worker: cannot lower its priority: %s\n", strerror(errno));
-    while (!atomic_load(&w->srv->stopping)) {
-        storage_job_t job;
-        if (storage_job_claim(w->st, STORAGE_JOB_FIT, &job, &err)) {
-            fprintf(stderr, "ipsd: fit worker: %s\n", err.msg);
-            srv_wait_work(w->srv, IDLE_POLL_MS);
-            continue;
-        }
-        if (job.id == 0) {
-            srv_wait_work(w->srv, IDLE_POLL_MS);
-            continue;
-        }
-        run_job(w, &job);
-        storage_job_free(&job);
-    }
+    srv_worker_loop(w, STORAGE_JOB_FIT, "fit worker", run_job);
     return NULL;
 }

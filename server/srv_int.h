@@ -32,6 +32,12 @@ struct srv {
     int lock_fd; /* flock on DB-ipsd.lock: one ipsd per database, -1 when not held */
 };
 
+/* A worker's life: claims jobs of kind in queue order and runs each with run, waiting for
+ * new work (or polling every second, for jobs queued by another process) when there is none,
+ * until the server stops. name is for log lines. */
+void srv_worker_loop(srv_worker_t *w, storage_job_kind_t kind, const char *name,
+                     void (*run)(srv_worker_t *w, storage_job_t *job));
+
 /* Wakes every worker waiting for work. */
 void srv_notify_work(srv_t *srv);
 

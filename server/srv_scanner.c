@@ -18,7 +18,6 @@
 #include "srv_setup.h"
 
 #define HEARTBEAT_S 1.0 /* a running scan job writes its heartbeat and progress this often */
-#define IDLE_POLL_MS 1000
 
 /* One scan job being run. */
 struct scan_run {
@@ -244,20 +243,6 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
 void *srv_scanner_main(void *arg)
 {
     srv_worker_t *w = arg;
-    err_t err;
-    while (!atomic_load(&w->srv->stopping)) {
-        storage_job_t job;
-        if (storage_job_claim(w->st, STORAGE_JOB_SCAN, &job, &err)) {
-            fprintf(stderr, "ipsd: scan worker: %s\n", err.msg);
-            srv_wait_work(w->srv, IDLE_POLL_MS);
-            continue;
-        }
-        if (job.id == 0) {
-            srv_wait_work(w->srv, IDLE_POLL_MS);
-            continue;
-        }
-        run_job(w, &job);
-        storage_job_free(&job);
-    }
+    srv_worker_loop(w, STORAGE_JOB_SCAN, "scan worker", run_job);
     return NULL;
 }
