@@ -53,18 +53,27 @@ static void pixel_not_found(api_req_t *q, storage_t *st, int64_t sensor, int64_t
     storage_sensor_free(&sn);
 }
 
+/* The arguments of the sensor-pixel routes (/api/sensors/{id}/pixels/{col}/{row}/...): 1 after
+ * replying with an error, -ENOENT for a pixel no int can name (no calibration), else 0. */
+static int pixel_args(api_req_t *q, storage_t **st, int *csv, int64_t *sensor, int64_t *col,
+                      int64_t *row)
+{
+    *csv = api_wants_csv(q);
+    if (*csv < 0 || api_arg_id(q, 0, "sensor", sensor) || !(*st = api_db(q))) return 1;
+    *col = q->arg[1];
+    *row = q->arg[2];
+    return *col < 0 || *row < 0 || *col > INT32_MAX || *row > INT32_MAX ? -ENOENT : 0;
+}
+
 void api_h_pixel_calib(api_req_t *q)
 {
     storage_t *st;
     storage_calib_t c;
-    int64_t sensor;
+    int64_t sensor, col, row;
     err_t err = {{0}};
-    int csv = api_wants_csv(q);
-    if (csv < 0 || api_arg_id(q, 0, "sensor", &sensor) || !(st = api_db(q))) return;
-    int64_t col = q->arg[1], row = q->arg[2];
-    int ret = col < 0 || row < 0 || col > INT32_MAX || row > INT32_MAX
-                  ? -ENOENT
-                  : storage_calib_current(st, sensor, (int)col, (int)row, &c, &err);
+    int csv, ret = pixel_args(q, &st, &csv, &sensor, &col, &row);
+    if (ret > 0) return;
+    if (ret == 0) ret = storage_calib_current(st, sensor, (int)col, (int)row, &c, &err);
     if (ret == -ENOENT) {
         pixel_not_found(q, st, sensor, col, row);
         return;
@@ -81,14 +90,11 @@ void api_h_pixel_history(api_req_t *q)
 {
     storage_t *st;
     storage_calib_list_t l;
-    int64_t sensor;
+    int64_t sensor, col, row;
     err_t err = {{0}};
-    int csv = api_wants_csv(q);
-    if (csv < 0 || api_arg_id(q, 0, "sensor", &sensor) || !(st = api_db(q))) return;
-    int64_t col = q->arg[1], row = q->arg[2];
-    int ret = col < 0 || row < 0 || col > INT32_MAX || row > INT32_MAX
-                  ? -ENOENT
-                  : storage_calib_history(st, sensor, (int)col, (int)row, &l, &err);
+    int csv, ret = pixel_args(q, &st, &csv, &sensor, &col, &row);
+    if (ret > 0) return;
+    if (ret == 0) ret = storage_calib_history(st, sensor, (int)col, (int)row, &l, &err);
     if (ret == 0 && l.n == 0) {
         storage_calib_list_free(&l);
         ret = -ENOENT;

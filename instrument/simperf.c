@@ -17,6 +17,17 @@ static double now_s(void)
     return t.tv_sec + t.tv_nsec * 1e-9;
 }
 
+/* The paper's scan configuration for the bench: the POI in the middle of its sensor, its spot. */
+static scan_config_t paper_config(sim_t *sim)
+{
+    const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
+    scan_config_t c = scan_config_default();
+    c.poi_col = sn->cols / 2;
+    c.poi_row = sn->rows / 2;
+    c.spot_radius_um = sim_spot_radius0(sim);
+    return c;
+}
+
 /* The paper's raster on a fresh paperlike bench at tolerance tol, from the true centre. Fills the
  * row and, when expected is not NULL, the expected electrons of every point's sub-frame. */
 static int one_scan(double tol, simperf_t *p, simperf_row_t *row, double *expected, err_t *err)
@@ -26,11 +37,7 @@ static int one_scan(double tol, simperf_t *p, simperf_row_t *row, double *expect
     sim_t *sim;
     int rc = sim_open(&sc, &sim, err);
     if (rc) return rc;
-    const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
-    scan_config_t c = scan_config_default();
-    c.poi_col = sn->cols / 2;
-    c.poi_row = sn->rows / 2;
-    c.spot_radius_um = sim_spot_radius0(sim);
+    scan_config_t c = paper_config(sim);
     c.do_centre = c.do_focus = c.do_exposure = 0;
     c.start = sim_pixel_centre(sim, c.poi_col, c.poi_row);
     scan_setup_t su;
@@ -65,11 +72,7 @@ static int one_setup(simperf_t *p, err_t *err)
     sim_t *sim;
     int rc = sim_open(&sc, &sim, err);
     if (rc) return rc;
-    const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
-    scan_config_t c = scan_config_default();
-    c.poi_col = sn->cols / 2;
-    c.poi_row = sn->rows / 2;
-    c.spot_radius_um = sim_spot_radius0(sim);
+    scan_config_t c = paper_config(sim);
     c.start = sim_pixel_centre(sim, c.poi_col, c.poi_row);
     c.start.x_um += 0.9;
     c.start.y_um -= 1.2;
