@@ -6,7 +6,7 @@
 
 #include <stddef.h>
 
-#include "srv_main.h"
+#include "server/srv_main.h"
 
 /* The HTTP front end: start (thread pool on the configured address), quiesce, stop. */
 extern const srv_frontend_t api_frontend;

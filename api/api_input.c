@@ -11,6 +11,7 @@
 #include <strings.h>
 
 #include "api_int.h"
+#include "base/parse.h"
 
 const char *api_query(api_req_t *q, const char *key)
 {
@@ -23,10 +24,8 @@ int api_query_int(api_req_t *q, const char *key, long long def, long long lo, lo
     const char *s = api_query(q, key);
     *v = def;
     if (!s) return 0;
-    char *end;
-    errno = 0;
-    long long x = strtoll(s, &end, 10);
-    if (errno || end == s || *end) {
+    long long x;
+    if (parse_ll(s, &x)) {
         api_error(q, 400, "bad_type", key, "query parameter %s must be an integer (got '%s')", key,
                   s);
         return -1;

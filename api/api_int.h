@@ -8,9 +8,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "api.h"
-#include "srv.h"
-#include "storage.h"
+#include "api/api.h"
+#include "server/srv.h"
+#include "storage/storage.h"
 
 #define API_MAX_ARGS 4
 

@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "api_int.h"
-#include "srv_setup.h"
+#include "server/srv_setup.h"
 
 /* Reads scan arg 0 into *sc; -1 after replying 404. */
 static int load_scan(api_req_t *q, storage_t *st, storage_scan_t *sc)

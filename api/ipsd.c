@@ -1,6 +1,6 @@
 /* ipsd.c: the ipsd daemon: the server core (server/srv_main.c) with the HTTP API as its front
  * end. Usage: ipsd --help. */
-#include "api.h"
+#include "api/api.h"
 
 int main(int argc, char **argv)
 {

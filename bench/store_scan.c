@@ -14,18 +14,12 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "storage.h"
+#include "base/clock.h"
+#include "storage/storage.h"
 
 #define NX 51 /* points per axis: 5 pixels of 6 um in 0.6 um steps, plus one */
 #define M 9   /* sub-frame side */
 #define K 12  /* frames per point */
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec / 1e9;
-}
 
 static int64_t make_scan(storage_t *st)
 {
@@ -74,7 +68,7 @@ int main(int argc, char **argv)
     static uint16_t raw[K * M * M];
     static double mean[M * M];
     unsigned seed = 1;
-    double t0 = now_s(), worst = 0;
+    double t0 = clock_mono_s(), worst = 0;
     for (int i = 0; scan && i < NX * NX; i++) {
         for (int k = 0; k < K * M * M; k++)
             raw[k] = (uint16_t)(100 + rand_r(&seed) % 16000);
@@ -89,16 +83,16 @@ int main(int argc, char **argv)
                              .sub_px = M,
                              .raw = raw,
                              .mean = mean};
-        double t = now_s();
+        double t = clock_mono_s();
         if (storage_frame_put(st, &f, &err)) return fprintf(stderr, "%s\n", err.msg), 1;
-        double dt = now_s() - t;
+        double dt = clock_mono_s() - t;
         if (dt > worst) worst = dt;
     }
-    double total = now_s() - t0;
+    double total = clock_mono_s() - t0;
     storage_raster_t r;
-    double t1 = now_s();
+    double t1 = clock_mono_s();
     if (storage_frame_raster(st, scan, 0, 0, &r, &err)) return fprintf(stderr, "%s\n", err.msg), 1;
-    double raster_ms = (now_s() - t1) * 1e3;
+    double raster_ms = (clock_mono_s() - t1) * 1e3;
     size_t n = r.n;
     storage_raster_free(&r);
     storage_close(st);

@@ -1,5 +1,5 @@
 /* cliutil.h: what every `ips` command shares: the one-line error convention (exit 2 for bad
- * input, 1 for other failures), strict number parsing that names the argument, and the clock. */
+ * input, 1 for other failures). Number parsing, option parsing and the clock are base/'s. */
 #ifndef IPSD_CLI_CLIUTIL_H
 #define IPSD_CLI_CLIUTIL_H
 
@@ -13,15 +13,5 @@ int cli_fail(int code, const char *cmd, const char *fmt, ...) __attribute__((for
 /* Exit code for a negative error code from a library: 1 for -ENOMEM and -EIO, else 2 (the
  * libraries return -EINVAL and the like for input they cannot use). */
 int cli_exit_code(int rc);
-
-/* Parses all of text as a finite double. Returns 0, or -EINVAL (not a number, trailing text,
- * empty, overflow, NaN or infinity). */
-int cli_parse_double(const char *text, double *v);
-
-/* Parses all of text as a decimal int. Returns 0 or -EINVAL. */
-int cli_parse_int(const char *text, int *v);
-
-/* CLOCK_MONOTONIC in milliseconds. */
-double cli_now_ms(void);
 
 #endif

@@ -14,15 +14,16 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/clock.h"
 #include "bench_scan.h"
-#include "box.h"
 #include "cliutil.h"
 #include "commands.h"
-#include "design.h"
-#include "fitjson.h"
-#include "simperf.h"
-#include "model.h"
-#include "wiener.h"
+#include "fit/box.h"
+#include "fit/design.h"
+#include "fit/model.h"
+#include "fit/wiener.h"
+#include "instrument/simperf.h"
+#include "json/fitjson.h"
 
 #define BENCH_R 7           /* the paper's r */
 #define REF_TOL 1e-14       /* accuracy of the reference matrix */
@@ -131,11 +132,11 @@ static int time_design(const double *ref, double target_ms, double *A, double *t
     double spent = 0;
     int runs = 0;
     while (runs < MAX_RUNS && (runs < 3 || spent < target_ms)) {
-        double t = cli_now_ms();
+        double t = clock_mono_ms();
         int rc = fit_design_build(row->R, s->pitch_um, BENCH_R, s->x_um, s->y_um, s->n, &row->o,
                                   A, &row->st, err);
         if (rc) return rc;
-        times[runs] = cli_now_ms() - t;
+        times[runs] = clock_mono_ms() - t;
         spent += times[runs++];
     }
     row->runs = runs;
@@ -185,10 +186,10 @@ static int job_once(fit_method_t method, int full, double ms[3], struct job_time
     fit_sweep_t sw;
     fit_ftest_t ft;
     fit_wiener_t w;
-    double t0 = cli_now_ms();
+    double t0 = clock_mono_ms();
     int rc = fit_sweep_run(&bench_scan, 1, 8, &o, &sw, err);
     if (rc) return rc;
-    double t1 = cli_now_ms();
+    double t1 = clock_mono_ms();
     jt->best_aic = sw.best_aic;
     ms[0] = t1 - t0;
     if (!full) {
@@ -204,11 +205,11 @@ static int job_once(fit_method_t method, int full, double ms[3], struct job_time
                              &o, &ft, err);
     fit_sweep_free(&sw);
     if (rc) return rc;
-    double t2 = cli_now_ms();
+    double t2 = clock_mono_ms();
     jt->F = ft.F;
     jt->p_value = ft.p_value;
     if ((rc = fit_wiener_run(&bench_scan, 0, &w, err))) return rc;
-    ms[2] = cli_now_ms() - t2;
+    ms[2] = clock_mono_ms() - t2;
     ms[1] = t2 - t1;
     fit_wiener_free(&w);
     return 0;
@@ -224,9 +225,9 @@ static int bench_job(int quick, struct job_times *jt, err_t *err)
     jt->lm_runs = lm_runs;
     jt->total_min = INFINITY;
     for (int i = 0; i < runs; i++) {
-        double t0 = cli_now_ms();
+        double t0 = clock_mono_ms();
         if ((rc = job_once(FIT_LINEAR, 1, ms, jt, err))) goto out;
-        total[i] = cli_now_ms() - t0;
+        total[i] = clock_mono_ms() - t0;
         jt->total_min = fmin(jt->total_min, total[i]);
         sweep[i] = ms[0], ftest[i] = ms[1], wiener[i] = ms[2];
     }

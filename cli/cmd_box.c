@@ -6,9 +6,10 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "box.h"
+#include "base/parse.h"
 #include "cliutil.h"
 #include "commands.h"
+#include "fit/box.h"
 
 #define DEFAULT_TOL 1e-13
 
@@ -35,13 +36,13 @@ static int parse_args(int argc, char **argv, double v[7], double *tol)
             return cli_fail(CLI_EXIT_USAGE, "box", "unknown option '%s' (see ips box --help)", a);
         } else if (n == 7) {
             return cli_fail(CLI_EXIT_USAGE, "box", "too many arguments: '%s' after YK", a);
-        } else if (cli_parse_double(a, &v[n]) < 0) {
+        } else if (parse_double(a, &v[n]) < 0) {
             return cli_fail(CLI_EXIT_USAGE, "box", "%s must be a finite number (got '%s')",
                             names[n], a);
         } else {
             n++;
         }
-        if (tol_text && (cli_parse_double(tol_text, tol) < 0 || !(*tol > 0 && *tol < 1)))
+        if (tol_text && (parse_double(tol_text, tol) < 0 || !(*tol > 0 && *tol < 1)))
             return cli_fail(CLI_EXIT_USAGE, "box", "--tol must be a number in (0, 1) (got '%s')",
                             tol_text);
     }

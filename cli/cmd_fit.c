@@ -3,19 +3,21 @@
  * of the edge model, the Wiener baseline and an interpolated map, printed as one JSON document
  * (the ARCHITECTURE.md contract). Bad input: one line on stderr, exit 2. */
 #include <errno.h>
-#include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/clock.h"
+#include "base/opts.h"
+#include "base/parse.h"
 #include "cliutil.h"
 #include "commands.h"
+#include "fit/interp.h"
+#include "fit/model.h"
+#include "fit/wiener.h"
 #include "fit_table.h"
-#include "interp.h"
-#include "fitjson.h"
-#include "model.h"
-#include "scanfile.h"
-#include "wiener.h"
+#include "instrument/scanfile.h"
+#include "json/fitjson.h"
 
 #define R_LIMIT 32        /* largest r fit_map accepts */
 #define INTERP_LIMIT 4096 /* largest --interp grid */
@@ -68,98 +70,85 @@ static const struct option long_opts[] = {
     {NULL, 0, NULL, 0},
 };
 
-static const char *opt_name(int val)
-{
-    for (const struct option *o = long_opts; o->name; o++)
-        if (o->val == val) return o->name;
-    return "?";
-}
-
-/* An int option in lo..hi: "r must be between 1 and 32 (got 40)". */
-static int int_in(const char *name, const char *text, int lo, int hi, int *v)
-{
-    if (cli_parse_int(text, v) < 0)
-        return cli_fail(CLI_EXIT_USAGE, "fit", "--%s must be an integer (got '%s')", name, text);
-    if (*v < lo || *v > hi)
-        return cli_fail(CLI_EXIT_USAGE, "fit", "%s must be between %d and %d (got %d)", name, lo,
-                        hi, *v);
-    return 0;
-}
-
-/* A finite double option, in (0, 1) when unit is set. */
-static int num_opt(const char *name, const char *text, int unit, double *v)
-{
-    if (cli_parse_double(text, v) < 0 || (unit && !(*v > 0 && *v < 1)))
-        return cli_fail(CLI_EXIT_USAGE, "fit", "--%s must be %s (got '%s')", name,
-                        unit ? "a number between 0 and 1" : "a finite number", text);
-    return 0;
-}
-
 /* A word option: --sigma and --method. */
-static int word_opt(int val, const char *text, struct fit_args *a)
+static int word_opt(int val, const char *text, struct fit_args *a, err_t *err)
 {
     if (val == OPT_SIGMA) {
         if (fit_noise_parse(text, &a->opts.noise) == 0) return 0;
-        return cli_fail(CLI_EXIT_USAGE, "fit", "--sigma must be paper or shot+read (got '%s')",
-                        text);
+        return err_set(err, -EINVAL, "--sigma must be paper or shot+read (got '%s')", text);
     }
     if (strcmp(text, "linear") == 0) a->opts.method = FIT_LINEAR;
     else if (strcmp(text, "lm") == 0) a->opts.method = FIT_LM;
     else if (strcmp(text, "both") == 0) a->opts.method = FIT_BOTH;
-    else
-        return cli_fail(CLI_EXIT_USAGE, "fit", "--method must be linear, lm or both (got '%s')",
-                        text);
+    else return err_set(err, -EINVAL, "--method must be linear, lm or both (got '%s')", text);
     return 0;
 }
 
-/* One option with its argument; seen[] records which were given. */
-static int one_opt(int val, const char *arg, struct fit_args *a, int *seen)
+/* A number strictly between 0 and 1: --design-tol. */
+static int unit_opt(const char *name, const char *text, double *v, err_t *err)
 {
-    err_t err;
-    seen[val - OPT_R] = 1;
+    if (parse_double(text, v) < 0 || !(*v > 0 && *v < 1))
+        return err_set(err, -EINVAL, "--%s must be a number between 0 and 1 (got '%s')", name,
+                       text);
+    return 0;
+}
+
+struct parse_state {
+    struct fit_args *a;
+    int seen[OPT_HELP - OPT_R + 1]; /* which options were given */
+};
+
+/* One option with its argument (opts_fn). */
+static int one_opt(int val, const char *arg, void *user, err_t *err)
+{
+    struct parse_state *ps = user;
+    struct fit_args *a = ps->a;
+    ps->seen[val - OPT_R] = 1;
     switch (val) {
     case OPT_R:
-        if (int_in("r", arg, 1, R_LIMIT, &a->r_min)) return CLI_EXIT_USAGE;
+        if (opts_int32("r", arg, 1, R_LIMIT, &a->r_min, err)) return -EINVAL;
         a->r_max = a->r_min;
         return 0;
-    case OPT_R_MIN: return int_in("r-min", arg, 1, R_LIMIT, &a->r_min);
-    case OPT_R_MAX: return int_in("r-max", arg, 1, R_LIMIT, &a->r_max);
-    case OPT_FTEST_R: return int_in("ftest-r", arg, 1, R_LIMIT, &a->ftest_r);
-    case OPT_INTERP: return int_in("interp", arg, 1, INTERP_LIMIT, &a->interp_n);
+    case OPT_R_MIN: return opts_int32("r-min", arg, 1, R_LIMIT, &a->r_min, err);
+    case OPT_R_MAX: return opts_int32("r-max", arg, 1, R_LIMIT, &a->r_max, err);
+    case OPT_FTEST_R: return opts_int32("ftest-r", arg, 1, R_LIMIT, &a->ftest_r, err);
+    case OPT_INTERP: return opts_int32("interp", arg, 1, INTERP_LIMIT, &a->interp_n, err);
     case OPT_SIGMA:
-    case OPT_METHOD: return word_opt(val, arg, a);
-    case OPT_FTEST:
+    case OPT_METHOD: return word_opt(val, arg, a, err);
+    case OPT_FTEST: {
+        err_t e;
         a->edges_text = arg;
-        if (fit_edges_parse(arg, &a->edges, &err) < 0)
-            return cli_fail(CLI_EXIT_USAGE, "fit", "--ftest: %s", err.msg);
+        if (fit_edges_parse(arg, &a->edges, &e) < 0)
+            return err_set(err, -EINVAL, "--ftest: %s", e.msg);
         return 0;
+    }
     case OPT_WIENER: a->wiener = 1; return 0;
     case OPT_NONNEG: a->opts.nonneg = 1; return 0;
     case OPT_TABLE: a->table = 1; return 0;
     case OPT_FULL_SCALE:
         a->have_full_scale = 1;
-        return num_opt("full-scale", arg, 0, &a->full_scale);
-    case OPT_DESIGN_TOL: return num_opt("design-tol", arg, 1, &a->opts.design_tol);
-    default: return CLI_EXIT_USAGE;
+        if (parse_double(arg, &a->full_scale) < 0)
+            return err_set(err, -EINVAL, "--full-scale must be a finite number (got '%s')", arg);
+        return 0;
+    case OPT_DESIGN_TOL: return unit_opt("design-tol", arg, &a->opts.design_tol, err);
+    default: return err_set(err, -EINVAL, "unhandled option");
     }
 }
 
-/* Checks the combinations of options and the positional FILE. */
-static int check_args(int argc, char **argv, struct fit_args *a, const int *seen)
+/* Checks the combinations of options and the positional FILE (argv[first]). */
+static int check_args(int argc, char **argv, int first, struct fit_args *a, const int *seen,
+                      err_t *err)
 {
     if (seen[OPT_R - OPT_R] && (seen[OPT_R_MIN - OPT_R] || seen[OPT_R_MAX - OPT_R]))
-        return cli_fail(CLI_EXIT_USAGE, "fit", "give either --r or --r-min/--r-max, not both");
+        return err_set(err, -EINVAL, "give either --r or --r-min/--r-max, not both");
     if (a->r_min > a->r_max)
-        return cli_fail(CLI_EXIT_USAGE, "fit", "r-min (%d) must not exceed r-max (%d)", a->r_min,
-                        a->r_max);
+        return err_set(err, -EINVAL, "r-min (%d) must not exceed r-max (%d)", a->r_min, a->r_max);
     if (seen[OPT_FTEST_R - OPT_R] && !a->edges_text)
-        return cli_fail(CLI_EXIT_USAGE, "fit", "--ftest-r needs --ftest EDGES");
-    if (optind >= argc)
-        return cli_fail(CLI_EXIT_USAGE, "fit", "missing FILE (usage: ips fit FILE [options])");
-    if (optind + 1 < argc)
-        return cli_fail(CLI_EXIT_USAGE, "fit", "unexpected argument '%s' after FILE",
-                        argv[optind + 1]);
-    a->path = strcmp(argv[optind], "-") == 0 ? "/dev/stdin" : argv[optind];
+        return err_set(err, -EINVAL, "--ftest-r needs --ftest EDGES");
+    if (first >= argc) return err_set(err, -EINVAL, "missing FILE (usage: ips fit FILE [options])");
+    if (first + 1 < argc)
+        return err_set(err, -EINVAL, "unexpected argument '%s' after FILE", argv[first + 1]);
+    a->path = strcmp(argv[first], "-") == 0 ? "/dev/stdin" : argv[first];
     return 0;
 }
 
@@ -167,28 +156,16 @@ static int check_args(int argc, char **argv, struct fit_args *a, const int *seen
 static int parse_args(int argc, char **argv, struct fit_args *a)
 {
     *a = (struct fit_args){.r_min = 1, .r_max = 8, .opts = fit_options_default(), .ftest_r = 7};
-    int seen[OPT_HELP - OPT_R + 1] = {0}, c;
-    opterr = 0;
-    optind = 1;
-    while ((c = getopt_long(argc, argv, ":", long_opts, NULL)) != -1) {
-        if (c == OPT_HELP) {
-            fputs(usage, stdout);
-            return -1;
-        }
-        if (c == ':')
-            return cli_fail(CLI_EXIT_USAGE, "fit", "--%s needs a value", opt_name(optopt));
-        if (c == '?' && optopt >= OPT_R) /* a value given to a flag: --wiener=1 */
-            return cli_fail(CLI_EXIT_USAGE, "fit", "--%s takes no value", opt_name(optopt));
-        if (c == '?' && optopt)
-            return cli_fail(CLI_EXIT_USAGE, "fit", "unknown option '-%c' (see ips fit --help)",
-                            optopt);
-        if (c == '?')
-            return cli_fail(CLI_EXIT_USAGE, "fit", "unknown option '%s' (see ips fit --help)",
-                            argv[optind - 1]);
-        int rc = one_opt(c, optarg, a, seen);
-        if (rc) return rc;
+    struct parse_state ps = {.a = a};
+    err_t err;
+    int first, rc = opts_parse(argc, argv, "", long_opts, OPT_HELP, "ips fit --help", one_opt, &ps,
+                               &first, &err);
+    if (rc == 1) {
+        fputs(usage, stdout);
+        return -1;
     }
-    return check_args(argc, argv, a, seen);
+    if (rc == 0) rc = check_args(argc, argv, first, a, ps.seen, &err);
+    return rc ? cli_fail(CLI_EXIT_USAGE, "fit", "%s", err.msg) : 0;
 }
 
 /* ---- output ---- */
@@ -229,19 +206,19 @@ static int run_interp(const struct fit_args *a, struct fit_run *run, err_t *err)
 /* Reads the scan and runs the sweep and what was asked for. 0 or a negative errno with err. */
 static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
 {
-    double t = cli_now_ms();
+    double t = clock_mono_ms();
     int rc = scanfile_read(a->path, &run->sf, NULL, err);
     if (rc) return rc;
     if (run->sf.scan.n == 0) return err_set(err, -EINVAL, "%s: scan has no points", a->path);
     if (a->have_full_scale) run->sf.scan.full_scale_dn = a->full_scale;
-    run->ms_read = cli_now_ms() - t;
-    t = cli_now_ms();
+    run->ms_read = clock_mono_ms() - t;
+    t = clock_mono_ms();
     if ((rc = fit_sweep_run(&run->sf.scan, a->r_min, a->r_max, &a->opts, &run->sweep, err)))
         return rc;
     run->have_sweep = 1;
-    run->ms_sweep = cli_now_ms() - t;
+    run->ms_sweep = clock_mono_ms() - t;
     if (a->edges_text) {
-        t = cli_now_ms();
+        t = clock_mono_ms();
         const fit_sweep_t *sw = &run->sweep; /* reuse the sweep's linear fit as H1 */
         if (a->opts.method == FIT_LINEAR && a->ftest_r >= sw->r_min && a->ftest_r <= sw->r_max)
             rc = fit_ftest_with_h1(&run->sf.scan, &sw->fits[a->ftest_r - sw->r_min], a->edges,
@@ -250,18 +227,18 @@ static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
             rc = fit_ftest_run(&run->sf.scan, a->ftest_r, a->edges, &a->opts, &run->ftest, err);
         if (rc) return rc;
         run->have_ftest = 1;
-        run->ms_ftest = cli_now_ms() - t;
+        run->ms_ftest = clock_mono_ms() - t;
     }
     if (a->wiener) {
-        t = cli_now_ms();
+        t = clock_mono_ms();
         if ((rc = fit_wiener_run(&run->sf.scan, 0, &run->wiener, err))) return rc;
         run->have_wiener = 1;
-        run->ms_wiener = cli_now_ms() - t;
+        run->ms_wiener = clock_mono_ms() - t;
     }
     if (a->interp_n) {
-        t = cli_now_ms();
+        t = clock_mono_ms();
         if ((rc = run_interp(a, run, err))) return rc;
-        run->ms_interp = cli_now_ms() - t;
+        run->ms_interp = clock_mono_ms() - t;
     }
     return 0;
 }
@@ -287,13 +264,13 @@ static json_t *result_json(const struct fit_args *a, const struct fit_run *run, 
                                   "ftest", fitjson_num(run->ms_ftest), "wiener",
                                   fitjson_num(run->ms_wiener), "interp",
                                   fitjson_num(run->ms_interp), "total",
-                                  fitjson_num(cli_now_ms() - t0)));
+                                  fitjson_num(clock_mono_ms() - t0)));
     return root;
 }
 
 int cmd_fit(int argc, char **argv)
 {
-    double t0 = cli_now_ms();
+    double t0 = clock_mono_ms();
     struct fit_args a;
     int rc = parse_args(argc, argv, &a);
     if (rc) return rc < 0 ? 0 : rc;
@@ -306,7 +283,7 @@ int cmd_fit(int argc, char **argv)
     if (a.table) {
         fit_table_print(stdout, a.path, &run.sf.scan, &run.sweep,
                         run.have_ftest ? &run.ftest : NULL, run.have_wiener ? &run.wiener : NULL,
-                        cli_now_ms() - t0);
+                        clock_mono_ms() - t0);
         run_free(&run);
         return 0;
     }

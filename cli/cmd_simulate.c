@@ -5,7 +5,6 @@
  * instead rasters N x N points directly inside the POI from its true centre (the paper's 9 x 9
  * of fig. 9). Prints a JSON summary (setup errors against the truth, work, timing). */
 #include <errno.h>
-#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,12 +13,15 @@
 #include <gsl/gsl_rng.h>
 #include <jansson.h>
 
+#include "base/clock.h"
+#include "base/opts.h"
+#include "base/parse.h"
 #include "cliutil.h"
 #include "commands.h"
-#include "fitjson.h"
-#include "../instrument/scan.h"
-#include "scanfile.h"
-#include "sim.h"
+#include "instrument/scan.h"
+#include "instrument/scanfile.h"
+#include "instrument/sim.h"
+#include "json/fitjson.h"
 
 #define TRUTH_R_MAX 10
 
@@ -92,50 +94,28 @@ static const struct option long_opts[] = {
     {NULL, 0, NULL, 0},
 };
 
-/* A number option in [lo, hi]. */
-static int num_in(const char *name, const char *text, double lo, double hi, double *v)
-{
-    if (cli_parse_double(text, v) < 0)
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be a number (got '%s')", name, text);
-    if (*v < lo || *v > hi)
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be between %g and %g (got %s)", name,
-                        lo, hi, text);
-    return 0;
-}
-
-static int int_in(const char *name, const char *text, int lo, int hi, int *v)
-{
-    if (cli_parse_int(text, v) < 0)
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be an integer (got '%s')", name,
-                        text);
-    if (*v < lo || *v > hi)
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be between %d and %d (got %s)", name,
-                        lo, hi, text);
-    return 0;
-}
-
 /* "A,B" into two numbers (integers when ints). */
-static int pair(const char *name, const char *text, int ints, double *a, double *b)
+static int pair(const char *name, const char *text, int ints, double *a, double *b, err_t *err)
 {
     const char *comma = strchr(text, ',');
     char first[64];
     if (!comma || (size_t)(comma - text) >= sizeof first)
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be two numbers A,B (got '%s')", name,
-                        text);
+        return err_set(err, -EINVAL, "--%s must be two numbers A,B (got '%s')", name, text);
     memcpy(first, text, (size_t)(comma - text));
     first[comma - text] = '\0';
     int ia, ib;
-    if (ints ? (cli_parse_int(first, &ia) < 0 || cli_parse_int(comma + 1, &ib) < 0)
-             : (cli_parse_double(first, a) < 0 || cli_parse_double(comma + 1, b) < 0))
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s must be two %s A,B (got '%s')", name,
-                        ints ? "integers" : "numbers", text);
+    if (ints ? (parse_int(first, &ia) < 0 || parse_int(comma + 1, &ib) < 0)
+             : (parse_double(first, a) < 0 || parse_double(comma + 1, b) < 0))
+        return err_set(err, -EINVAL, "--%s must be two %s A,B (got '%s')", name,
+                       ints ? "integers" : "numbers", text);
     if (ints) *a = ia, *b = ib;
     return 0;
 }
 
-/* One option into a; returns 0 or the exit code. */
-static int parse_opt(int c, const char *arg, struct sim_args *a)
+/* One option into a (opts_fn); returns 0 or -EINVAL with err. */
+static int parse_opt(int c, const char *arg, void *user, err_t *err)
 {
+    struct sim_args *a = user;
     double v, w;
     int n = 0, rc = 0;
     switch (c) {
@@ -143,52 +123,51 @@ static int parse_opt(int c, const char *arg, struct sim_args *a)
         a->sim.scene = arg;
         break;
     case OPT_SEED:
-        if ((rc = num_in("seed", arg, 0, 4294967295.0, &v)) == 0 && v != floor(v))
-            rc =
-                cli_fail(CLI_EXIT_USAGE, "simulate", "--seed must be a whole number (got %s)", arg);
+        if ((rc = opts_num("seed", arg, 0, 4294967295.0, &v, err)) == 0 && v != floor(v))
+            rc = err_set(err, -EINVAL, "--seed must be a whole number (got %s)", arg);
         a->sim.seed = (unsigned long)v;
         break;
     case OPT_GRID:
-        rc = int_in("grid", arg, 1, 200, &a->grid);
+        rc = opts_int32("grid", arg, 1, 200, &a->grid, err);
         break;
     case OPT_STEP:
-        rc = num_in("step", arg, 1e-3, 1e3, &a->scan.step_um);
+        rc = opts_num("step", arg, 1e-3, 1e3, &a->scan.step_um, err);
         break;
     case OPT_AREA:
-        rc = int_in("area", arg, 1, 50, &a->scan.area_px);
+        rc = opts_int32("area", arg, 1, 50, &a->scan.area_px, err);
         break;
     case OPT_SUBFRAME:
-        if ((rc = int_in("subframe", arg, 3, 63, &n)) == 0 && n % 2 == 0)
-            rc = cli_fail(CLI_EXIT_USAGE, "simulate", "--subframe must be odd (got %d)", n);
+        if ((rc = opts_int32("subframe", arg, 3, 63, &n, err)) == 0 && n % 2 == 0)
+            rc = err_set(err, -EINVAL, "--subframe must be odd (got %d)", n);
         a->scan.subframe_px = n;
         break;
     case OPT_PIXEL:
-        if ((rc = pair("pixel", arg, 1, &v, &w)) == 0) a->dcol = (int)v, a->drow = (int)w;
+        if ((rc = pair("pixel", arg, 1, &v, &w, err)) == 0) a->dcol = (int)v, a->drow = (int)w;
         break;
     case OPT_OFFSET:
-        rc = pair("offset", arg, 0, &a->offset_x, &a->offset_y);
+        rc = pair("offset", arg, 0, &a->offset_x, &a->offset_y, err);
         break;
     case OPT_WAVELENGTH:
-        rc = num_in("wavelength", arg, 10, 100000, &v);
+        rc = opts_num("wavelength", arg, 10, 100000, &v, err);
         a->sim.wavelength_um = v * 1e-3, a->have_wavelength = 1;
         break;
     case OPT_NA:
-        rc = num_in("na", arg, 1e-3, 0.999, &a->sim.na), a->have_na = 1;
+        rc = opts_num("na", arg, 1e-3, 0.999, &a->sim.na, err), a->have_na = 1;
         break;
     case OPT_RADIUS:
-        rc = num_in("radius", arg, 1e-3, 1e3, &a->sim.radius_um), a->have_radius = 1;
+        rc = opts_num("radius", arg, 1e-3, 1e3, &a->sim.radius_um, err), a->have_radius = 1;
         break;
     case OPT_FRAMES:
-        rc = int_in("frames", arg, 1, 10000, &a->scan.frames);
+        rc = opts_int32("frames", arg, 1, 10000, &a->scan.frames, err);
         break;
     case OPT_PEAK:
-        rc = num_in("peak-e", arg, 0, 1e12, &a->sim.flux_e);
+        rc = opts_num("peak-e", arg, 0, 1e12, &a->sim.flux_e, err);
         break;
     case OPT_NOISELESS:
         a->sim.noiseless = 1, a->scan.use_expected = 1;
         break;
     case OPT_LEAVE:
-        rc = num_in("leave-out", arg, 0, 0.5, &a->sim.leave_out_tol);
+        rc = opts_num("leave-out", arg, 0, 0.5, &a->sim.leave_out_tol, err);
         break;
     case OPT_TRUTH:
         a->truth = arg;
@@ -196,11 +175,8 @@ static int parse_opt(int c, const char *arg, struct sim_args *a)
     case 'o':
         a->out = arg;
         break;
-    case OPT_HELP:
-        fputs(usage, stdout);
-        return -1;
     default:
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "bad option (see ips simulate --help)");
+        return err_set(err, -EINVAL, "unhandled option");
     }
     return rc;
 }
@@ -209,18 +185,16 @@ static int parse_args(int argc, char **argv, struct sim_args *a)
 {
     a->sim = sim_config_default();
     a->scan = scan_config_default();
-    optind = 1;
-    opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, ":o:", long_opts, NULL)) != -1) {
-        if (c == '?' || c == ':')
-            return cli_fail(CLI_EXIT_USAGE, "simulate", "%s option '%s' (see ips simulate --help)",
-                            c == ':' ? "missing value for" : "unknown", argv[optind - 1]);
-        int rc = parse_opt(c, optarg, a);
-        if (rc) return rc;
+    err_t err;
+    int first, rc = opts_parse(argc, argv, "o:", long_opts, OPT_HELP, "ips simulate --help",
+                               parse_opt, a, &first, &err);
+    if (rc == 1) {
+        fputs(usage, stdout);
+        return -1;
     }
-    if (optind < argc)
-        return cli_fail(CLI_EXIT_USAGE, "simulate", "unexpected argument '%s'", argv[optind]);
+    if (rc) return cli_fail(CLI_EXIT_USAGE, "simulate", "%s", err.msg);
+    if (first < argc)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "unexpected argument '%s'", argv[first]);
     if (!a->out) return cli_fail(CLI_EXIT_USAGE, "simulate", "-o FILE is required");
     if (a->have_radius && (a->have_wavelength || a->have_na))
         return cli_fail(CLI_EXIT_USAGE, "simulate", "give --radius or --wavelength/--na, not both");
@@ -283,16 +257,16 @@ static int run_grid(sim_t *sim, const struct sim_args *a, struct outcome *o, err
     scan_config_t c = a->scan;
     c.do_centre = c.do_focus = c.do_exposure = 0;
     c.start = sim_pixel_centre(sim, c.poi_col, c.poi_row);
-    double t0 = cli_now_ms();
+    double t0 = clock_mono_ms();
     int rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &o->su, err);
     o->found = o->su.centre;
     o->su.centre.x_um += a->offset_x;
     o->su.centre.y_um += a->offset_y;
-    o->setup_ms = cli_now_ms() - t0;
+    o->setup_ms = clock_mono_ms() - t0;
     if (rc == 0)
         rc = scan_grid_pixel(sim_camera(sim), sim_stage(sim), &c, &o->su, a->grid, NULL, &o->sf,
                              err);
-    o->raster_ms = cli_now_ms() - o->setup_ms - t0;
+    o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
     return rc;
 }
 
@@ -310,18 +284,18 @@ static int run_procedure(sim_t *sim, const struct sim_args *a, struct outcome *o
     gsl_rng_free(rng);
     scan_raster_t r;
     memset(&r, 0, sizeof r);
-    double t0 = cli_now_ms();
+    double t0 = clock_mono_ms();
     int rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &o->su, err);
     o->found = o->su.centre;
     /* --offset: the raster is centred that far from the found centre, the file does not know */
     o->su.centre.x_um += a->offset_x;
     o->su.centre.y_um += a->offset_y;
-    o->setup_ms = cli_now_ms() - t0;
+    o->setup_ms = clock_mono_ms() - t0;
     if (rc == 0) rc = scan_raster_init(&r, &c, &o->su, err);
     if (rc == 0)
         rc = scan_raster_run(sim_camera(sim), sim_stage(sim), &c, &o->su, 0, NULL, &r, err);
     if (rc == 0) rc = scan_extract_pixel(&r, a->dcol, a->drow, &o->sf, err);
-    o->raster_ms = cli_now_ms() - o->setup_ms - t0;
+    o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
     scan_raster_free(&r);
     return rc;
 }

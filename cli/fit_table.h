@@ -5,8 +5,8 @@
 
 #include <stdio.h>
 
-#include "model.h"
-#include "wiener.h"
+#include "fit/model.h"
+#include "fit/wiener.h"
 
 /* Prints the report to f. ftest and wiener may be NULL (not asked). total_ms: the run time. */
 void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fit_sweep_t *sw,

@@ -1,6 +1,6 @@
 /* airy.c: the Airy spot model (eq. 1, eq. 2), its encircled-energy functions from the tables
  * built by gen_radial_table.c, and the envelope bound. */
-#include "airy.h"
+#include "fit/airy.h"
 
 #include <gsl/gsl_sf_bessel.h>
 #include <math.h>

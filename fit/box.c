@@ -8,7 +8,7 @@
  * integrand is smooth between the corner angles, and only the flux near the box enters it, so far
  * boxes keep full relative precision (corner sums would subtract whole half-plane tails). Each
  * piece is integrated by GSL's adaptive Gauss-Kronrod (QAG, 21 points). */
-#include "box.h"
+#include "fit/box.h"
 
 #include <errno.h>
 #include <float.h>
@@ -16,7 +16,7 @@
 #include <gsl/gsl_integration.h>
 #include <math.h>
 
-#include "airy.h"
+#include "fit/airy.h"
 #include "corner.h"
 
 #define QAG_LIMIT 4000

@@ -6,7 +6,7 @@
 #ifndef IPSD_FIT_BOX_H
 #define IPSD_FIT_BOX_H
 
-#include "err.h"
+#include "base/err.h"
 
 typedef struct fit_rect {
     double x0, x1, y0, y1; /* um; x0 > x1 (or y0 > y1) gives the signed integral */

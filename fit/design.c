@@ -14,14 +14,14 @@
  * is E = (|v| + hypot(u, v)) / |u|: no exp, log or asinh anywhere in the hot loops. Segments are
  * limited to a ratio e^seg_ds in E (the 1/cosh s scale) and to seg_dv in v = w cosh s (the
  * period pi of the oscillating part of Q). Memory is bounded by doing spots in batches. */
-#include "design.h"
+#include "fit/design.h"
 
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "airy.h"
+#include "fit/airy.h"
 #include "corner.h"
 #include "radial.h"
 

@@ -12,7 +12,7 @@
 
 #include <stddef.h>
 
-#include "err.h"
+#include "base/err.h"
 
 typedef struct fit_design_opts {
     int order;       /* Gauss-Legendre points per segment (the accuracy setting), 2..64 */

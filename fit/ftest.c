@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "model.h"
+#include "fit/model.h"
 #include "wls.h"
 
 static const struct {

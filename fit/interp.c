@@ -5,7 +5,7 @@
  * Coordinates are in units of the pitch: sub-pixel i has its centre at (i + 1/2) / r, output
  * point k sits at (k + 1/2) / n. Output points outside the outermost sub-pixel centres are moved
  * onto them (constant extension), since GSL does not extrapolate. Thread-safe: all state local. */
-#include "interp.h"
+#include "fit/interp.h"
 
 #include <errno.h>
 #include <gsl/gsl_errno.h>

@@ -4,7 +4,7 @@
 #ifndef IPSD_FIT_INTERP_H
 #define IPSD_FIT_INTERP_H
 
-#include "err.h"
+#include "base/err.h"
 
 /* map: r*r values, row-major y then x. out: n*n values (caller-allocated) at the centres of an
  * n x n split of the pixel, row-major y then x. Points outside the outermost sub-pixel centres

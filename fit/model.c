@@ -1,7 +1,7 @@
 /* model.c: one r x r fit of the pixel response model (eq. 3) by weighted chi-square (eq. 4):
  * point selection, design matrix, the linear global minimum (wls.c) and/or the paper's LM
  * (lm.c), normalisation of S to mean 1 with uncertainties, and the trust status. */
-#include "model.h"
+#include "fit/model.h"
 
 #include <errno.h>
 #include <float.h>
@@ -10,6 +10,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "base/clock.h"
 #include "lm.h"
 #include "wls.h"
 
@@ -38,13 +39,6 @@ const char *fit_status_name(unsigned flags)
     if (flags & FIT_NONFINITE) return "nonfinite_input"; /* map fine, points left out */
     if (flags & FIT_SATURATED) return "saturated";
     return "ok";
-}
-
-static double now_ms(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
 }
 
 int fit_scan_check(const fit_scan_t *scan, err_t *err)
@@ -257,7 +251,7 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
     int rc = fit_scan_check(scan, err);
     if (rc) return rc;
     struct points p;
-    double *A = NULL, t0 = now_ms();
+    double *A = NULL, t0 = clock_mono_ms();
     if ((rc = points_select(scan, o.noise, &p, out))) goto out;
     if (p.n == 0) out->flags |= FIT_NO_POINTS;
     else if ((size_t)out->params > p.n) out->flags |= FIT_UNDERDETERMINED;
@@ -272,10 +266,10 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
         rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, r, p.x, p.y, p.n, &d, A,
                               &out->design, err);
         if (rc) goto out;
-        double t1 = now_ms();
+        double t1 = clock_mono_ms();
         out->design_ms = t1 - t0;
         if ((rc = solve(A, &p, r, &o, out))) goto out;
-        out->solve_ms = now_ms() - t1;
+        out->solve_ms = clock_mono_ms() - t1;
     }
     rc = fill_model(scan, A, &p, r, out);
 out:

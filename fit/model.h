@@ -11,10 +11,10 @@
 
 #include <stddef.h>
 
-#include "design.h"
-#include "err.h"
-#include "noise.h"
-#include "scandata.h"
+#include "fit/design.h"
+#include "base/err.h"
+#include "fit/noise.h"
+#include "fit/scandata.h"
 
 /* Status flags of a fit: any flag but FIT_SATURATED / FIT_NONFINITE (points left out, counted)
  * means the map must not be trusted as it is. */

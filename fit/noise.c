@@ -1,5 +1,5 @@
 /* noise.c: the two noise models of noise.h (eq. 5 and its DN-consistent form). */
-#include "noise.h"
+#include "fit/noise.h"
 
 #include <errno.h>
 #include <math.h>

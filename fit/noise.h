@@ -10,7 +10,7 @@
 #ifndef IPSD_FIT_NOISE_H
 #define IPSD_FIT_NOISE_H
 
-#include "scandata.h"
+#include "fit/scandata.h"
 
 typedef enum fit_noise { FIT_NOISE_PAPER = 0, FIT_NOISE_SHOT_READ = 1 } fit_noise_t;
 

@@ -4,7 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "model.h"
+#include "fit/model.h"
 
 int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_options_t *opts,
                   fit_sweep_t *out, err_t *err)

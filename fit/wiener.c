@@ -33,7 +33,7 @@
  * (strided, in place); the kernel's lag l sits at index l mod 2n, so the result is not shifted.
  * The data and the kernel are transformed together as one complex array d + i k and split by
  * Hermitian symmetry, so a run costs two 2-D transforms. Thread-safe: everything is local. */
-#include "wiener.h"
+#include "fit/wiener.h"
 
 #include <errno.h>
 #include <gsl/gsl_errno.h>
@@ -42,10 +42,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "airy.h"
-#include "box.h"
-#include "design.h"
-#include "noise.h"
+#include "fit/airy.h"
+#include "fit/box.h"
+#include "fit/design.h"
+#include "fit/noise.h"
 
 #define GRID_REL_TOL 1e-6     /* a point may be this many steps off its grid node */
 #define KERNEL_REL_CUT 1e-12  /* kernel entries below this fraction of the peak are left out */

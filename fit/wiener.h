@@ -8,8 +8,8 @@
 
 #include <stddef.h>
 
-#include "err.h"
-#include "scandata.h"
+#include "base/err.h"
+#include "fit/scandata.h"
 
 typedef struct fit_wiener {
     int nx, ny;          /* grid size (columns, rows) */

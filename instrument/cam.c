@@ -1,5 +1,5 @@
 /* cam.c: the camera interface's dispatch over the backends built in (see cam.h, cam_impl.h). */
-#include "cam.h"
+#include "instrument/cam.h"
 
 #include <errno.h>
 #include <stdlib.h>

@@ -8,7 +8,7 @@
 extern "C" {
 #endif
 
-#include "cam.h" /* C declarations, err.h's included: C linkage for the C++ shim too */
+#include "instrument/cam.h" /* C declarations, err.h's included: C linkage for the C++ shim too */
 
 struct cam_ops {
     const char *backend;

@@ -5,7 +5,7 @@
 #include <string.h>
 
 #include "cam_impl.h"
-#include "sim.h"
+#include "instrument/sim.h"
 
 static void close_owned(void *impl)
 {

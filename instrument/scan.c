@@ -1,7 +1,7 @@
 /* scan.c: the paper's scan procedure over cam.h and stage.h (see scan.h): exposure, centring by
  * balancing the neighbours, focus by minimising their light, the raster, and the extraction of
  * one pixel's response as a scan file. */
-#include "scan.h"
+#include "instrument/scan.h"
 
 #include <errno.h>
 #include <math.h>
@@ -11,7 +11,7 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit.h>
 
-#include "scanfile.h"
+#include "instrument/scanfile.h"
 
 scan_config_t scan_config_default(void)
 {

@@ -34,15 +34,15 @@
 #ifndef IPSD_INSTRUMENT_SCAN_H
 #define IPSD_INSTRUMENT_SCAN_H
 
-#include "scandata.h" /* fit_scan_t */
+#include "fit/scandata.h" /* fit_scan_t */
 
 #include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
-#include "cam.h"
-#include "err.h"
-#include "stage.h"
+#include "instrument/cam.h"
+#include "base/err.h"
+#include "instrument/stage.h"
 
 /* scanfile.h's scanfile_t (declared there; not included here, as scanfile.h includes this). */
 struct scanfile;

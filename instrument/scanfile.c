@@ -1,6 +1,6 @@
 /* scanfile.c: the scan-file reader and writer (see scanfile.h). Parsing is jansson's; this file
  * adds the non-finite-number pre-pass, the validation with one-line messages, and the writer. */
-#include "scanfile.h"
+#include "instrument/scanfile.h"
 
 #include <errno.h>
 #include <limits.h>

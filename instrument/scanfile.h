@@ -12,8 +12,8 @@
 
 #include <jansson.h>
 
-#include "err.h"
-#include "scandata.h"
+#include "base/err.h"
+#include "fit/scandata.h"
 
 /* A parsed scan file: scan's arrays point into the buffers owned by this struct. */
 typedef struct scanfile {

@@ -1,6 +1,6 @@
 /* scene.c: the simulated bench's sensor and sensitivity maps (see scene.h): the built-in uniform
  * and paperlike scenes, maps read from JSON files, and the exact sub-pixel truth. */
-#include "scene.h"
+#include "instrument/scene.h"
 
 #include <errno.h>
 #include <math.h>

@@ -20,7 +20,7 @@
 #ifndef IPSD_INSTRUMENT_SCENE_H
 #define IPSD_INSTRUMENT_SCENE_H
 
-#include "err.h"
+#include "base/err.h"
 
 #define SCENE_MAX_RES 256
 #define SCENE_PAPERLIKE_RES 30

@@ -1,6 +1,6 @@
 /* sim.c: the simulated optical bench (see sim.h): configuration, the spot's optics, the expected
  * image with its leave-out rule and memo, and the frames drawn from it. */
-#include "sim.h"
+#include "instrument/sim.h"
 
 #include <errno.h>
 #include <math.h>
@@ -13,9 +13,10 @@
 #include <gsl/gsl_randist.h>
 #include <gsl/gsl_rng.h>
 
-#include "airy.h"
+#include "base/clock.h"
 #include "cam_impl.h"
-#include "design.h"
+#include "fit/airy.h"
+#include "fit/design.h"
 
 #define QUANTUM_UM 1e-9        /* relative positions are rounded to this before integration */
 #define MEMO_MAX (1u << 20)    /* entries before the memo is emptied (~40 MB) */
@@ -96,13 +97,6 @@ sim_config_t sim_config_default(void)
         .seed = 1,
         .stage = stage_sim_config_default(),
     };
-}
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return t.tv_sec + t.tv_nsec * 1e-9;
 }
 
 /* ---- configuration ---- */
@@ -485,9 +479,9 @@ int sim_expected(sim_t *s, double xs, double ys, double R_um, const cam_roi_t *r
     size_t npx = (size_t)r.width * r.height;
     double *bnd = malloc(sizeof(double) * npx);
     if (!bnd) return err_set(err, -ENOMEM, "out of memory for %zu pixels", npx);
-    double t0 = now_s();
+    double t0 = clock_mono_s();
     rc = integrate_roi(s, xs, ys, R_um, &r, e_out, bnd, err);
-    s->stats.integrate_s += now_s() - t0;
+    s->stats.integrate_s += clock_mono_s() - t0;
     if (rc == 0) {
         /* electrons = flux (t / t_ref) * integral / whole-plane integral (sim.h photometry) */
         double scale = s->cfg.flux_e * (s->exposure_us / s->cfg.ref_exposure_us) /
@@ -581,13 +575,13 @@ int sim_capture(sim_t *s, const cam_roi_t *roi, cam_frame_t *f, err_t *err)
     sim_spot(s, &xs, &ys, &zs);
     rc = sim_expected(s, xs, ys, sim_spot_radius(s, zs), &r, f->expected_dn, &left_e, err);
     if (rc) return rc;
-    double t0 = now_s(), dn_per_e = s->gain / sn->gain_e_per_dn;
+    double t0 = clock_mono_s(), dn_per_e = s->gain / sn->gain_e_per_dn;
     for (size_t k = 0; k < npx; k++) {
         double lambda = f->expected_dn[k];
         f->dn[k] = draw_dn(s, lambda);
         f->expected_dn[k] = sn->bias_dn + lambda * dn_per_e;
     }
-    s->stats.noise_s += now_s() - t0;
+    s->stats.noise_s += clock_mono_s() - t0;
     s->stats.frames++;
     s->stats.pixel_frames += npx;
     if (left_e > s->stats.max_left_out_e) s->stats.max_left_out_e = left_e;

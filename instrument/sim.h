@@ -46,10 +46,10 @@
 
 #include <stddef.h>
 
-#include "cam.h"
-#include "err.h"
-#include "scene.h"
-#include "stage.h"
+#include "instrument/cam.h"
+#include "base/err.h"
+#include "instrument/scene.h"
+#include "instrument/stage.h"
 
 typedef struct sim sim_t;
 

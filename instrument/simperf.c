@@ -1,5 +1,5 @@
 /* simperf.c: the simulated bench's speed and leave-out figures for `ips bench` (see simperf.h). */
-#include "simperf.h"
+#include "instrument/simperf.h"
 
 #include <errno.h>
 #include <math.h>
@@ -7,15 +7,9 @@
 #include <string.h>
 #include <time.h>
 
-#include "scan.h"
-#include "sim.h"
-
-static double now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return t.tv_sec + t.tv_nsec * 1e-9;
-}
+#include "base/clock.h"
+#include "instrument/scan.h"
+#include "instrument/sim.h"
 
 /* The paper's scan configuration for the bench: the POI in the middle of its sensor, its spot. */
 static scan_config_t paper_config(sim_t *sim)
@@ -43,9 +37,9 @@ static int one_scan(double tol, simperf_t *p, simperf_row_t *row, double *expect
     scan_setup_t su;
     rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &su, err);
     sim_reset_stats(sim);
-    double t0 = now_s();
+    double t0 = clock_mono_s();
     if (rc == 0) rc = scan_raster_run(sim_camera(sim), sim_stage(sim), &c, &su, 0, NULL, NULL, err);
-    row->scan_s = now_s() - t0;
+    row->scan_s = clock_mono_s() - t0;
     sim_stats_t st;
     sim_get_stats(sim, &st);
     *row = (simperf_row_t){tol,       row->scan_s, st.integrate_s, st.noise_s, st.full,
@@ -78,9 +72,9 @@ static int one_setup(simperf_t *p, err_t *err)
     c.start.y_um -= 1.2;
     c.start.z_um += 6.0;
     scan_setup_t su;
-    double t0 = now_s();
+    double t0 = clock_mono_s();
     rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &su, err);
-    p->setup_s = now_s() - t0;
+    p->setup_s = clock_mono_s() - t0;
     p->setup_evaluations = su.focus_evaluations;
     sim_close(sim);
     return rc;

@@ -11,7 +11,7 @@
 
 #include <jansson.h>
 
-#include "err.h"
+#include "base/err.h"
 
 #define SIMPERF_MAX_ROWS 8
 

@@ -1,5 +1,5 @@
 /* stage.c: the motion stage interface's dispatch over its backends (see stage.h). */
-#include "stage.h"
+#include "instrument/stage.h"
 
 #include <errno.h>
 #include <math.h>

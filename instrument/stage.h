@@ -14,7 +14,7 @@
 #ifndef IPSD_INSTRUMENT_STAGE_H
 #define IPSD_INSTRUMENT_STAGE_H
 
-#include "err.h"
+#include "base/err.h"
 
 typedef struct stage stage_t;
 

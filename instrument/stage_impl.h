@@ -3,7 +3,7 @@
 #ifndef IPSD_INSTRUMENT_STAGE_IMPL_H
 #define IPSD_INSTRUMENT_STAGE_IMPL_H
 
-#include "stage.h"
+#include "instrument/stage.h"
 
 struct stage_ops {
     const char *backend;

@@ -1,5 +1,5 @@
 /* fitjson.c: JSON encoding of fit results, the `ips fit` output schema (see fitjson.h). */
-#include "fitjson.h"
+#include "json/fitjson.h"
 
 #include <errno.h>
 #include <math.h>

@@ -11,8 +11,8 @@
 
 #include <jansson.h>
 
-#include "model.h"
-#include "wiener.h"
+#include "fit/model.h"
+#include "fit/wiener.h"
 
 /* A JSON real, or null when v is not finite. */
 json_t *fitjson_num(double v);

@@ -7,7 +7,7 @@ dir=$1
 shift
 mkdir -p "$dir"
 echo "ipsd: building in $dir"
-if ! { cmake -S "$root" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo "$@" &&
+if ! { cmake -S "$root" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DIPSD_WERROR=ON "$@" &&
        cmake --build "$dir" -j"$(nproc)"; } >"$dir/build.log" 2>&1; then
     cat "$dir/build.log"
     echo "ipsd: build failed (log: $dir/build.log)" >&2

@@ -12,18 +12,12 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "../instrument/scan.h" /* instrument/scan.h, not fit/scan.h */
+#include "base/clock.h"
+#include "instrument/scan.h"
 #include "srv_bench.h"
 
 #define EVENT_RING 4096 /* events kept for slow readers */
 #define IDLE_POLL_MS 1000 /* workers also poll: jobs may be queued by another process */
-
-double srv_now_s(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + (double)t.tv_nsec / 1e9;
-}
 
 /* One ipsd per database: start-up requeues every job left running, which would take a second
  * instance's running jobs from it. An advisory lock on DB-ipsd.lock (released by the kernel when
@@ -203,14 +197,7 @@ void srv_notify_work(srv_t *srv)
 
 void srv_wait_work(srv_t *srv, int ms)
 {
-    struct timespec until;
-    clock_gettime(CLOCK_REALTIME, &until);
-    until.tv_sec += ms / 1000;
-    until.tv_nsec += (long)(ms % 1000) * 1000000L;
-    if (until.tv_nsec >= 1000000000L) {
-        until.tv_sec++;
-        until.tv_nsec -= 1000000000L;
-    }
+    struct timespec until = clock_deadline(CLOCK_REALTIME, ms);
     pthread_mutex_lock(&srv->mu);
     unsigned long seen = srv->work_seq;
     int rc = 0;

@@ -14,11 +14,11 @@
 
 #include <stdint.h>
 
-#include "err.h"
-#include "srv_config.h"
-#include "srv_events.h"
-#include "srv_params.h"
-#include "storage.h"
+#include "base/err.h"
+#include "server/srv_config.h"
+#include "server/srv_events.h"
+#include "server/srv_params.h"
+#include "storage/storage.h"
 
 typedef struct srv srv_t;
 

@@ -5,12 +5,12 @@
 #ifndef IPSD_SERVER_SRV_BENCH_H
 #define IPSD_SERVER_SRV_BENCH_H
 
-#include "cam.h"
-#include "err.h"
-#include "sim.h"
-#include "srv_params.h"
-#include "stage.h"
-#include "storage.h"
+#include "instrument/cam.h"
+#include "base/err.h"
+#include "instrument/sim.h"
+#include "server/srv_params.h"
+#include "instrument/stage.h"
+#include "storage/storage.h"
 
 typedef struct srv_bench {
     sim_t *sim; /* the simulated bench (NULL for libcamera); owns cam and stage */

@@ -1,14 +1,16 @@
 /* srv_config.c: ipsd's command line (see srv_config.h). getopt_long does the parsing; every value
  * is checked here so that the daemon never starts half-configured. */
-#include "srv_config.h"
+#include "server/srv_config.h"
 
 #include <errno.h>
-#include <getopt.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+
+#include "base/opts.h"
+#include "base/parse.h"
 
 #ifndef IPSD_WEB_DIR
 #define IPSD_WEB_DIR "web"
@@ -64,12 +66,7 @@ void srv_config_free(srv_config_t *cfg)
 /* A whole decimal integer in lo..hi. */
 static int parse_long(const char *text, long long lo, long long hi, long long *v)
 {
-    char *end;
-    errno = 0;
-    long long x = strtoll(text, &end, 10);
-    if (errno || end == text || *end || x < lo || x > hi) return -EINVAL;
-    *v = x;
-    return 0;
+    return parse_ll(text, v) || *v < lo || *v > hi ? -EINVAL : 0;
 }
 
 /* "HOST:PORT" or "[V6]:PORT" into cfg->host / cfg->port. */
@@ -158,9 +155,10 @@ static const struct option opts[] = {
     {NULL, 0, NULL, 0},
 };
 
-/* One option with its value. */
-static int one_option(int c, const char *arg, srv_config_t *cfg, err_t *err)
+/* One option with its value (opts_fn). */
+static int one_option(int c, const char *arg, void *user, err_t *err)
 {
+    srv_config_t *cfg = user;
     long long v;
     switch (c) {
     case O_LISTEN:
@@ -205,19 +203,10 @@ static int one_option(int c, const char *arg, srv_config_t *cfg, err_t *err)
 
 int srv_config_parse(int argc, char **argv, srv_config_t *cfg, err_t *err)
 {
-    int c, ret;
-    opterr = 0;
-    optind = 1;
-    while ((c = getopt_long(argc, argv, ":", opts, NULL)) != -1) {
-        if (c == O_HELP) {
-            fputs(usage, stdout);
-            return 1;
-        }
-        if (c == ':') return err_set(err, -EINVAL, "%s needs a value", argv[optind - 1]);
-        if (c == '?')
-            return err_set(err, -EINVAL, "unknown option '%s' (see ipsd --help)", argv[optind - 1]);
-        if ((ret = one_option(c, optarg, cfg, err))) return ret;
-    }
-    if (optind < argc) return err_set(err, -EINVAL, "unexpected argument '%s'", argv[optind]);
+    int first, ret = opts_parse(argc, argv, "", opts, O_HELP, "ipsd --help", one_option, cfg,
+                                &first, err);
+    if (ret == 1) fputs(usage, stdout);
+    if (ret) return ret;
+    if (first < argc) return err_set(err, -EINVAL, "unexpected argument '%s'", argv[first]);
     return 0;
 }

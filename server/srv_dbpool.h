@@ -5,8 +5,8 @@
 #ifndef IPSD_SERVER_SRV_DBPOOL_H
 #define IPSD_SERVER_SRV_DBPOOL_H
 
-#include "err.h"
-#include "storage.h"
+#include "base/err.h"
+#include "storage/storage.h"
 
 typedef struct srv_dbpool srv_dbpool_t;
 

@@ -1,13 +1,15 @@
 /* srv_events.c: the event hub (see srv_events.h): a ring of events under one mutex, readers in a
  * list, and a ticker thread for heartbeats. Wake callbacks run outside the lock; a woken reader
  * is claimed (waiting cleared) under the lock first, so no two threads wake it. */
-#include "srv_events.h"
+#include "server/srv_events.h"
 
 #include <errno.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#include "base/clock.h"
 
 struct srv_sub {
     srv_sub_t *next;
@@ -61,14 +63,7 @@ static void *ticker_main(void *arg)
     srv_events_t *h = arg;
     pthread_mutex_lock(&h->mu);
     while (!h->closed) {
-        struct timespec until;
-        clock_gettime(CLOCK_MONOTONIC, &until);
-        until.tv_sec += h->heartbeat_ms / 1000;
-        until.tv_nsec += (long)(h->heartbeat_ms % 1000) * 1000000L;
-        if (until.tv_nsec >= 1000000000L) {
-            until.tv_sec++;
-            until.tv_nsec -= 1000000000L;
-        }
+        struct timespec until = clock_deadline(CLOCK_MONOTONIC, h->heartbeat_ms);
         int rc = 0;
         while (!h->closed && rc != ETIMEDOUT)
             rc = pthread_cond_timedwait(&h->tick_cv, &h->mu, &until);

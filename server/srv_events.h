@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "err.h"
+#include "base/err.h"
 
 typedef struct srv_event {
     uint64_t seq;                    /* set by the hub: 1, 2, ... */

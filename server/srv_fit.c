@@ -1,5 +1,5 @@
 /* srv_fit.c: the fit a fit job runs (see srv_fit.h); the same steps and JSON as `ips fit`. */
-#include "srv_fit.h"
+#include "server/srv_fit.h"
 
 #include <errno.h>
 #include <math.h>
@@ -7,16 +7,10 @@
 #include <string.h>
 #include <time.h>
 
-#include "fitjson.h"
-#include "model.h"
-#include "wiener.h"
-
-static double now_ms(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec / 1e6;
-}
+#include "base/clock.h"
+#include "fit/model.h"
+#include "fit/wiener.h"
+#include "json/fitjson.h"
 
 void srv_fit_out_free(srv_fit_out_t *o)
 {
@@ -113,16 +107,16 @@ static int extras(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_f
     int done = p->r_max - p->r_min + 1;
     if (p->ftest_edges) {
         if (stopped(h)) return err_set(err, -ECANCELED, "fit stopped before the F-test");
-        t = now_ms();
+        t = clock_mono_ms();
         json_object_set_new(out->result, "ftest", ftest_part(scan, p, out));
-        *t_ftest = now_ms() - t;
+        *t_ftest = clock_mono_ms() - t;
         progress(h, (double)++done / steps);
     }
     if (p->wiener) {
         if (stopped(h)) return err_set(err, -ECANCELED, "fit stopped before the Wiener baseline");
-        t = now_ms();
+        t = clock_mono_ms();
         json_object_set_new(out->result, "wiener", wiener_part(scan));
-        *t_wiener = now_ms() - t;
+        *t_wiener = clock_mono_ms() - t;
         progress(h, (double)++done / steps);
     }
     return 0;
@@ -137,10 +131,10 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
     if (scan->n == 0) return err_set(err, -EINVAL, "the scan has no points inside the pixel");
     int ret = fit_scan_check(scan, err);
     if (ret) return ret;
-    double t0 = now_ms(), t_ftest = 0, t_wiener = 0;
+    double t0 = clock_mono_ms(), t_ftest = 0, t_wiener = 0;
     int steps = p->r_max - p->r_min + 1 + (p->ftest_edges != 0) + (p->wiener != 0);
     ret = sweep(scan, p, hooks, steps, &sw, err);
-    double t_sweep = now_ms() - t0;
+    double t_sweep = clock_mono_ms() - t0;
     if (ret == 0) {
         out->best_aic = sw.best_aic;
         out->best_bic = sw.best_bic;
@@ -153,6 +147,6 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
     if (ret) return ret;
     json_object_set_new(out->result, "timing_ms",
                         json_pack("{s:f, s:f, s:f, s:f}", "sweep", t_sweep, "ftest", t_ftest,
-                                  "wiener", t_wiener, "total", now_ms() - t0));
+                                  "wiener", t_wiener, "total", clock_mono_ms() - t0));
     return 0;
 }

@@ -8,9 +8,9 @@
 #include <jansson.h>
 #include <stdatomic.h>
 
-#include "err.h"
-#include "model.h" /* fit_scan_t */
-#include "srv_params.h"
+#include "base/err.h"
+#include "fit/model.h" /* fit_scan_t */
+#include "server/srv_params.h"
 
 typedef struct srv_fit_out {
     json_t *result;          /* the `ips fit` document (owned) */

@@ -14,10 +14,11 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
-#include "scanfile.h"
-#include "srv_fit.h"
+#include "base/clock.h"
+#include "instrument/scanfile.h"
+#include "server/srv_fit.h"
+#include "server/srv_setup.h"
 #include "srv_int.h"
-#include "srv_setup.h"
 
 #define FIT_NICE 10 /* CFS weight 110 against the HTTP threads' 1024 */
 
@@ -108,7 +109,7 @@ static void on_progress(double fraction, void *user)
     j.state = STORAGE_RUNNING;
     j.progress = fraction < 1 ? fraction : 0.99;
     j.error = NULL;
-    double now = srv_now_s();
+    double now = clock_mono_s();
     if (now - fw->last_beat >= 1.0) {
         fw->last_beat = now;
         /* a cancel seen here stops the fit at its next step */
@@ -132,7 +133,7 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
     struct fit_input in = {0};
     srv_fit_out_t out = {0};
     err_t err = {{0}};
-    struct fit_watch fw = {.w = w, .job = job, .last_beat = srv_now_s()};
+    struct fit_watch fw = {.w = w, .job = job, .last_beat = clock_mono_s()};
     srv_fit_hooks_t hooks = {.stop = &w->stop, .progress = on_progress, .user = &fw};
     srv_worker_begin(w, job->id);
     srv_publish_job(w->srv, job, "fit", 0, NAN);

@@ -6,7 +6,7 @@
 #include <pthread.h>
 #include <stdatomic.h>
 
-#include "srv.h"
+#include "server/srv.h"
 #include "srv_dbpool.h"
 
 /* A worker thread and its own database handle. */
@@ -63,7 +63,5 @@ void srv_worker_end(srv_worker_t *w);
 void *srv_scanner_main(void *arg);
 void *srv_fitter_main(void *arg);
 
-/* Monotonic clock, seconds. */
-double srv_now_s(void);
 
 #endif

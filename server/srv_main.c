@@ -1,6 +1,6 @@
 /* srv_main.c: ipsd's main program (see srv_main.h). Signals are blocked in every thread and taken
  * by sigwait in the main thread, so no handler runs inside a worker or a library. */
-#include "srv_main.h"
+#include "server/srv_main.h"
 
 #include <errno.h>
 #include <pthread.h>

@@ -4,8 +4,8 @@
 #ifndef IPSD_SERVER_SRV_MAIN_H
 #define IPSD_SERVER_SRV_MAIN_H
 
-#include "err.h"
-#include "srv.h"
+#include "base/err.h"
+#include "server/srv.h"
 
 typedef struct srv_frontend {
     /* starts serving srv; *handle is the front end's state, *port the bound port */

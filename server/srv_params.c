@@ -1,6 +1,6 @@
 /* srv_params.c: job parameters to and from jobs.params JSON (see srv_params.h). The API validates
  * requests before they become parameters; parsing here guards against rows written by others. */
-#include "srv_params.h"
+#include "server/srv_params.h"
 
 #include <errno.h>
 #include <math.h>
@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "scanfile.h"
+#include "instrument/scanfile.h"
 
 srv_scan_params_t srv_scan_params_default(void)
 {

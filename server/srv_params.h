@@ -8,8 +8,8 @@
 #include <jansson.h>
 #include <stdint.h>
 
-#include "err.h"
-#include "model.h"
+#include "base/err.h"
+#include "fit/model.h"
 
 /* Scenes the simulated bench offers to scans. */
 #define SRV_SCENES "uniform, paperlike"

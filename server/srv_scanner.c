@@ -12,10 +12,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../instrument/scan.h" /* instrument/scan.h, not fit/scan.h */
+#include "base/clock.h"
+#include "instrument/scan.h"
+#include "server/srv_setup.h"
 #include "srv_bench.h"
 #include "srv_int.h"
-#include "srv_setup.h"
 
 #define HEARTBEAT_S 1.0 /* a running scan job writes its heartbeat and progress this often */
 
@@ -80,7 +81,7 @@ static int store_point(const scan_point_t *pt, void *user)
         return 1;
     }
     int done = (int)pt->index + 1, total = r->scan.points_total;
-    double now = srv_now_s();
+    double now = clock_mono_s();
     if (now - r->last_beat >= HEARTBEAT_S || done == total) {
         r->last_beat = now;
         rc = storage_job_heartbeat(r->st, r->job->id, (double)done / total, done, &r->err);
@@ -193,7 +194,7 @@ static int capture(struct scan_run *r)
     r->first = last + 1;
     if (ret == 0) ret = setup(r, &hooks);
     if (ret || r->first >= r->scan.points_total) return ret;
-    r->t0 = r->last_beat = srv_now_s();
+    r->t0 = r->last_beat = clock_mono_s();
     publish(r, "raster", r->first, NAN);
     ret = scan_raster_run(r->bench.cam, r->bench.stage, &r->cfg, &r->setup, (size_t)r->first,
                           &hooks, NULL, &r->err);

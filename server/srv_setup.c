@@ -1,6 +1,6 @@
 /* srv_setup.c: the scan setup as JSON and a pixel's response from the stored points (see
  * srv_setup.h). */
-#include "srv_setup.h"
+#include "server/srv_setup.h"
 
 #include <errno.h>
 #include <jansson.h>

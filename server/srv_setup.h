@@ -8,10 +8,10 @@
 #include <jansson.h>
 #include <stddef.h>
 
-#include "err.h"
-#include "../instrument/scan.h" /* instrument/scan.h, not fit/scan.h */
-#include "scanfile.h"
-#include "storage.h"
+#include "base/err.h"
+#include "instrument/scan.h"
+#include "instrument/scanfile.h"
+#include "storage/storage.h"
 
 /* The setup as JSON text (every double with 17 digits, so it reads back bit-identical).
  * Returns a malloc'ed string (caller frees) or NULL when out of memory. */

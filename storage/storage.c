@@ -9,6 +9,9 @@
 #include <string.h>
 #include <time.h>
 
+#include "base/clock.h"
+#include "base/le.h"
+
 #define STG_BUSY_TIMEOUT_MS 5000
 
 static const char *const state_names[] = {"queued", "running", "done", "failed", "cancelled"};
@@ -220,9 +223,7 @@ void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx)
 int64_t storage_now_ms(storage_t *st)
 {
     if (st->clock) return st->clock(st->clock_ctx);
-    struct timespec ts;
-    clock_gettime(CLOCK_REALTIME, &ts);
-    return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+    return clock_wall_ms();
 }
 
 int storage_set_busy_timeout(storage_t *st, int ms, err_t *err)
@@ -237,31 +238,15 @@ int storage_set_busy_timeout(storage_t *st, int ms, err_t *err)
 unsigned char *stg_blob_from_f64(const double *v, size_t n)
 {
     unsigned char *b = malloc(n ? n * 8 : 1);
-    for (size_t i = 0; b && i < n; i++) {
-        uint64_t u;
-        memcpy(&u, &v[i], 8);
-        for (int k = 0; k < 8; k++) b[8 * i + k] = (unsigned char)(u >> (8 * k));
-    }
+    for (size_t i = 0; b && i < n; i++) le_put_f64(b + 8 * i, v[i]);
     return b;
 }
 
 unsigned char *stg_blob_from_u16(const uint16_t *v, size_t n)
 {
     unsigned char *b = malloc(n ? n * 2 : 1);
-    for (size_t i = 0; b && i < n; i++) {
-        b[2 * i] = (unsigned char)(v[i] & 0xff);
-        b[2 * i + 1] = (unsigned char)(v[i] >> 8);
-    }
+    for (size_t i = 0; b && i < n; i++) le_put_u16(b + 2 * i, v[i]);
     return b;
-}
-
-double stg_f64_le(const unsigned char *p)
-{
-    uint64_t u = 0;
-    for (int k = 0; k < 8; k++) u |= (uint64_t)p[k] << (8 * k);
-    double d;
-    memcpy(&d, &u, 8);
-    return d;
 }
 
 double *stg_f64_from_blob(const void *blob, size_t bytes, size_t n, int *bad)
@@ -269,7 +254,7 @@ double *stg_f64_from_blob(const void *blob, size_t bytes, size_t n, int *bad)
     *bad = bytes != n * 8 || (n && !blob);
     if (*bad) return NULL;
     double *v = malloc(n ? n * sizeof *v : 1);
-    for (size_t i = 0; v && i < n; i++) v[i] = stg_f64_le((const unsigned char *)blob + 8 * i);
+    for (size_t i = 0; v && i < n; i++) v[i] = le_get_f64((const unsigned char *)blob + 8 * i);
     return v;
 }
 
@@ -279,7 +264,7 @@ uint16_t *stg_u16_from_blob(const void *blob, size_t bytes, size_t n, int *bad)
     if (*bad) return NULL;
     const unsigned char *p = blob;
     uint16_t *v = malloc(n ? n * sizeof *v : 1);
-    for (size_t i = 0; v && i < n; i++) v[i] = (uint16_t)(p[2 * i] | (p[2 * i + 1] << 8));
+    for (size_t i = 0; v && i < n; i++) v[i] = le_get_u16(p + 2 * i);
     return v;
 }
 

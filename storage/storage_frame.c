@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/le.h"
+
 void storage_frame_free(storage_frame_t *f)
 {
     if (!f) return;
@@ -232,7 +234,7 @@ static int raster_rows(storage_t *st, sqlite3_stmt *q, storage_raster_t *out, er
         out->stage_x_um[out->n] = stg_col_double(q, 1);
         out->stage_y_um[out->n] = stg_col_double(q, 2);
         out->exposure_us[out->n] = stg_col_double(q, 3);
-        out->mean_dn[out->n] = stg_f64_le(sqlite3_column_blob(q, 4));
+        out->mean_dn[out->n] = le_get_f64(sqlite3_column_blob(q, 4));
         out->n++;
     }
     if (ret == 0 && rc != SQLITE_DONE) ret = stg_error(st, rc, err, "reading the raster");

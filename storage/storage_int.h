@@ -7,7 +7,7 @@
 #include <sqlite3.h>
 #include <stdint.h>
 
-#include "storage.h"
+#include "storage/storage.h"
 
 /* Every statement the code runs after open, prepared once per connection on first use. */
 enum stg_id {
@@ -145,7 +145,6 @@ unsigned char *stg_blob_from_f64(const double *v, size_t n);
 unsigned char *stg_blob_from_u16(const uint16_t *v, size_t n);
 double *stg_f64_from_blob(const void *blob, size_t bytes, size_t n, int *bad);
 uint16_t *stg_u16_from_blob(const void *blob, size_t bytes, size_t n, int *bad);
-double stg_f64_le(const unsigned char *p);
 
 /* Row readers for the STG_*_COLS lists; 0 or -ENOMEM (the struct is freed on failure). */
 int stg_read_sensor(sqlite3_stmt *s, storage_sensor_t *out);

@@ -7,7 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "scandata.h"
+#include "fit/scandata.h"
 
 /* The reference scan as a fit_scan_t; arrays owned by the struct (free with ref_scan_free). */
 typedef struct ref_scan {

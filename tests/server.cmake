@@ -4,6 +4,8 @@
 if(TARGET ipsapi)
     ipsd_add_test(test_server ipssrv)
     ipsd_add_test(test_api ipsapi)
+    # white-box: it calls api/api_int.h's request-independent helpers directly
+    target_include_directories(test_api PRIVATE ${PROJECT_SOURCE_DIR}/api)
 endif()
 # test_server_flow compares the stored maps with `ips fit` (cli/), so it needs ips too
 if(TARGET ipsapi AND TARGET ips)

@@ -5,7 +5,7 @@
 #include <gsl/gsl_sf_bessel.h>
 #include <jansson.h>
 
-#include "airy.h"
+#include "fit/airy.h"
 #include "check.h"
 
 int main(void)

@@ -6,8 +6,8 @@
 #include <gsl/gsl_errno.h>
 #include <jansson.h>
 
-#include "airy.h"
-#include "box.h"
+#include "fit/airy.h"
+#include "fit/box.h"
 #include "check.h"
 
 static double box(double R, double x0, double x1, double y0, double y1, double xk, double yk)

@@ -9,7 +9,7 @@
 
 #include <gsl/gsl_errno.h>
 
-#include "cam.h"
+#include "instrument/cam.h"
 #include "check.h"
 
 static int has_backend(const char *name)

@@ -11,11 +11,11 @@
 
 #include <gsl/gsl_errno.h>
 
-#include "airy.h"
-#include "box.h"
-#include "cam.h"
+#include "fit/airy.h"
+#include "fit/box.h"
+#include "instrument/cam.h"
 #include "check.h"
-#include "sim.h"
+#include "instrument/sim.h"
 
 #define POI 128
 

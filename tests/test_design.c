@@ -6,10 +6,10 @@
 #include <gsl/gsl_errno.h>
 #include <stdlib.h>
 
-#include "airy.h"
-#include "box.h"
+#include "fit/airy.h"
+#include "fit/box.h"
 #include "check.h"
-#include "design.h"
+#include "fit/design.h"
 
 /* Largest |A - box| relative to the largest entry of the row, over all rows. */
 static double design_error(double R, int r, const double *x, const double *y, int n, double tol,

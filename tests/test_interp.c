@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "interp.h"
+#include "fit/interp.h"
 
 /* The position (in pitch units) where output point k of n is evaluated: its centre, moved onto
  * the outermost sub-pixel centres of an r x r map when outside them (interp.h's contract). */

@@ -5,9 +5,9 @@
 #include <gsl/gsl_errno.h>
 #include <string.h>
 
-#include "box.h"
+#include "fit/box.h"
 #include "check.h"
-#include "model.h"
+#include "fit/model.h"
 #include "refdata.h"
 
 static void test_reference_fits(ref_scan_t *rs)

@@ -12,12 +12,12 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_rng.h>
 
-#include "airy.h"
-#include "box.h"
+#include "fit/airy.h"
+#include "fit/box.h"
 #include "check.h"
-#include "scan.h"
-#include "scanfile.h"
-#include "sim.h"
+#include "instrument/scan.h"
+#include "instrument/scanfile.h"
+#include "instrument/sim.h"
 
 #define POI 128
 

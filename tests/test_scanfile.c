@@ -10,7 +10,7 @@
 #include <jansson.h>
 
 #include "check.h"
-#include "scanfile.h"
+#include "instrument/scanfile.h"
 
 #define REF "paperlike_scan.json"
 

@@ -11,7 +11,7 @@
 #include <gsl/gsl_errno.h>
 
 #include "check.h"
-#include "scene.h"
+#include "instrument/scene.h"
 
 static const char *write_tmp(const char *name, const char *text)
 {

@@ -16,17 +16,17 @@
 
 #include <gsl/gsl_errno.h>
 
-#include "../instrument/scan.h"
+#include "instrument/scan.h"
 #include "check.h"
-#include "scanfile.h"
-#include "sim.h"
-#include "srv.h"
-#include "srv_config.h"
-#include "srv_events.h"
-#include "srv_fit.h"
-#include "srv_params.h"
-#include "srv_setup.h"
-#include "storage.h"
+#include "instrument/scanfile.h"
+#include "instrument/sim.h"
+#include "server/srv.h"
+#include "server/srv_config.h"
+#include "server/srv_events.h"
+#include "server/srv_fit.h"
+#include "server/srv_params.h"
+#include "server/srv_setup.h"
+#include "storage/storage.h"
 
 static char tmpdir[512];
 

@@ -8,7 +8,7 @@
 #include <gsl/gsl_errno.h>
 
 #include "check.h"
-#include "stage.h"
+#include "instrument/stage.h"
 
 static void test_moves(void)
 {

@@ -17,7 +17,7 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "storage.h"
+#include "storage/storage.h"
 #include "storage_int.h" /* stg_migrations[0]: to make a schema-1 database by hand */
 
 static char tmpdir[512];

@@ -14,10 +14,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "box.h"
+#include "fit/box.h"
 #include "check.h"
 #include "refdata.h"
-#include "wiener.h"
+#include "fit/wiener.h"
 
 #define R_SPOT 1.34 /* um, the paper's spot */
 #define BIAS 100.0

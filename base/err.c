@@ -1,5 +1,5 @@
-/* err.c: formatting of the error out-parameter (see err.h). */
-#include "err.h"
+/* base/err.c: formatting of the error out-parameter (see base/err.h). */
+#include "base/err.h"
 
 #include <stdio.h>
 

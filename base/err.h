@@ -1,7 +1,7 @@
-/* err.h: the error out-parameter every module uses: a fixed-size human message next to the
+/* base/err.h: the error out-parameter every room uses: a fixed-size human message next to the
  * negative int a function returns (like jansson's json_error_t). Callers may pass NULL. */
-#ifndef IPSD_ERR_H
-#define IPSD_ERR_H
+#ifndef IPSD_BASE_ERR_H
+#define IPSD_BASE_ERR_H
 
 #include <stdarg.h>
 
