@@ -1,5 +1,5 @@
 /* api_reply.c: building the reply of a request: JSON and text bodies, the error body of
- * ARCHITECTURE.md ({"error": {"code", "message", "field"}}), the mapping of storage and server
+ * docs/contracts.md ({"error": {"code", "message", "field"}}), the mapping of storage and server
  * error codes to HTTP statuses, and the request's borrowed database handle. */
 #include <errno.h>
 #include <stdarg.h>

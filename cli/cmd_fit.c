@@ -1,7 +1,7 @@
 /* cmd_fit.c: `ips fit FILE [options]`: fits a scan file (instrument/scanfile.h) by the method of
  * the paper (fit/model.h): the sweep over r with AIC/BIC model selection, optionally the F-test
  * of the edge model, the Wiener baseline and an interpolated map, printed as one JSON document
- * (the ARCHITECTURE.md contract). Bad input: one line on stderr, exit 2. */
+ * (the docs/contracts.md contract). Bad input: one line on stderr, exit 2. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>

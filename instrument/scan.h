@@ -6,7 +6,7 @@
  * Coordinates. Stage micrometres; the POI's centre is where the setup put the spot
  * (scan_setup_t.centre). Pixel (dcol, drow) of the sub-frame, relative to the POI, spans
  * [cx - p/2 + dcol p, cx + p/2 + dcol p] x [cy - p/2 + drow p, ...] with y downward; extracted
- * positions are relative to that pixel's own top-left corner (ARCHITECTURE.md), from the stage's
+ * positions are relative to that pixel's own top-left corner (docs/contracts.md), from the stage's
  * reported positions.
  *
  * Setup (scan_prepare), each step optional:

@@ -1,5 +1,5 @@
 /* scanfile.h: reading and writing scan files, the JSON exchange format of a spot scan (the
- * scan-file contract of ARCHITECTURE.md: `ips fit` input, the API's upload format, `ips simulate`
+ * scan-file contract of docs/contracts.md: `ips fit` input, the API's upload format, `ips simulate`
  * output). Required: pitch_um, spot_radius_um, bias_dn, gain_e_per_dn, read_noise_e, frames and
  * the equal-length arrays x_um, y_um, signal_dn; optional full_scale_dn; other keys are ignored.
  * Non-finite array values may be written as null, as Python's bare NaN / Infinity / -Infinity,

@@ -1,7 +1,7 @@
 /* scene.h: what the simulated bench looks at: a sensor (array size, pitch, gain, read noise, bias,
  * ADC full scale, full well) and the sensitivity map that every one of its pixels shares.
  *
- * Coordinates (ARCHITECTURE.md): pixel (col, row) spans [col p, (col+1) p] x [row p, (row+1) p]
+ * Coordinates (docs/contracts.md): pixel (col, row) spans [col p, (col+1) p] x [row p, (row+1) p]
  * sensor micrometres, x to the right, y downward (row 0 is the top edge). Inside a pixel the map
  * lives on [0, p]^2 with the same orientation.
  *

@@ -1,5 +1,5 @@
 /* fitjson.h: the JSON form of fit results (fit/model.h, fit/wiener.h) as the `ips fit` output
- * contract of ARCHITECTURE.md defines it: numbers at full precision, non-finite values as null
+ * contract of docs/contracts.md defines it: numbers at full precision, non-finite values as null
  * (JSON has no NaN), the status word and flag names of every fit. Used by `ips fit` and by ipsd,
  * which stores the same document in fits.result. Every function returns a new reference owned by
  * the caller (hand it to jansson with a _set_new / _append_new), or NULL when out of memory. */

@@ -1,5 +1,5 @@
 #!/bin/bash
-# test_cli.sh IPS [bench]: end-to-end tests of the `ips` command line (the ARCHITECTURE.md
+# test_cli.sh IPS [bench]: end-to-end tests of the `ips` command line (the docs/contracts.md
 # contract), run from tests/data. Bad input must exit 2 with exactly one line on stderr naming the
 # problem; `ips box` must reproduce tests/data/airy_box.json and `ips fit` the reference fits,
 # F-test and map of tests/data/paperlike_scan.json. With `bench`: only `ips bench --quick --json`

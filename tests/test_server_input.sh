@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # test_server_input.sh IPSD: bad input to a real ipsd gets its 4xx with the error body of
-# ARCHITECTURE.md naming the field, and nothing stored changes (every table's row count, read by
+# docs/contracts.md naming the field, and nothing stored changes (every table's row count, read by
 # the sqlite3 shell, is the same before and after); unknown ids and paths 404, wrong methods 405;
 # the static files handler serves only regular files inside the web directory; the bearer token
 # guards writes and leaves reads open; the OpenAPI document and the health check answer.
