@@ -53,28 +53,6 @@ int scene_sensor_check(const scene_sensor_t *s, err_t *err)
     return 0;
 }
 
-/* Smooth edge dip of depth `depth` at distance d (um) from an edge, Gaussian of 1/e width w. */
-static double dip(double depth, double d, double w)
-{
-    return 1.0 - depth * exp(-(d * d) / (w * w));
-}
-
-double scene_paperlike_value(double x, double y, double p)
-{
-    /* Fill-factor dips at three edges (the paper's figs. 10-11: top, left, bottom; none on the
-     * right), 1/e width p/10 (0.6 um at 6 um pitch), depths 28 %, 30 %, 25 %. */
-    double w = 0.1 * p;
-    double edges = dip(0.28, y, w) * dip(0.30, x, w) * dip(0.25, p - y, w);
-    /* A few percent of smooth structure in the middle (microlens imperfections, say): two
-     * low-order waves and one bump, all fixed. */
-    double t = x / p, s = y / p;
-    double dt = t - 0.62, ds = s - 0.40;
-    double centre = 1.0 + 0.03 * sin(2 * M_PI * t + 0.7) * sin(M_PI * s) +
-                    0.025 * cos(2 * M_PI * s - 0.4) * sin(M_PI * t) +
-                    0.02 * exp(-(dt * dt + ds * ds) / (2 * 0.12 * 0.12));
-    return edges * centre;
-}
-
 static void compute_stats(scene_t *s)
 {
     int n = s->m * s->m;
@@ -123,16 +101,17 @@ int scene_open_map(const double *map, int m, const scene_sensor_t *sensor, const
     return 0;
 }
 
-/* The paperlike map: cell means of scene_paperlike_value by 8 x 8 Gauss-Legendre per cell (the
- * function is smooth on a cell, so the means are accurate to ~1e-12). */
-static int paperlike_map(int m, double p, double **out, err_t *err)
+/* A family's map: cell means of its function by 8 x 8 Gauss-Legendre per cell (accurate to
+ * ~1e-12 where the function is smooth on a cell; on the cells a sharp family's step crosses, a
+ * close estimate. Either way the m x m map is the scene: simulator and truth both use it). */
+static int family_map(scene_fn fn, int m, double p, double **out, err_t *err)
 {
     double *map = malloc(sizeof(double) * (size_t)m * m);
     gsl_integration_glfixed_table *gl = gsl_integration_glfixed_table_alloc(8);
     if (!map || !gl) {
         free(map);
         gsl_integration_glfixed_table_free(gl);
-        return err_set(err, -ENOMEM, "out of memory for the paperlike map");
+        return err_set(err, -ENOMEM, "out of memory for a %d x %d map", m, m);
     }
     double h = p / m, xg[8], wg[8];
     for (int k = 0; k < 8; k++)
@@ -142,7 +121,7 @@ static int paperlike_map(int m, double p, double **out, err_t *err)
             double acc = 0;
             for (int b = 0; b < 8; b++)
                 for (int a = 0; a < 8; a++)
-                    acc += wg[a] * wg[b] * scene_paperlike_value(i * h + xg[a], j * h + xg[b], p);
+                    acc += wg[a] * wg[b] * fn(i * h + xg[a], j * h + xg[b], p);
             map[j * m + i] = acc / (h * h);
         }
     gsl_integration_glfixed_table_free(gl);
@@ -220,23 +199,27 @@ int scene_open(const char *spec, const scene_sensor_t *sensor, scene_t **out, er
     double *map = NULL;
     int m = 0;
     char name[128];
-    if (strncmp(spec, "paperlike", 9) == 0 && (spec[9] == '\0' || spec[9] == ':')) {
-        m = SCENE_PAPERLIKE_RES;
-        if (spec[9] == ':') {
+    size_t len = strcspn(spec, ":");
+    scene_fn fn = scene_family(spec, len);
+    if (fn) { /* NAME or NAME:M */
+        m = SCENE_FAMILY_RES;
+        if (spec[len] == ':') {
             char *end;
-            long v = strtol(spec + 10, &end, 10);
-            if (end == spec + 10 || *end || v < 1 || v > SCENE_MAX_RES)
+            long v = strtol(spec + len + 1, &end, 10);
+            if (end == spec + len + 1 || *end || v < 1 || v > SCENE_MAX_RES)
                 return err_set(err, -EINVAL, "scene %s: the resolution after ':' must be 1..%d",
                                spec, SCENE_MAX_RES);
             m = (int)v;
         }
-        rc = paperlike_map(m, sensor->pitch_um, &map, err);
-        snprintf(name, sizeof name, "paperlike");
+        rc = family_map(fn, m, sensor->pitch_um, &map, err);
+        snprintf(name, sizeof name, "%.*s", (int)len, spec);
     } else if (strncmp(spec, "map:", 4) == 0 && spec[4]) {
         rc = read_map_file(spec + 4, &map, &m, err);
         snprintf(name, sizeof name, "%.120s", spec);
     } else {
-        return err_set(err, -EINVAL, "unknown scene '%s' (uniform, paperlike[:M] or map:FILE)",
+        return err_set(err, -EINVAL,
+                       "unknown scene '%s' (uniform, paperlike, gradient, dip, deadcorner, edge, "
+                       "softedge [:M], or map:FILE)",
                        spec);
     }
     if (rc == 0) rc = scene_open_map(map, m, sensor, name, out, err);

@@ -9,10 +9,17 @@
  * x: cell (i, j) at index j*m + i), so that the simulator's pixel integrals are exact for it.
  * Built-in scenes:
  *   uniform        m = 1, sensitivity 1 everywhere;
- *   paperlike[:M]  the pixel the paper finds (fill-factor dips of 25-30 % at the top, left and
+ *   FAMILY[:M]     a function of the position in the pixel averaged over each of M x M cells
+ *                  (default 30, 0.2 um cells at 6 um pitch) by 8 x 8 Gauss-Legendre
+ *                  (scene_family.c):
+ *     paperlike    the pixel the paper finds (fill-factor dips of 25-30 % at the top, left and
  *                  bottom edges, none on the right, a few percent of smooth structure in the
- *                  middle): a smooth function (scene_paperlike_value) averaged over each of
- *                  M x M cells (default 30, 0.2 um cells at 6 um pitch) by 8 x 8 Gauss-Legendre;
+ *                  middle; scene_paperlike_value);
+ *     gradient     a linear tilt, +-10 % across x and +-5 % across y;
+ *     dip          a central microlens dip, 15 % deep, sigma p/7;
+ *     deadcorner   the top-right third x third of the pixel at 5 %;
+ *     edge         a sharp step: the left 45 % of the pixel at 70 %;
+ *     softedge     the same step as a logistic of width p/20;
  *   map:FILE       a map read from a JSON file: {"S": [...], "r": m} or a bare array of m*m
  *                  numbers, any m in 1..256, values finite and >= 0.
  * The truth for an r x r fit (scene_truth) is the exact mean of this same representation over each
@@ -20,10 +27,13 @@
 #ifndef IPSD_INSTRUMENT_SCENE_H
 #define IPSD_INSTRUMENT_SCENE_H
 
+#include <stddef.h>
+
 #include "base/err.h"
 
 #define SCENE_MAX_RES 256
-#define SCENE_PAPERLIKE_RES 30
+#define SCENE_FAMILY_RES 30
+#define SCENE_PAPERLIKE_RES SCENE_FAMILY_RES
 
 typedef struct scene_sensor {
     int cols, rows;       /* array size, pixels */
@@ -75,5 +85,14 @@ int scene_truth(const scene_t *s, int r, double *S, err_t *err);
 /* The paperlike sensitivity at (x, y) um in a pixel of pitch p (the continuous function the
  * paperlike scene averages; x, y in [0, p]). */
 double scene_paperlike_value(double x, double y, double p);
+
+/* A family's continuous sensitivity S(x, y) in a pixel of pitch p. */
+typedef double (*scene_fn)(double x, double y, double p);
+
+/* The family named by the first len characters of name, NULL when there is none. */
+scene_fn scene_family(const char *name, size_t len);
+
+/* The name of family i (0, 1, ...), NULL past the last: for listings and benchmarks. */
+const char *scene_family_name(size_t i);
 
 #endif
