@@ -1,0 +1,144 @@
+/* fidelity.c: map error against the simulator's truth (see fidelity.h). */
+#include "instrument/fidelity.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/clock.h"
+#include "fit/model.h"
+#include "fit/wiener.h"
+#include "instrument/scan.h"
+#include "instrument/scanfile.h"
+#include "instrument/sim.h"
+
+#define SAMPLES 240 /* per axis: a multiple of r = 1..6, 8, 10, 12 and of the 30-cell scenes */
+
+/* Mean of v (n values). */
+static double mean_of(const double *v, size_t n)
+{
+    double s = 0;
+    for (size_t i = 0; i < n; i++) s += v[i];
+    return n ? s / (double)n : NAN;
+}
+
+double fid_map_rms(const double *S, int r, const double *T, int m, int g)
+{
+    double ms = mean_of(S, (size_t)r * r), mt = mean_of(T, (size_t)m * m), acc = 0;
+    if (!(ms > 0) || !(mt > 0)) return NAN;
+    for (int j = 0; j < g; j++)
+        for (int i = 0; i < g; i++) {
+            double u = (i + 0.5) / g, v = (j + 0.5) / g; /* fraction of the pitch */
+            double s = S[(int)(v * r) * r + (int)(u * r)] / ms;
+            double t = T[(int)(v * m) * m + (int)(u * m)] / mt;
+            acc += (s - t) * (s - t);
+        }
+    return sqrt(acc / ((double)g * g));
+}
+
+/* The Wiener map (on the scan grid) over the pixel: bilinear between grid points, the nearest
+ * grid value beyond the outermost ones, sampled like fid_map_rms; mean 1 over the pixel. */
+static double wiener_rms(const fit_wiener_t *w, double p, const double *T, int m, int g)
+{
+    double *v = malloc(sizeof(double) * (size_t)g * g);
+    if (!v) return NAN;
+    for (int j = 0; j < g; j++)
+        for (int i = 0; i < g; i++) {
+            double fx = ((i + 0.5) / g * p - w->x0_um) / w->step_x_um;
+            double fy = ((j + 0.5) / g * p - w->y0_um) / w->step_y_um;
+            fx = fmin(fmax(fx, 0), w->nx - 1);
+            fy = fmin(fmax(fy, 0), w->ny - 1);
+            int ix = (int)fmin(floor(fx), w->nx - 2), iy = (int)fmin(floor(fy), w->ny - 2);
+            if (ix < 0) ix = 0;
+            if (iy < 0) iy = 0;
+            double ax = w->nx > 1 ? fx - ix : 0, ay = w->ny > 1 ? fy - iy : 0;
+            int ix1 = w->nx > 1 ? ix + 1 : ix, iy1 = w->ny > 1 ? iy + 1 : iy;
+            v[j * g + i] = (1 - ay) * ((1 - ax) * w->S[iy * w->nx + ix] + ax * w->S[iy * w->nx + ix1]) +
+                           ay * ((1 - ax) * w->S[iy1 * w->nx + ix] + ax * w->S[iy1 * w->nx + ix1]);
+        }
+    double rms = fid_map_rms(v, g, T, m, g); /* a g x g map sampled at its own cells */
+    free(v);
+    return rms;
+}
+
+/* Simulates the case's scan into *sf. */
+static int simulate(const fid_case_t *c, sim_t *sim, scanfile_t *sf, err_t *err)
+{
+    const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
+    scan_config_t cfg = scan_config_default();
+    cfg.poi_col = sn->cols / 2;
+    cfg.poi_row = sn->rows / 2;
+    cfg.spot_radius_um = sim_spot_radius0(sim);
+    cfg.start = sim_pixel_centre(sim, cfg.poi_col, cfg.poi_row);
+    cfg.do_centre = cfg.do_focus = cfg.do_exposure = 0; /* the truth's centre: the map is the test */
+    cfg.step_um = c->step_um;
+    scan_setup_t su;
+    int rc;
+    if (c->grid > 0) {
+        rc = scan_prepare(sim_camera(sim), sim_stage(sim), &cfg, NULL, &su, err);
+        if (rc == 0)
+            rc = scan_grid_pixel(sim_camera(sim), sim_stage(sim), &cfg, &su, c->grid, NULL, sf,
+                                 err);
+        return rc;
+    }
+    cfg.area_px = c->area_px > 0 ? c->area_px : 5;
+    cfg.subframe_px = 3; /* the POI is all the fit reads */
+    scan_raster_t r;
+    rc = scan_run(sim_camera(sim), sim_stage(sim), &cfg, NULL, &r, err);
+    if (rc == 0) rc = scan_extract_pixel(&r, 0, 0, sf, err);
+    scan_raster_free(&r);
+    return rc;
+}
+
+int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
+{
+    memset(out, 0, sizeof *out);
+    if (r_max < 1 || r_max > FID_R_MAX)
+        return err_set(err, -EINVAL, "r_max must be 1..%d (got %d)", FID_R_MAX, r_max);
+    out->r_max = r_max;
+    for (int r = 0; r <= FID_R_MAX; r++) out->rms[r] = out->chi2_red[r] = NAN;
+    out->rms_wiener = NAN;
+    sim_config_t sc = sim_config_default();
+    sc.scene = c->scene;
+    sc.seed = c->seed;
+    sc.flux_e *= c->flux_scale > 0 ? c->flux_scale : 1;
+    sim_t *sim = NULL;
+    scanfile_t sf = {0};
+    fit_sweep_t sw = {0};
+    double t0 = clock_mono_ms();
+    int rc = sim_open(&sc, &sim, err);
+    if (rc == 0) rc = simulate(c, sim, &sf, err);
+    out->sim_ms = clock_mono_ms() - t0;
+    if (rc) goto done;
+    out->n_points = sf.scan.n;
+    int m;
+    const double *T = scene_map(sim_scene(sim), &m);
+    fit_options_t o = fit_options_default();
+    o.noise = c->noise;
+    t0 = clock_mono_ms();
+    rc = fit_sweep_run(&sf.scan, 1, r_max, &o, &sw, err);
+    out->fit_ms = clock_mono_ms() - t0;
+    if (rc) goto done;
+    double best = INFINITY;
+    for (int r = 1; r <= r_max; r++) {
+        const fit_result_t *f = &sw.fits[r - 1];
+        out->chi2_red[r] = f->chi2_red;
+        if (!f->S) continue;
+        out->rms[r] = fid_map_rms(f->S, r, T, m, SAMPLES);
+        if (out->rms[r] < best) best = out->rms[r], out->r_best = r;
+    }
+    out->r_aic = sw.best_aic;
+    out->r_bic = sw.best_bic;
+    fit_wiener_t w;
+    err_t we;
+    if (fit_wiener_run(&sf.scan, 0, &w, &we) == 0) {
+        out->rms_wiener = wiener_rms(&w, sf.scan.pitch_um, T, m, SAMPLES);
+        fit_wiener_free(&w);
+    }
+done:
+    fit_sweep_free(&sw);
+    scanfile_free(&sf);
+    sim_close(sim);
+    return rc;
+}

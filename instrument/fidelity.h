@@ -1,0 +1,49 @@
+/* fidelity.h: how close ipsd's maps come to the truth, measured on the simulated bench. A case is
+ * a scene family (scene.h) scanned by a raster (the paper's n x n grid inside the pixel, or the
+ * full procedure's raster around it) at a photon level and a noise seed; the scan is fitted for
+ * r = 1..r_max (fit/model.h) and every map is compared with the scene's own map, the simulator's
+ * truth: the rms difference of the two mean-1 sensitivities over the pixel, sampled on a fine
+ * grid. Reported beside it: the r AIC and BIC pick, the best r in hindsight, the Wiener baseline's
+ * rms, and what the fits cost. The evidence for scientific choices (which r to recommend, which
+ * Wiener NSR) and the figures of `ips bench --fidelity`. */
+#ifndef IPSD_INSTRUMENT_FIDELITY_H
+#define IPSD_INSTRUMENT_FIDELITY_H
+
+#include <stddef.h>
+
+#include "base/err.h"
+#include "fit/noise.h"
+
+#define FID_R_MAX 12
+
+typedef struct fid_case {
+    const char *scene;   /* scene spec (scene.h), e.g. "paperlike", "edge" */
+    int grid;            /* n: n x n points inside the pixel from its true centre; 0: the full
+                            raster of the paper's procedure (area_px pixels, subframe 3) */
+    double step_um;      /* raster step */
+    int area_px;         /* full raster only: pixels a side (5) */
+    double flux_scale;   /* photo-electrons relative to the bench's default (1: ~2e4 e- per point) */
+    unsigned long seed;  /* noise of the frames */
+    fit_noise_t noise;   /* noise model of the fit */
+} fid_case_t;
+
+typedef struct fid_result {
+    size_t n_points;           /* spot positions fitted */
+    int r_max;                 /* fits r = 1..r_max */
+    double rms[FID_R_MAX + 1]; /* rms[r]: map error of the r x r fit (NaN: no map) */
+    double chi2_red[FID_R_MAX + 1];
+    int r_aic, r_bic, r_best;  /* picks (0: none) and the smallest rms in hindsight */
+    double rms_wiener;         /* the Wiener baseline's map error (NaN when it failed) */
+    double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */
+} fid_result_t;
+
+/* The rms difference over the pixel [0, p]^2 between a piecewise-constant r x r map S (row-major,
+ * y then x) and the truth map T (m x m, same layout), both scaled to mean 1 first, sampled at the
+ * centres of a g x g grid. Returns NaN when either mean is not positive. */
+double fid_map_rms(const double *S, int r, const double *T, int m, int g);
+
+/* Runs one case: simulates the scan, fits r = 1..r_max (1..FID_R_MAX), measures. Returns 0 or a
+ * negative errno with err. */
+int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err);
+
+#endif
