@@ -92,13 +92,18 @@ async function startIpsd(tmp) {
     throw new Error(`ipsd did not start: ${fs.readFileSync(path.join(tmp, 'ipsd.log'), 'utf8')}`);
 }
 
-async function stopIpsd(d) {
-    if (!d || d.exited()) return;
-    d.proc.kill('SIGTERM');
-    for (let i = 0; i < 100 && !d.exited(); i++) await new Promise((r) => setTimeout(r, 100));
-    if (!d.exited()) d.proc.kill('SIGKILL');
-    else if (d.exited().code !== 0) {
-        console.log(`# note: ipsd exited with ${JSON.stringify(d.exited())}`);
+// SIGTERM, and a check that ipsd stopped by itself with status 0 (a sanitizer build's reports
+// make it fail).
+async function stopIpsd(d, log) {
+    if (!d) return;
+    if (!d.exited()) d.proc.kill('SIGTERM');
+    const end = Date.now() + LONG_WAIT;
+    while (!d.exited() && Date.now() < end) await new Promise((r) => setTimeout(r, 100));
+    const how = d.exited();
+    if (!how) d.proc.kill('SIGKILL');
+    const ok = check(how && how.code === 0, 'ipsd exits 0 at SIGTERM', JSON.stringify(how));
+    if (!ok && fs.existsSync(log)) {
+        console.log(`# ipsd log:\n${fs.readFileSync(log, 'utf8').slice(-3000)}`);
     }
 }
 
@@ -467,7 +472,7 @@ try {
     }
 } finally {
     await context?.close().catch(() => {});
-    await stopIpsd(daemon);
+    await stopIpsd(daemon, path.join(tmp, 'ipsd.log'));
     fs.rmSync(tmp, { recursive: true, force: true });
     clearTimeout(watchdog);
 }
