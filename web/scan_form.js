@@ -20,7 +20,8 @@ export function buildScanForm(rule, sensorSelect, onQueued) {
         ...ruleAttrs(rule(f), { placeholder }), ...attrs });
     const wl = num('Wavelength (nm)', 'optics.wavelength_nm');
     const na = num('NA', 'optics.na');
-    const radius = num('Spot radius (µm)', 'optics.spot_radius_um', { disabled: true });
+    const radius = num('Spot radius (µm)', 'optics.spot_radius_um', { placeholder: true,
+        disabled: true });
     const input = (f) => f.querySelector('input');
     // the radius the server derives from the wavelength and NA, R = 1.22 λ / (2 NA) (paper
     // eq. 1), shown as the radius input's placeholder
