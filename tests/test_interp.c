@@ -2,7 +2,8 @@
  * linear or bilinear function of the sub-pixel centres are reproduced exactly where the
  * interpolant's family contains that function, the sub-pixel centres return the map itself,
  * points beyond the outermost centres take the value at the clamped position, bilinear results
- * stay within the map's range, a constant stays constant, and bad arguments are refused. */
+ * stay within the map's range, a constant stays constant, a profile along one axis is the natural
+ * cubic spline through it (values worked by hand), and bad arguments are refused. */
 #include <errno.h>
 #include <gsl/gsl_errno.h>
 #include <stdlib.h>
@@ -128,6 +129,58 @@ static void test_constant_and_range(void)
     for (int k = 0; k < 16; k++) CHECK(o4[k] == one);
 }
 
+/* A map that varies along one axis only is interpolated along it by the natural cubic spline
+ * through its values (GSL's bicubic takes its x-derivatives from natural splines, and zy = zxy =
+ * 0 here, so each patch is the spline's cubic). Worked by hand for r = 4 (knots h = 1/4 apart)
+ * and values (0, 1, 0, 0): the second derivatives M0 = M3 = 0 and
+ *   M0 + 4 M1 + M2 = 6/h^2 (y0 - 2 y1 + y2) = -192,  M1 + 4 M2 + M3 = 6/h^2 (y1 - 2 y2 + y3) = 96
+ * give M1 = -57.6, M2 = 38.4; at the middle of a knot interval the spline is
+ *   (y_i + y_i+1) / 2 - h^2/16 (M_i + M_i+1):  0.725, 0.575, -0.15
+ * at x = 1/4, 1/2, 3/4 (the output points of n = 2 and n = 1). Checked along x and along y. */
+static void test_natural_spline_profile(void)
+{
+    const double prof[4] = {0, 1, 0, 0};
+    double along_x[16], along_y[16], out[4], one;
+    for (int j = 0; j < 4; j++)
+        for (int i = 0; i < 4; i++) {
+            along_x[j * 4 + i] = prof[i];
+            along_y[j * 4 + i] = prof[j];
+        }
+    CHECK(fit_interp_bicubic(along_x, 4, 2, out, NULL) == 0);
+    for (int j = 0; j < 2; j++) { /* every row the same: x is the column */
+        CHECK_NEAR(out[j * 2 + 0], 0.725, 1e-13, 0);
+        CHECK_NEAR(out[j * 2 + 1], -0.15, 1e-13, 0);
+    }
+    CHECK(fit_interp_bicubic(along_x, 4, 1, &one, NULL) == 0);
+    CHECK_NEAR(one, 0.575, 1e-13, 0);
+    CHECK(fit_interp_bicubic(along_y, 4, 2, out, NULL) == 0);
+    for (int i = 0; i < 2; i++) { /* every column the same: y is the row */
+        CHECK_NEAR(out[0 * 2 + i], 0.725, 1e-13, 0);
+        CHECK_NEAR(out[1 * 2 + i], -0.15, 1e-13, 0);
+    }
+}
+
+/* Outside the outermost sub-pixel centres the map is constant along the outward direction: with
+ * n = 4r the first two points of an axis (at 1/(8r) and 3/(8r)) lie before the first centre
+ * 1/(2r), so the 2 x 2 corner block is S[0] and the first two rows equal each other. */
+static void test_constant_extension(void)
+{
+    srand(5);
+    for (int r = 2; r <= 8; r++) {
+        int n = 4 * r;
+        double map[64], out[32 * 32];
+        for (int k = 0; k < r * r; k++) map[k] = 0.5 + (double)rand() / RAND_MAX;
+        CHECK(fit_interp_bicubic(map, r, n, out, NULL) == 0);
+        for (int k = 0; k < 4; k++) CHECK_NEAR(out[(k / 2) * n + k % 2], map[0], 1e-14, 0);
+        for (int i = 0; i < n; i++) {
+            CHECK(out[i] == out[n + i]);                     /* rows 0, 1: y clamped */
+            CHECK(out[i * n] == out[i * n + 1]);             /* columns 0, 1: x clamped */
+            CHECK(out[(n - 1) * n + i] == out[(n - 2) * n + i]); /* the far edges too */
+            CHECK(out[i * n + n - 1] == out[i * n + n - 2]);
+        }
+    }
+}
+
 static void test_bad_arguments(void)
 {
     double map[16] = {0}, out[16];
@@ -149,6 +202,8 @@ int main(void)
     test_cubic_order();
     test_identity_at_centres();
     test_constant_and_range();
+    test_natural_spline_profile();
+    test_constant_extension();
     test_bad_arguments();
     CHECK_DONE();
 }

@@ -1,5 +1,4 @@
-# tests/web.cmake: the dashboard's tests (docs/web.md).
-#   web_interp     the in-browser interpolated map (web/interp.js) against analytic facts; node only.
+# tests/web.cmake: the dashboard's test (docs/web.md).
 #   web_dashboard  the real-browser end-to-end test: a real ipsd, Debian's chromium driven by
 #                  playwright-core (tests/web/package-lock.json; `npm ci --prefix tests/web`).
 #                  Registered when node and /usr/bin/chromium exist; it skips (exit 77) when
@@ -10,13 +9,11 @@ if(NOT IPSD_NODE)
     return()
 endif()
 
-add_test(NAME web_interp COMMAND ${IPSD_NODE} --test ${CMAKE_CURRENT_SOURCE_DIR}/web/interp.test.mjs)
-
 if(EXISTS /usr/bin/chromium AND TARGET ipsd)
     add_test(NAME web_dashboard
              COMMAND ${IPSD_NODE} ${CMAKE_CURRENT_SOURCE_DIR}/web/dashboard.test.mjs
                      $<TARGET_FILE:ipsd> ${PROJECT_SOURCE_DIR}/web)
-    set_tests_properties(web_dashboard PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 180)
+    set_tests_properties(web_dashboard PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 300)
 else()
     message(STATUS "web tests: /usr/bin/chromium or the ipsd target missing, web_dashboard not "
                    "registered")

@@ -5,7 +5,8 @@ import { get, getToken, onEventStatus, onJob, setToken } from './api.js';
 import { renderCalibrations, renderPixel } from './calib.js';
 import { fill, h } from './dom.js';
 import { renderFit } from './fit.js';
-import { renderScan, renderScans } from './scans.js';
+import { renderScan } from './scan_detail.js';
+import { renderScans } from './scans_list.js';
 
 const view = document.getElementById('view');
 const notice = document.getElementById('notice');

@@ -5,7 +5,7 @@ import { get } from './api.js';
 import {
     clearError, errorBox, failure, field, fill, fmt, fmtTime, formBody, h, showError,
 } from './dom.js';
-import { mapFigures } from './fit.js';
+import { mapFigures } from './maps.js';
 import { heatmap } from './plots.js';
 
 const LIMIT = 50;
@@ -161,7 +161,8 @@ export function renderPixel(root, sensorId, col, row) {
                     `λ = ${fmt(cur.optics.wavelength_nm)} nm, NA = ${fmt(cur.optics.na)}, ` +
                     `ipsd ${cur.software_version} · ${fmtTime(cur.created_ms)} · from `,
                 provenance(cur), ' · ', csvLink(cur)),
-                h('div', { class: 'maps' }, mapFigures(cur.S, cur.S_err, cur.r, sensor.pitch_um))),
+                h('div', { class: 'maps' }, mapFigures(cur.S, cur.S_err, cur.r,
+                    sensor.pitch_um, `/api/calibrations/${cur.id}/interp`))),
             h('section', { class: 'panel', 'aria-labelledby': 'hist-h' },
                 h('h3', { id: 'hist-h' }, `History (${hist.items.length})`),
                 h('p', {}, h('a', { href: `${base}/history?format=csv`,

@@ -1,46 +1,14 @@
 // fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document): the chosen map S
 // (best BIC r by default, any r selectable) as a heatmap with its colour bar, the interpolated
-// map (bicubic, interp.js), the uncertainties S_err, the Wiener-deconvolution baseline next to
-// them, the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, and
+// map (from the server, maps.js), the uncertainties S_err, the Wiener-deconvolution baseline next
+// to them, the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, and
 // the F-test verdict (paper: reject H0 when p < 0.05).
 import { get } from './api.js';
 import { failure, fill, fmt, fmtTime, h } from './dom.js';
-import { interpolate } from './interp.js';
+import { mapFigures } from './maps.js';
 import { heatmap, linePlot } from './plots.js';
 
 const ALPHA = 0.05; // the paper's significance level for the F-test
-const INTERP_N = 100; // points per axis of the interpolated map
-
-// The sub-pixel readout of an r x r map over a pitch (um), or of unit coordinates when unknown.
-function cellText(r, pitch, name, err) {
-    return (i, j, v) => {
-        const w = pitch ? pitch / r : 1 / r, u = pitch ? ' µm' : '';
-        const e = err ? ` ± ${fmt(err[j * r + i], 2)}` : '';
-        return `sub-pixel (${i}, ${j}), x ${fmt(i * w, 3)}–${fmt((i + 1) * w, 3)}${u}, ` +
-            `y ${fmt(j * w, 3)}–${fmt((j + 1) * w, 3)}${u}: ${name} = ${fmt(v, 5)}${e}`;
-    };
-}
-
-// The figures of an r x r map: S, interpolated S, S_err (used by the calibration views too).
-export function mapFigures(S, S_err, r, pitch, label = 'S') {
-    const interp = interpolate(S, r, INTERP_N);
-    const figs = [
-        heatmap({ values: S, nx: r, ny: r, title: `Fitted sensitivity ${label} (${r}×${r})`,
-            testid: 'map-S', describe: cellText(r, pitch, 'S', S_err), table: true }),
-        heatmap({ values: interp, nx: INTERP_N, ny: INTERP_N, title: 'Interpolated (bicubic)',
-            testid: 'map-interp', describe: (i, j, v) => {
-                const w = pitch || 1, u = pitch ? ' µm' : '';
-                return `x = ${fmt((i + 0.5) / INTERP_N * w, 3)}${u}, ` +
-                    `y = ${fmt((j + 0.5) / INTERP_N * w, 3)}${u}: S ≈ ${fmt(v, 5)}`;
-            } }),
-    ];
-    if (S_err) {
-        figs.push(heatmap({ values: S_err, nx: r, ny: r, title: 'Uncertainty S_err (1σ)',
-            cmap: 'magma', testid: 'map-Serr', describe: cellText(r, pitch, 'S_err'),
-            table: true }));
-    }
-    return figs;
-}
 
 function wienerFigure(w, pitch) {
     if (!w) return h('p', { class: 'muted' }, 'No Wiener baseline was requested for this fit.');
@@ -145,7 +113,9 @@ export function renderFit(root, id) {
                 h('dd', {}, `${res.N ?? '–'} of ${res.n_points ?? '–'}`),
                 h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
                     `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`));
-            fill(maps, ...mapFigures(f.S, f.S_err, f.r, pitch), wiener);
+            fill(maps, f.S ? mapFigures(f.S, f.S_err, f.r, pitch,
+                `/api/fits/${fit.id}/interp?r=${f.r}`) : h('p', { class: 'muted' },
+                `The r = ${f.r} fit has no map (${f.status}).`), wiener);
         };
         rSel.addEventListener('change', show);
         const where = fit.scan_id

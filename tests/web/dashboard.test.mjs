@@ -1,11 +1,18 @@
 // dashboard.test.mjs: the dashboard's end-to-end test in a real browser. Starts a real ipsd on a
 // free loopback port with a temporary database and --web pointing at web/, drives Debian's
-// chromium through playwright-core like a person (clicks and typing): creates a sensor, makes a
-// bad scan request and checks the API's own error message is shown at the form, submits a small
-// scan, waits for the progress to reach done on the page, opens the automatic fit through the
-// scan page, and checks what the page shows against GET /api/fits/{id} fetched independently
-// (best r, status, F-test, the heatmap's colours at the map's extreme cells, the hover readout),
-// the calibration search and its CSV link, and that the page logged no console errors.
+// chromium through playwright-core like a person (clicks and typing): checks that the forms'
+// defaults and bounds are the served OpenAPI document's, creates a sensor, makes a bad scan
+// request and checks the API's own error message is shown at the form, submits a small scan,
+// waits for the progress to reach done on the page, opens the automatic fit through the scan
+// page, and checks what the page shows against GET /api/fits/{id} and its interpolated map
+// (GET /api/fits/{id}/interp) fetched independently (best r, status, F-test, the heatmaps'
+// colours at the maps' extreme cells, the hover readouts), the calibration search and its CSV
+// link, cancels a long scan, and checks that the page logged no console errors.
+//
+// Deterministic on a busy machine: every wait is for a condition (on the page, or polled from
+// the API) with a generous deadline, never for a time; the scan cancelled from the page is far
+// too long to end first (982081 points; the simulated bench stores about 500 a second here, and
+// the cancel comes a few seconds after the start).
 //
 // usage: node dashboard.test.mjs IPSD WEBDIR     exit 0 pass, 1 fail, 77 skip (no node_modules
 // or no chromium). Screenshots go to /tmp (ipsd-dashboard-*.png).
@@ -21,6 +28,8 @@ const [ipsdBin, webDir] = process.argv.slice(2);
 const VIRIDIS_TOP = [0xfd, 0xe7, 0x25]; // the colour map's ends: a map's max and min cells
 const VIRIDIS_BOTTOM = [0x44, 0x01, 0x54];
 const TOKEN = 'e2e-Token-7f3a'; // ipsd runs with --token: writes need it
+const WAIT = 30000; // ms: the deadline of a wait for something the page shows soon
+const LONG_WAIT = 90000; // ms: the deadline of a wait for a scan or a fit to finish
 
 function skip(why) {
     console.log(`SKIP: ${why}`);
@@ -51,6 +60,17 @@ function check(cond, what, detail = '') {
 }
 const near = (a, b, rel) => Math.abs(a - b) <= rel * Math.max(Math.abs(a), Math.abs(b), 1e-300);
 
+// Polls fn() until it returns a truthy value (returned), up to ms; throws naming what.
+async function until(fn, what, ms = WAIT) {
+    const end = Date.now() + ms;
+    for (;;) {
+        const v = await fn();
+        if (v) return v;
+        if (Date.now() > end) throw new Error(`gave up waiting ${ms / 1000} s for ${what}`);
+        await new Promise((r) => setTimeout(r, 100));
+    }
+}
+
 // ---- the daemon ----
 
 async function startIpsd(tmp) {
@@ -72,13 +92,18 @@ async function startIpsd(tmp) {
     throw new Error(`ipsd did not start: ${fs.readFileSync(path.join(tmp, 'ipsd.log'), 'utf8')}`);
 }
 
-async function stopIpsd(d) {
-    if (!d || d.exited()) return;
-    d.proc.kill('SIGTERM');
-    for (let i = 0; i < 100 && !d.exited(); i++) await new Promise((r) => setTimeout(r, 100));
-    if (!d.exited()) d.proc.kill('SIGKILL');
-    else if (d.exited().code !== 0) {
-        console.log(`# note: ipsd exited with ${JSON.stringify(d.exited())}`);
+// SIGTERM, and a check that ipsd stopped by itself with status 0 (a sanitizer build's reports
+// make it fail).
+async function stopIpsd(d, log) {
+    if (!d) return;
+    if (!d.exited()) d.proc.kill('SIGTERM');
+    const end = Date.now() + LONG_WAIT;
+    while (!d.exited() && Date.now() < end) await new Promise((r) => setTimeout(r, 100));
+    const how = d.exited();
+    if (!how) d.proc.kill('SIGKILL');
+    const ok = check(how && how.code === 0, 'ipsd exits 0 at SIGTERM', JSON.stringify(how));
+    if (!ok && fs.existsSync(log)) {
+        console.log(`# ipsd log:\n${fs.readFileSync(log, 'utf8').slice(-3000)}`);
     }
 }
 
@@ -107,21 +132,85 @@ async function canvasInfo(page, selector, probes = []) {
 
 const sameColour = (a, b) => a.every((v, k) => Math.abs(v - b[k]) <= 2);
 
+// The schema of request body field FIELD ('raster.area_px') of METHOD PATH in the OpenAPI
+// document: $ref followed, allOf merged; undefined when the document has none.
+function docRule(doc, method, path, field) {
+    const resolve = (s) => {
+        if (s?.$ref) return resolve(doc.components.schemas[s.$ref.split('/').pop()]);
+        if (s?.allOf) {
+            return { properties: Object.assign({}, ...s.allOf.map((p) => resolve(p).properties)) };
+        }
+        return s;
+    };
+    let s = resolve(doc.paths[path]?.[method]?.requestBody?.content['application/json'].schema);
+    for (const k of field.split('.')) s = resolve(s?.properties?.[k]);
+    return s;
+}
+
+// Checks the inputs of a form against the document: fields [[name, how]] with how 'value' (the
+// default filled in), 'placeholder' (the default shown as the placeholder) or 'none' (bounds
+// only): min / max are minimum / maximum, data-exclusive-min is exclusiveMinimum, absent when
+// the document has none; every field listed must be in the document and in the form.
+async function checkFormRules(form, doc, method, path, fields, what) {
+    const attr = (v) => (v === undefined || v === null ? null : String(v));
+    for (const [name, how] of fields) {
+        const rule = docRule(doc, method, path, name);
+        const input = form.locator(`input[data-field="${name}"]`);
+        if (!check(rule && await input.count() === 1, `${what}: ${name} is in the document and ` +
+            'the form')) continue;
+        const got = await input.evaluate((el) => ({ value: el.getAttribute('value'),
+            current: el.value, placeholder: el.getAttribute('placeholder'),
+            min: el.getAttribute('min'), max: el.getAttribute('max'),
+            xmin: el.getAttribute('data-exclusive-min') }));
+        const want = { min: attr(rule.minimum), max: attr(rule.maximum),
+            xmin: attr(rule.exclusiveMinimum) };
+        let ok = got.min === want.min && got.max === want.max && got.xmin === want.xmin;
+        if (how === 'value') {
+            ok &&= rule.default !== undefined && Number(got.value) === rule.default &&
+                Number(got.current) === rule.default;
+        } else if (how === 'placeholder') {
+            ok &&= rule.default !== undefined && Number(got.placeholder) === rule.default &&
+                got.current === '';
+        }
+        check(ok, `${what}: ${name} has the document's ${how === 'none' ? '' : 'default and '}` +
+            'bounds', `form ${JSON.stringify(got)}, document ${JSON.stringify(rule)}`);
+    }
+}
+
 async function run(base, page, api) {
     await page.goto(`${base}/#/scans`);
-    await page.locator('#live[data-state="live"]').waitFor({ timeout: 10000 });
+    await page.locator('#live[data-state="live"]').waitFor({ timeout: WAIT });
     check(true, 'dashboard loads and its event stream connects');
+
+    // the forms' defaults and bounds are the served document's (before anything is typed)
+    const doc = (await api('GET', '/api/openapi.json')).body;
+    const form = page.locator('[data-testid="scan-form"]');
+    await form.waitFor({ timeout: WAIT });
+    await checkFormRules(form, doc, 'post', '/api/scans', [['poi.col', 'none'],
+        ['poi.row', 'none'], ['optics.wavelength_nm', 'value'], ['optics.na', 'value'],
+        ['optics.spot_radius_um', 'none'], ['raster.area_px', 'value'],
+        ['raster.step_um', 'value'], ['raster.sub_px', 'value'], ['raster.frames', 'value'],
+        ['exposure_us', 'placeholder'], ['seed', 'placeholder']], 'scan form');
+    const scene = docRule(doc, 'post', '/api/scans', 'scene');
+    const sceneSel = form.getByLabel('Scene');
+    check(JSON.stringify(await sceneSel.evaluate((s) => [...s.options].map((o) => o.value))) ===
+        JSON.stringify(scene.enum) && await sceneSel.inputValue() === scene.default,
+    'scan form: the scenes are the document\'s, its default chosen');
+    const sf = page.locator('[data-testid="sensor-form"]');
+    await checkFormRules(sf, doc, 'post', '/api/sensors', [['n_cols', 'value'],
+        ['n_rows', 'value'], ['pitch_um', 'value'], ['gain_e_per_dn', 'placeholder'],
+        ['read_noise_e', 'placeholder'], ['bias_dn', 'placeholder'],
+        ['full_scale_dn', 'placeholder']], 'sensor form');
 
     // a sensor, through the "New sensor" form
     await page.getByText('New sensor…').click();
-    const sf = page.locator('[data-testid="sensor-form"]');
     await typeInto(sf.getByLabel('Model'), 'E2E-CAM');
     await typeInto(sf.getByLabel('Serial'), 'WEB-0001');
     await typeInto(sf.getByLabel('Columns'), 64);
     await typeInto(sf.getByLabel('Rows'), 48);
     // without the token the server refuses the write, and the form says why
     await sf.getByRole('button', { name: 'Create sensor' }).click();
-    await sf.locator('.form-error').waitFor({ state: 'visible', timeout: 10000 });
+    await sf.locator('.form-error').waitFor({ state: 'visible', timeout: WAIT });
     const denied = await api('POST', '/api/sensors', { model: 'x', serial: 'y' }, false, '');
     const deniedText = await sf.locator('.form-error').textContent();
     check(denied.status === 401 && deniedText.includes(denied.body.error.message),
@@ -132,13 +221,12 @@ async function run(base, page, api) {
     await sf.getByRole('button', { name: 'Create sensor' }).click();
     const sensors = async () => (await api('GET', '/api/sensors')).body.items;
     await page.waitForFunction(() => document.querySelector('#scan-sensor')?.selectedOptions[0]
-        ?.textContent.includes('E2E-CAM WEB-0001'), null, { timeout: 10000 });
+        ?.textContent.includes('E2E-CAM WEB-0001'), null, { timeout: WAIT });
     const sensor = (await sensors()).find((s) => s.serial === 'WEB-0001');
     check(sensor && sensor.n_cols === 64 && sensor.n_rows === 48,
         'the sensor typed into the form is stored (64 x 48)', JSON.stringify(sensor));
 
     // the scan form: a bad request first (even raster area), then a good one
-    const form = page.locator('[data-testid="scan-form"]');
     await typeInto(form.getByLabel('Column'), 10);
     await typeInto(form.getByLabel('Row', { exact: true }), 12);
     await typeInto(form.getByLabel('Area (pixels, odd)'), 4);
@@ -148,7 +236,7 @@ async function run(base, page, api) {
     await form.getByLabel('Scene').selectOption('paperlike');
     await form.getByRole('button', { name: 'Start scan' }).click();
     const errBox = form.locator('.form-error');
-    await errBox.waitFor({ state: 'visible', timeout: 10000 });
+    await errBox.waitFor({ state: 'visible', timeout: WAIT });
     const bad = await api('POST', '/api/scans', { sensor_id: sensor.id, poi: { col: 10, row: 12 },
         optics: { wavelength_nm: 550, na: 0.25 },
         raster: { area_px: 4, step_um: 0.5, sub_px: 3, frames: 2 }, scene: 'paperlike' });
@@ -164,16 +252,18 @@ async function run(base, page, api) {
 
     await typeInto(form.getByLabel('Area (pixels, odd)'), 1);
     await form.getByRole('button', { name: 'Start scan' }).click();
-    await page.locator('#notice', { hasText: 'queued' }).waitFor({ timeout: 10000 });
+    // the scan is stored, then its row shows (the "queued" notice fades after a while: not it)
+    const scan = await until(async () => (await api('GET', '/api/scans')).body.items[0],
+        'the scan to be queued');
+    await page.locator(`tr[data-scan-id="${scan.id}"]`).waitFor({ timeout: WAIT });
     check(await errBox.isHidden(), 'the error box clears on a good request');
-    const scan = (await api('GET', '/api/scans')).body.items[0];
     check(scan && scan.poi.col === 10 && scan.poi.row === 12 && scan.raster.area_px === 1 &&
         scan.raster.frames === 2, 'the scan typed into the form is queued', JSON.stringify(scan));
     const total = scan.raster.points_total;
 
     // progress on the page until done (events, or the page's own re-reads)
     const row = page.locator(`tr[data-scan-id="${scan.id}"]`);
-    await row.and(page.locator('[data-state="done"]')).waitFor({ timeout: 60000 });
+    await row.and(page.locator('[data-state="done"]')).waitFor({ timeout: LONG_WAIT });
     const progText = await row.locator('.prog-text').textContent();
     const progVal = await row.locator('progress').evaluate((p) => p.value);
     check(progText.startsWith(`${total} / ${total}`) && progVal === 1,
@@ -183,16 +273,20 @@ async function run(base, page, api) {
     console.log(`# event stream: ${await page.locator('#live').getAttribute('title')}`);
 
     // the automatic fit, opened from the scan page
-    await row.locator('td.fit a').waitFor({ timeout: 60000 });
+    await row.locator('td.fit a').waitFor({ timeout: LONG_WAIT });
     await row.getByRole('link', { name: `#${scan.id}`, exact: true }).click();
-    await page.locator('[data-testid="raster-map"] canvas.heat').waitFor({ timeout: 10000 });
+    await page.locator('[data-testid="raster-map"] canvas.heat').waitFor({ timeout: WAIT });
     const raster = await canvasInfo(page, '[data-testid="raster-map"] canvas.heat');
     check(raster.distinct > 10, 'the response raster heatmap is not uniform',
         `${raster.distinct} colours`);
     const fitLink = page.locator('[data-testid="fit-link"]').first();
-    await fitLink.waitFor({ timeout: 60000 });
+    await fitLink.waitFor({ timeout: LONG_WAIT });
+    const fitForm = page.locator('[data-testid="fit-form"]');
+    await fitForm.waitFor({ timeout: WAIT });
+    await checkFormRules(fitForm, doc, 'post', '/api/scans/{id}/fits', [['r_min', 'value'],
+        ['r_max', 'value'], ['ftest_r', 'value']], 'fit form');
     await fitLink.click();
-    await page.locator('[data-testid="best-r-bic"]').waitFor({ timeout: 10000 });
+    await page.locator('[data-testid="best-r-bic"]').waitFor({ timeout: WAIT });
     const fitId = Number(page.url().match(/#\/fits\/(\d+)/)[1]);
     const fit = (await api('GET', `/api/fits/${fitId}`)).body;
     const res = fit.result;
@@ -226,17 +320,38 @@ async function run(base, page, api) {
         'the cells of max and min S have the colour bar\'s end colours', JSON.stringify(heat.at));
     const wiener = await canvasInfo(page, '[data-testid="map-wiener"] canvas.heat');
     check(wiener.distinct > 1 && res.wiener.nx > 0, 'the Wiener baseline map is drawn');
-    check(await page.locator('[data-testid="map-interp"] canvas.heat').count() === 1,
-        'the interpolated map is drawn');
 
     // hover: the readout names the cell's value
-    const box = await page.locator('[data-testid="map-S"] canvas.heat').boundingBox();
-    const [fx, fy] = centre(kMax);
-    await page.mouse.move(box.x + fx * box.width, box.y + fy * box.height);
-    const readout = await page.locator('[data-testid="map-S"] output').textContent();
+    const hover = async (testid, [fx, fy], re) => {
+        const canvas = page.locator(`[data-testid="${testid}"] canvas.heat`);
+        const box = await canvas.boundingBox();
+        await page.mouse.move(box.x + fx * box.width, box.y + fy * box.height);
+        const out = page.locator(`[data-testid="${testid}"] output`).filter({ hasText: re });
+        await out.waitFor({ timeout: WAIT });
+        return out.textContent();
+    };
+    const readout = await hover('map-S', centre(kMax), /S = /);
     const m = readout.match(/S = ([-0-9.e]+)/);
     check(m && near(Number(m[1]), S[kMax], 1e-4), 'hovering a cell shows its S value',
         `"${readout}" vs ${S[kMax]}`);
+
+    // the interpolated map: the server's (GET /api/fits/{id}/interp, fetched by the test too)
+    const ip = (await api('GET', `/api/fits/${fitId}/interp?r=${r}&n=100`)).body;
+    await page.locator('[data-testid="map-interp"] canvas.heat').waitFor({ timeout: WAIT });
+    const n = ip.n, at = (k) => [((k % n) + 0.5) / n, (Math.floor(k / n) + 0.5) / n];
+    const iMax = ip.S.indexOf(Math.max(...ip.S)), iMin = ip.S.indexOf(Math.min(...ip.S));
+    const interpHeat = await canvasInfo(page, '[data-testid="map-interp"] canvas.heat',
+        [at(iMax), at(iMin)]);
+    check(ip.r === r && n === 100 && sameColour(interpHeat.at[0], VIRIDIS_TOP) &&
+        sameColour(interpHeat.at[1], VIRIDIS_BOTTOM),
+    'the interpolated map drawn is the API\'s: its max and min cells have the end colours',
+    JSON.stringify(interpHeat.at));
+    const title = await page.locator('[data-testid="map-interp"] figcaption').textContent();
+    check(title.includes(ip.method), 'the interpolated map names its method', title);
+    const ir = await hover('map-interp', at(iMax), /S ≈ /);
+    const im = ir.match(/S ≈ ([-0-9.e]+)/);
+    check(im && near(Number(im[1]), ip.S[iMax], 1e-4),
+        'hovering the interpolated map shows the API\'s value', `"${ir}" vs ${ip.S[iMax]}`);
     check(await page.locator('[data-testid="sweep-table"] tbody tr').count() === res.fits.length,
         'the model-selection table has a row per r');
     await page.screenshot({ path: '/tmp/ipsd-dashboard-fit.png', fullPage: true });
@@ -246,7 +361,7 @@ async function run(base, page, api) {
     await page.locator('[data-testid="calib-form"]').getByRole('button', { name: 'Search' })
         .click();
     const calRow = page.locator('[data-testid="calib-table"] tbody tr').first();
-    await calRow.waitFor({ timeout: 10000 });
+    await calRow.waitFor({ timeout: WAIT });
     const cals = (await api('GET', `/api/calibrations?sensor=${sensor.id}`)).body.items;
     const calId = Number(await calRow.getAttribute('data-calib-id'));
     check(cals.length === 1 && calId === cals[0].id && cals[0].fit_id === fitId,
@@ -260,29 +375,40 @@ async function run(base, page, api) {
         lines.length === 1 + cals[0].r * cals[0].r, 'the CSV link gives one line per sub-pixel',
     `${csv.status}, ${lines.length} lines`);
     await calRow.getByRole('link', { name: 'map' }).click();
-    await page.locator('[data-testid="history-table"]').waitFor({ timeout: 10000 });
+    await page.locator('[data-testid="history-table"]').waitFor({ timeout: WAIT });
     check(await page.locator('[data-testid="history-table"] tbody tr').count() === 1,
         'the pixel view shows the history of the pixel');
+    const cal = (await api('GET', `/api/calibrations/${calId}/interp?n=100`)).body;
+    await page.locator('[data-testid="map-interp"] canvas.heat').waitFor({ timeout: WAIT });
+    const cMax = cal.S.indexOf(Math.max(...cal.S));
+    const calHeat = await canvasInfo(page, '[data-testid="map-interp"] canvas.heat',
+        [at(cMax)]);
+    check(cal.calibration_id === calId && sameColour(calHeat.at[0], VIRIDIS_TOP),
+        'the pixel view draws the calibration\'s interpolated map from the API',
+        JSON.stringify(calHeat.at));
 
     await page.goto(`${base}/#/scans`);
-    await page.locator(`tr[data-scan-id="${scan.id}"]`).waitFor({ timeout: 10000 });
+    await page.locator(`tr[data-scan-id="${scan.id}"]`).waitFor({ timeout: WAIT });
     check(await page.getByLabel('Token', { exact: true }).inputValue() === TOKEN,
         'the token is kept in the browser across page loads');
 
-    // a long scan (331 x 331 points), cancelled from its row while it runs
+    // a long scan (991 x 991 points, so it cannot end first), cancelled from its row
     const form2 = page.locator('[data-testid="scan-form"]');
     await typeInto(form2.getByLabel('Column'), 20);
     await typeInto(form2.getByLabel('Row', { exact: true }), 20);
-    await typeInto(form2.getByLabel('Area (pixels, odd)'), 11);
+    await typeInto(form2.getByLabel('Area (pixels, odd)'), 33);
     await typeInto(form2.getByLabel('Step (µm)'), 0.2);
+    await typeInto(form2.getByLabel('Sub-frame (pixels, odd)'), 3);
     await typeInto(form2.getByLabel('Frames per point'), 1);
     await form2.getByRole('button', { name: 'Start scan' }).click();
-    const long = page.locator('tbody tr').first();
-    await long.locator('button', { hasText: 'Cancel' }).waitFor({ timeout: 10000 });
-    const longId = Number(await long.getAttribute('data-scan-id'));
-    await long.getByRole('button', { name: `Cancel scan #${longId}` }).click();
+    const longId = (await until(async () => (await api('GET', '/api/scans')).body.items
+        .find((s) => s.id !== scan.id), 'the long scan to be queued')).id;
+    const long = page.locator(`tr[data-scan-id="${longId}"]`);
+    const cancel = long.getByRole('button', { name: `Cancel scan #${longId}` });
+    await cancel.waitFor({ timeout: WAIT });
+    await cancel.click();
     await page.locator(`tr[data-scan-id="${longId}"][data-state="cancelled"]`)
-        .waitFor({ timeout: 20000 });
+        .waitFor({ timeout: WAIT });
     const cancelled = (await api('GET', `/api/scans/${longId}`)).body;
     check(longId !== scan.id && cancelled.state === 'cancelled' &&
         cancelled.points_done < cancelled.raster.points_total,
@@ -297,9 +423,9 @@ async function run(base, page, api) {
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'ipsd-web-'));
 const watchdog = setTimeout(() => {
-    console.log('not ok - the test took over 150 s');
+    console.log('not ok - the test took over 240 s');
     process.exit(1);
-}, 150000);
+}, 240000);
 let daemon = null, context = null;
 const consoleErrors = [];
 try {
@@ -322,7 +448,7 @@ try {
             '--disable-dev-shm-usage'],
     });
     const page = context.pages()[0] || await context.newPage();
-    page.setDefaultTimeout(20000);
+    page.setDefaultTimeout(WAIT);
     page.on('console', (msg) => {
         if (msg.type() === 'error') consoleErrors.push(`${msg.text()} (${msg.location().url})`);
     });
@@ -346,7 +472,7 @@ try {
     }
 } finally {
     await context?.close().catch(() => {});
-    await stopIpsd(daemon);
+    await stopIpsd(daemon, path.join(tmp, 'ipsd.log'));
     fs.rmSync(tmp, { recursive: true, force: true });
     clearTimeout(watchdog);
 }

@@ -1,0 +1,45 @@
+// fit_form.js: the Scan view's form to fit a pixel of a done scan's sub-frame with other options
+// (POST /api/scans/ID/fits). The bounds and defaults of r and the noise models come from the
+// server's rules (rules.js); the pixel offsets are bounded by the scan's own sub-frame.
+import { post } from './api.js';
+import { clearError, errorBox, field, formBody, h, showError } from './dom.js';
+import { choices, ruleAttrs } from './rules.js';
+
+// rule: the rules of POST /api/scans/{id}/fits; scan: the scan (its id and sub-frame);
+// onQueued(reply) after a 202.
+export function buildFitForm(rule, scan, onQueued) {
+    const err = errorBox();
+    const int = (label, f, attrs = {}) => field(label, { 'data-field': f, 'data-type': 'int',
+        type: 'number', step: 1, ...ruleAttrs(rule(f)), ...attrs });
+    const h2 = Math.floor(scan.raster.sub_px / 2); // |dcol|, |drow| <= sub_px / 2
+    const form = h('form', { class: 'inline-form', novalidate: true,
+        'aria-label': 'Fit a pixel of this scan', 'data-testid': 'fit-form' },
+    h('h4', {}, 'Fit a pixel of the sub-frame'),
+    h('div', { class: 'row-many' },
+        int('dcol', 'dcol', { min: -h2, max: h2 }), int('drow', 'drow', { min: -h2, max: h2 }),
+        int('r min', 'r_min'), int('r max', 'r_max'),
+        h('label', { class: 'fld' }, h('span', { class: 'lbl' }, 'σ model'),
+            h('select', { 'data-field': 'sigma' }, choices(rule('sigma')))),
+        // the paper's analysis (the automatic fit's, docs/api.md) rather than the API's
+        // defaults (no F-test, no Wiener baseline): what one usually wants to compare with
+        field('F-test edges', { 'data-field': 'ftest', value: 'top,left,bottom',
+            title: rule('ftest').description }),
+        int('F-test r', 'ftest_r'),
+        h('label', { class: 'fld check' }, h('input', { type: 'checkbox', checked: true,
+            'data-field': 'wiener', 'data-type': 'bool' }), ' Wiener baseline')),
+    err, h('button', { type: 'submit' }, 'Queue fit'));
+    form.addEventListener('submit', async (e) => {
+        e.preventDefault();
+        clearError(form);
+        const btn = form.querySelector('button[type=submit]');
+        btn.disabled = true;
+        try {
+            await onQueued(await post(`/api/scans/${scan.id}/fits`, formBody(form)));
+        } catch (ex) {
+            showError(form, ex);
+        } finally {
+            btn.disabled = false;
+        }
+    });
+    return form;
+}
