@@ -8,7 +8,7 @@
  * and flags when it stops above the global minimum. S is normalised to mean 1, I0 = mean(T).
  *
  * GSL errors: GSL's default error handler aborts the process. Every fit/ function that can reach
- * GSL (the fits and the sweep here, the F-test, Wiener, the interpolation, the box
+ * GSL (the fits and the sweep here, the pipeline, the F-test, Wiener, the interpolation, the box
  * integral) turns that default off, once per process, on its first call, and reports GSL's
  * failures through its own return code; callers need not call gsl_set_error_handler_off(). A
  * handler the program installed before its first fit/ call is kept (docs/numerics.md). */
@@ -90,7 +90,9 @@ typedef struct fit_sweep {
     int best_aic, best_bic;    /* r of the smallest AIC / BIC among fits with a map; 0 if none */
 } fit_sweep_t;
 
-/* Fits r = r_min..r_max and picks the best r by AIC and by BIC. */
+/* Fits r = r_min..r_max and picks the best r by AIC and by BIC: fit_pipeline_run (pipeline.h)
+ * with the sweep only. -EINVAL naming r_min / r_max for a range outside 1 <= r_min <= r_max <= 32.
+ * On an error out->fits is NULL. */
 int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_options_t *opts,
                   fit_sweep_t *out, err_t *err);
 
