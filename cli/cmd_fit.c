@@ -1,7 +1,8 @@
 /* cmd_fit.c: `ips fit FILE [options]`: fits a scan file (instrument/scanfile.h) by the method of
- * the paper (fit/model.h): the sweep over r with AIC/BIC model selection, optionally the F-test
- * of the edge model, the Wiener baseline and an interpolated map, printed as one JSON document
- * (the docs/contracts.md contract). Bad input: one line on stderr, exit 2. */
+ * the paper with the fit pipeline (fit/pipeline.h, the one ipsd's fit workers run): the sweep
+ * over r with AIC/BIC model selection, optionally the F-test of the edge model, the Wiener
+ * baseline and an interpolated map, printed as one JSON document (the docs/contracts.md
+ * contract). Bad input: one line on stderr, exit 2; so is a part asked for that fails. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,15 +13,13 @@
 #include "base/parse.h"
 #include "cliutil.h"
 #include "commands.h"
-#include "fit/interp.h"
-#include "fit/model.h"
-#include "fit/wiener.h"
+#include "fit/pipeline.h"
 #include "fit_table.h"
 #include "instrument/scanfile.h"
 #include "json/fitjson.h"
 
-#define R_LIMIT 32        /* largest r fit_map accepts */
-#define INTERP_LIMIT 4096 /* largest --interp grid */
+#define R_LIMIT FIT_R_MAX           /* largest r fit_map accepts */
+#define INTERP_LIMIT FIT_INTERP_MAX /* largest --interp grid */
 
 static const char usage[] =
     "usage: ips fit FILE [options]   (FILE - reads standard input)\n"
@@ -174,36 +173,18 @@ static int parse_args(int argc, char **argv, struct fit_args *a)
 
 struct fit_run {
     scanfile_t sf;
-    fit_sweep_t sweep;
-    fit_ftest_t ftest;
-    fit_wiener_t wiener;
-    int have_sweep, have_ftest, have_wiener;
-    int interp_r;   /* r of the interpolated map, 0 if none */
-    double *interp; /* interp_n^2 values */
-    double ms_read, ms_sweep, ms_ftest, ms_wiener, ms_interp;
+    fit_pipeline_t pl; /* zeroed until the pipeline ran (fit_pipeline_free accepts that) */
+    double ms_read;
 };
 
 static void run_free(struct fit_run *run)
 {
-    if (run->have_sweep) fit_sweep_free(&run->sweep);
-    if (run->have_wiener) fit_wiener_free(&run->wiener);
-    free(run->interp);
+    fit_pipeline_free(&run->pl);
     scanfile_free(&run->sf);
 }
 
-/* The best-AIC map on an n x n grid (none when no fit has a map). */
-static int run_interp(const struct fit_args *a, struct fit_run *run, err_t *err)
-{
-    int r = run->sweep.best_aic;
-    if (!r) return 0;
-    run->interp = malloc(sizeof(double) * (size_t)a->interp_n * a->interp_n);
-    if (!run->interp) return err_set(err, -ENOMEM, "out of memory");
-    run->interp_r = r;
-    return fit_interp_bicubic(run->sweep.fits[r - run->sweep.r_min].S, r, a->interp_n,
-                              run->interp, err);
-}
-
-/* Reads the scan and runs the sweep and what was asked for. 0 or a negative errno with err. */
+/* Reads the scan and runs the pipeline as asked. A part asked for that failed fails the command
+ * (the first in the order F-test, Wiener, interpolation). 0 or a negative errno with err. */
 static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
 {
     double t = clock_mono_ms();
@@ -212,58 +193,39 @@ static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
     if (run->sf.scan.n == 0) return err_set(err, -EINVAL, "%s: scan has no points", a->path);
     if (a->have_full_scale) run->sf.scan.full_scale_dn = a->full_scale;
     run->ms_read = clock_mono_ms() - t;
-    t = clock_mono_ms();
-    if ((rc = fit_sweep_run(&run->sf.scan, a->r_min, a->r_max, &a->opts, &run->sweep, err)))
-        return rc;
-    run->have_sweep = 1;
-    run->ms_sweep = clock_mono_ms() - t;
-    if (a->edges_text) {
-        t = clock_mono_ms();
-        const fit_sweep_t *sw = &run->sweep; /* reuse the sweep's linear fit as H1 */
-        if (a->opts.method == FIT_LINEAR && a->ftest_r >= sw->r_min && a->ftest_r <= sw->r_max)
-            rc = fit_ftest_with_h1(&run->sf.scan, &sw->fits[a->ftest_r - sw->r_min], a->edges,
-                                   &a->opts, &run->ftest, err);
-        else
-            rc = fit_ftest_run(&run->sf.scan, a->ftest_r, a->edges, &a->opts, &run->ftest, err);
-        if (rc) return rc;
-        run->have_ftest = 1;
-        run->ms_ftest = clock_mono_ms() - t;
-    }
-    if (a->wiener) {
-        t = clock_mono_ms();
-        if ((rc = fit_wiener_run(&run->sf.scan, 0, &run->wiener, err))) return rc;
-        run->have_wiener = 1;
-        run->ms_wiener = clock_mono_ms() - t;
-    }
-    if (a->interp_n) {
-        t = clock_mono_ms();
-        if ((rc = run_interp(a, run, err))) return rc;
-        run->ms_interp = clock_mono_ms() - t;
-    }
+    fit_pipeline_opts_t po = {.r_min = a->r_min, .r_max = a->r_max, .fit = a->opts,
+                              .ftest_edges = a->edges_text ? a->edges : 0, .ftest_r = a->ftest_r,
+                              .wiener = a->wiener, .interp_n = a->interp_n};
+    if ((rc = fit_pipeline_run(&run->sf.scan, &po, NULL, &run->pl, err))) return rc;
+    const fit_part_t *parts[] = {&run->pl.ftest_part, &run->pl.wiener_part, &run->pl.interp_part};
+    for (size_t i = 0; i < sizeof parts / sizeof parts[0]; i++)
+        if (parts[i]->asked && parts[i]->rc)
+            return err_set(err, parts[i]->rc, "%s", parts[i]->err.msg);
     return 0;
 }
 
 /* The interpolated best-AIC map, or null when no fit has a map. */
-static json_t *interp_json(int n, const struct fit_run *run)
+static json_t *interp_json(const fit_pipeline_t *pl)
 {
-    if (!run->interp_r) return json_null();
-    return json_pack("{s:i, s:i, s:o}", "r", run->interp_r, "n", n, "S",
-                     fitjson_array(run->interp, (size_t)n * n));
+    if (!pl->interp_r) return json_null();
+    return json_pack("{s:i, s:i, s:o}", "r", pl->interp_r, "n", pl->interp_n, "S",
+                     fitjson_array(pl->interp, (size_t)pl->interp_n * pl->interp_n));
 }
 
 static json_t *result_json(const struct fit_args *a, const struct fit_run *run, double t0)
 {
-    json_t *root = fitjson_sweep(&run->sweep, run->sf.scan.n, &a->opts, run->sf.scan.full_scale_dn);
+    const fit_pipeline_t *pl = &run->pl;
+    json_t *root = fitjson_sweep(&pl->sweep, run->sf.scan.n, &a->opts, run->sf.scan.full_scale_dn);
     if (!root) return NULL;
-    if (run->have_ftest) json_object_set_new(root, "ftest", fitjson_ftest(&run->ftest));
-    if (run->have_wiener) json_object_set_new(root, "wiener", fitjson_wiener(&run->wiener));
-    if (a->interp_n) json_object_set_new(root, "interp", interp_json(a->interp_n, run));
+    if (pl->ftest_part.asked) json_object_set_new(root, "ftest", fitjson_ftest(&pl->ftest));
+    if (pl->wiener_part.asked) json_object_set_new(root, "wiener", fitjson_wiener(&pl->wiener));
+    if (pl->interp_part.asked) json_object_set_new(root, "interp", interp_json(pl));
     json_object_set_new(root, "timing_ms",
                         json_pack("{s:o, s:o, s:o, s:o, s:o, s:o}", "read",
-                                  fitjson_num(run->ms_read), "sweep", fitjson_num(run->ms_sweep),
-                                  "ftest", fitjson_num(run->ms_ftest), "wiener",
-                                  fitjson_num(run->ms_wiener), "interp",
-                                  fitjson_num(run->ms_interp), "total",
+                                  fitjson_num(run->ms_read), "sweep", fitjson_num(pl->sweep_ms),
+                                  "ftest", fitjson_num(pl->ftest_part.ms), "wiener",
+                                  fitjson_num(pl->wiener_part.ms), "interp",
+                                  fitjson_num(pl->interp_part.ms), "total",
                                   fitjson_num(clock_mono_ms() - t0)));
     return root;
 }
@@ -281,9 +243,10 @@ int cmd_fit(int argc, char **argv)
         return cli_fail(cli_exit_code(rc), "fit", "%s", err.msg);
     }
     if (a.table) {
-        fit_table_print(stdout, a.path, &run.sf.scan, &run.sweep,
-                        run.have_ftest ? &run.ftest : NULL, run.have_wiener ? &run.wiener : NULL,
-                        clock_mono_ms() - t0);
+        const fit_pipeline_t *pl = &run.pl;
+        fit_table_print(stdout, a.path, &run.sf.scan, &pl->sweep,
+                        pl->ftest_part.asked ? &pl->ftest : NULL,
+                        pl->wiener_part.asked ? &pl->wiener : NULL, clock_mono_ms() - t0);
         run_free(&run);
         return 0;
     }

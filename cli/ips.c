@@ -3,8 +3,6 @@
 #include <stdio.h>
 #include <string.h>
 
-#include <gsl/gsl_errno.h>
-
 #include "cliutil.h"
 #include "commands.h"
 
@@ -30,7 +28,6 @@ static void usage(FILE *f)
 
 int main(int argc, char **argv)
 {
-    gsl_set_error_handler_off();
     if (argc < 2) {
         usage(stderr);
         return CLI_EXIT_USAGE;

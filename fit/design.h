@@ -2,8 +2,12 @@
  * spot position k over sub-pixel (i, j) (column i, row j) of an r x r split of the pixel
  * [0, pitch]^2. The model is then M_k = I0 * sum_ij S_ij A[k][j*r+i].
  *
- * Fast path: per spot, one cumulative sweep of corner wedges per sub-pixel edge line (corner.h)
- * with composite Gauss-Legendre of a chosen order; cost grows like r^2 per spot, not r^4.
+ * Fast path: every corner wedge (corner.h) of a sub-pixel edge line is a prefix integral of one
+ * integrand that depends only on the line's distance from the spot, so one cumulative sweep per
+ * distinct distance serves all its nodes, over all spots of a batch. A sweep is spectral: each
+ * segment samples the integrand at `order` Chebyshev points of the first kind and integrates the
+ * interpolating Chebyshev series in closed form (Clenshaw-Curtis style), so a wedge costs one
+ * Clenshaw sum; cost grows like r^2 per spot, not r^4 (design.c, docs/numerics.md).
  * Leave-out: sub-pixels whose rigorous bound (sub-pixel area times the Airy envelope at its
  * nearest point, airy.h) is below skip_tol of the spot's whole flux are not integrated; they are
  * set to 0 and counted, with the largest bound left out. Thread-safe; no I/O. */
@@ -15,7 +19,7 @@
 #include "base/err.h"
 
 typedef struct fit_design_opts {
-    int order;       /* Gauss-Legendre points per segment (the accuracy setting), 2..64 */
+    int order;       /* Chebyshev points per sweep segment (the accuracy setting), 2..64 */
     double seg_dv;   /* largest span of a*rho covered by one segment (resolves oscillations) */
     double seg_ds;   /* largest span of the wedge variable s = asinh(tan t) per segment */
     double skip_tol; /* leave out entries bounded below skip_tol * 4 pi / a^2; 0 keeps all */

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "fit/model.h"
+#include "gslerr.h"
 #include "wls.h"
 
 static const struct {
@@ -103,6 +104,7 @@ out:
 int fit_ftest_with_h1(const fit_scan_t *scan, const fit_result_t *h1, unsigned edges,
                       const fit_options_t *opts, fit_ftest_t *out, err_t *err)
 {
+    gslerr_policy();
     memset(out, 0, sizeof *out);
     out->r = h1->r;
     out->edges = edges;
@@ -124,13 +126,21 @@ int fit_ftest_with_h1(const fit_scan_t *scan, const fit_result_t *h1, unsigned e
         return err_set(err, -EDOM, "the F-test needs N > p1 > p0 (N = %zu, p1 = %d, p0 = %d)",
                        out->n, out->params_h1, out->params_h0);
     out->F = ((out->chi2_h0 - out->chi2_h1) / out->chi2_h1) * ((double)d2 / d1); /* eq. 6 */
-    out->p_value = gsl_cdf_fdist_Q(out->F, d1, d2);
+    out->p_value = fit_ftest_p_value(out->F, d1, d2);
     return 0;
+}
+
+double fit_ftest_p_value(double F, int d1, int d2)
+{
+    gslerr_policy();
+    if (isnan(F) || d1 < 1 || d2 < 1) return NAN;
+    return gsl_cdf_fdist_Q(F, d1, d2);
 }
 
 int fit_ftest_run(const fit_scan_t *scan, int r, unsigned edges, const fit_options_t *opts,
                   fit_ftest_t *out, err_t *err)
 {
+    gslerr_policy();
     fit_options_t o = opts ? *opts : fit_options_default();
     o.method = FIT_LINEAR;
     memset(out, 0, sizeof *out);

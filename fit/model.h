@@ -5,7 +5,13 @@
  * Methods: `linear` solves the weighted linear least-squares problem in T = I0 S (the model is
  * linear in T; numerics note 1) by SVD: the global minimum, fast, with the condition number.
  * `lm` is the paper's Levenberg-Marquardt (GSL gsl_multifit_nlinear) from S = 1; `both` runs LM
- * and flags when it stops above the global minimum. S is normalised to mean 1, I0 = mean(T). */
+ * and flags when it stops above the global minimum. S is normalised to mean 1, I0 = mean(T).
+ *
+ * GSL errors: GSL's default error handler aborts the process. Every fit/ function that can reach
+ * GSL (the fits and the sweep here, the pipeline, the F-test, Wiener, the interpolation, the box
+ * integral) turns that default off, once per process, on its first call, and reports GSL's
+ * failures through its own return code; callers need not call gsl_set_error_handler_off(). A
+ * handler the program installed before its first fit/ call is kept (docs/numerics.md). */
 #ifndef IPSD_FIT_MODEL_H
 #define IPSD_FIT_MODEL_H
 
@@ -84,7 +90,9 @@ typedef struct fit_sweep {
     int best_aic, best_bic;    /* r of the smallest AIC / BIC among fits with a map; 0 if none */
 } fit_sweep_t;
 
-/* Fits r = r_min..r_max and picks the best r by AIC and by BIC. */
+/* Fits r = r_min..r_max and picks the best r by AIC and by BIC: fit_pipeline_run (pipeline.h)
+ * with the sweep only. -EINVAL naming r_min / r_max for a range outside 1 <= r_min <= r_max <= 32.
+ * On an error out->fits is NULL. */
 int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_options_t *opts,
                   fit_sweep_t *out, err_t *err);
 
@@ -107,6 +115,10 @@ typedef struct fit_ftest {
     double p_value;            /* upper tail of F(p1 - p0, N - p1) */
     unsigned flags;            /* fit flags of H1 and H0 combined */
 } fit_ftest_t;
+
+/* The p-value of eq. 6's F: the upper tail of the F distribution with (d1, d2) degrees of
+ * freedom at F (GSL's gsl_cdf_fdist_Q); NaN when F is NaN or d1 < 1 or d2 < 1. */
+double fit_ftest_p_value(double F, int d1, int d2);
 
 /* The F-test of the paper for an r x r map. Needs N > p1 > p0. */
 int fit_ftest_run(const fit_scan_t *scan, int r, unsigned edges, const fit_options_t *opts,

@@ -1,7 +1,8 @@
-/* srv_fit.h: one fit as ipsd runs it: the model-selection sweep over r (fit/model.h), optionally
- * the F-test of an edge model and the Wiener baseline, encoded as the `ips fit` JSON document
- * (json/fitjson.h) so that the stored fits.result reads like the command-line tool's output, plus
- * the map that becomes the calibration (the best-BIC fit). Pure computation, thread-safe. */
+/* srv_fit.h: one fit as ipsd runs it: the fit pipeline of fit/pipeline.h (the model-selection
+ * sweep over r, optionally the F-test of an edge model and the Wiener baseline; the same call
+ * `ips fit` makes), encoded as the `ips fit` JSON document (json/fitjson.h) so that the stored
+ * fits.result reads like the command-line tool's output, plus the map that becomes the
+ * calibration (the best-BIC fit). Pure computation, thread-safe. */
 #ifndef IPSD_SERVER_SRV_FIT_H
 #define IPSD_SERVER_SRV_FIT_H
 
@@ -23,8 +24,9 @@ typedef struct srv_fit_out {
     const char *status; /* static status word of that fit */
 } srv_fit_out_t;
 
-/* How a running fit is watched: stop (may be NULL) is read before every r and every further step,
- * progress (may be NULL) is told the fraction done after each. */
+/* How a running fit is watched (mapped onto the pipeline's fit_watch_t): stop (may be NULL) is
+ * read before every step (each r, the F-test, Wiener), progress (may be NULL) is told the fraction
+ * of the steps done after each. */
 typedef struct srv_fit_hooks {
     const atomic_int *stop;
     void (*progress)(double fraction, void *user);

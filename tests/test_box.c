@@ -3,7 +3,6 @@
  * error, conservation (additivity over splits), symmetry, the whole-plane flux as the limit of
  * a growing box, and bad arguments. */
 #include <errno.h>
-#include <gsl/gsl_errno.h>
 #include <jansson.h>
 
 #include "fit/airy.h"
@@ -92,7 +91,6 @@ static void test_bad_arguments(void)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     test_reference();
     test_conservation_and_symmetry();
     test_bad_arguments();

@@ -7,8 +7,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <gsl/gsl_errno.h>
-
 #include "instrument/cam.h"
 #include "check.h"
 
@@ -21,7 +19,6 @@ static int has_backend(const char *name)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     err_t err = {{0}};
     cam_t *cam = NULL;
     cam_info_t *list = NULL;

@@ -6,7 +6,6 @@
 #include <string.h>
 #include <unistd.h>
 
-#include <gsl/gsl_errno.h>
 #include <jansson.h>
 
 #include "check.h"
@@ -269,7 +268,6 @@ static void test_round_trip(void)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     test_reference();
     test_file_errors();
     test_field_errors();

@@ -235,7 +235,7 @@ static void test_pixel_scan(void)
     sim_close(sim);
 }
 
-/* ---- the fit a fit job runs: the same numbers as fit_sweep_run (what `ips fit` calls) ---- */
+/* ---- the fit a fit job runs, against the published fits of tests/data/paperlike_scan.json ---- */
 
 static int steps_seen;
 static double last_fraction;
@@ -247,36 +247,103 @@ static void on_fit_progress(double fraction, void *user)
     steps_seen++;
 }
 
+/* The published paper-noise fits r = 1..7: chi2, AIC and BIC by r, the r = 7 map and F-test. */
+struct published_fits {
+    double chi2[8], aic[8], bic[8], S7[49], F, p_value, chi2_h0;
+    int params[8];
+};
+
+static int published_fits(json_t *root, struct published_fits *p)
+{
+    size_t i;
+    json_t *f;
+    int n = 0;
+    json_array_foreach(json_object_get(root, "fits"), i, f)
+    {
+        int r = (int)json_integer_value(json_object_get(f, "r"));
+        if (strcmp(json_string_value(json_object_get(f, "noise")), "paper") || r < 1 || r > 7)
+            continue;
+        p->chi2[r] = json_number_value(json_object_get(f, "chi2"));
+        p->aic[r] = json_number_value(json_object_get(f, "aic"));
+        p->bic[r] = json_number_value(json_object_get(f, "bic"));
+        p->params[r] = (int)json_integer_value(json_object_get(f, "params"));
+        n++;
+        if (r != 7) continue;
+        json_t *S = json_object_get(f, "S_normalised_mean1_rowmajor_y_then_x"),
+               *t = json_object_get(f, "ftest_H0_top_left_bottom_edges");
+        for (size_t j = 0; j < 49; j++) p->S7[j] = json_number_value(json_array_get(S, j));
+        p->F = json_number_value(json_object_get(t, "F"));
+        p->p_value = json_number_value(json_object_get(t, "p_value"));
+        p->chi2_h0 = json_number_value(json_object_get(t, "chi2_H0"));
+    }
+    return n == 7 ? 0 : -1;
+}
+
 static void test_fit_run(void)
 {
     scanfile_t sf;
     err_t err = {{0}};
+    json_error_t je;
+    json_t *ref = json_load_file("paperlike_scan.json", 0, &je);
+    struct published_fits pub;
+    memset(&pub, 0, sizeof pub);
+    CHECK(ref && published_fits(ref, &pub) == 0);
     CHECK(scanfile_read("paperlike_scan.json", &sf, NULL, &err) == 0);
+    /* the automatic fit of a scan (F-test top, left, bottom at r = 7, Wiener) over r = 1..7: the
+     * published AIC and BIC fall all the way to 7, so the calibration is the published r = 7 map */
+    int best_aic = 1, best_bic = 1;
+    for (int r = 2; r <= 7; r++) {
+        if (pub.aic[r] < pub.aic[best_aic]) best_aic = r;
+        if (pub.bic[r] < pub.bic[best_bic]) best_bic = r;
+    }
+    CHECK(best_aic == 7 && best_bic == 7);
     srv_fit_params_t p = srv_fit_params_auto(1);
+    p.r_max = 7;
     srv_fit_out_t out;
-    fit_sweep_t sw;
     atomic_int stop = 0;
     srv_fit_hooks_t hooks = {.stop = &stop, .progress = on_fit_progress};
     CHECK(srv_fit_run(&sf.scan, &p, &hooks, &out, &err) == 0);
-    CHECK(steps_seen == 8 + 2 && last_fraction == 1); /* r = 1..8, F-test, Wiener */
-    CHECK(fit_sweep_run(&sf.scan, 1, 8, &p.opts, &sw, &err) == 0);
-    CHECK(out.best_aic == sw.best_aic && out.best_bic == sw.best_bic && out.r == sw.best_bic);
-    const fit_result_t *best = &sw.fits[sw.best_bic - 1];
-    size_t n = (size_t)out.r * out.r;
-    CHECK(out.S && memcmp(out.S, best->S, n * sizeof(double)) == 0);
-    CHECK(out.S_err && memcmp(out.S_err, best->S_err, n * sizeof(double)) == 0);
-    CHECK(out.I0 == best->I0 && out.chi2_red == best->chi2_red);
-    fit_ftest_t t;
-    CHECK(fit_ftest_run(&sf.scan, 7, p.ftest_edges, &p.opts, &t, &err) == 0);
-    CHECK(out.f_value == t.F && out.p_value == t.p_value);
-    json_t *fits = json_object_get(out.result, "fits");
-    CHECK(json_array_size(fits) == 8 && json_object_get(out.result, "wiener"));
-    CHECK(json_real_value(json_object_get(json_array_get(fits, 7), "chi2")) == sw.fits[7].chi2);
-    fit_sweep_free(&sw);
+    CHECK(steps_seen == 7 + 2 && last_fraction == 1); /* r = 1..7, F-test, Wiener */
+    CHECK(out.best_aic == best_aic && out.best_bic == best_bic && out.r == best_bic);
+    for (int c = 0; out.S && c < 49; c++) CHECK_NEAR(out.S[c], pub.S7[c], 0, 1e-6);
+    CHECK(out.S && out.S_err && strcmp(out.status, "ok") == 0);
+    CHECK_NEAR(out.chi2_red, pub.chi2[7] / (81 - pub.params[7]), 1e-8, 0);
+    CHECK_NEAR(out.f_value, pub.F, 1e-6, 0);
+    CHECK_NEAR(out.p_value, pub.p_value, 1e-6, 0);
+    /* the stored document is the `ips fit` one, with the published numbers */
+    json_t *fits = json_object_get(out.result, "fits"), *ft = json_object_get(out.result, "ftest");
+    CHECK(json_array_size(fits) == 7);
+    for (int r = 1; r <= 7 && json_array_size(fits) == 7; r++) {
+        json_t *f = json_array_get(fits, (size_t)r - 1);
+        CHECK(json_integer_value(json_object_get(f, "r")) == r);
+        CHECK_NEAR(json_real_value(json_object_get(f, "chi2")), pub.chi2[r], 1e-8, 0);
+        CHECK_NEAR(json_real_value(json_object_get(f, "bic")), pub.bic[r], 0, 1e-6);
+    }
+    CHECK_NEAR(json_real_value(json_object_get(ft, "chi2_H0")), pub.chi2_h0, 1e-8, 0);
+    CHECK_NEAR(json_real_value(json_object_get(ft, "chi2_H1")), pub.chi2[7], 1e-8, 0);
+    CHECK(json_integer_value(json_object_get(json_object_get(out.result, "wiener"), "nx")) == 9);
+    CHECK(json_integer_value(json_object_get(json_object_get(out.result, "best_r"), "bic")) == 7);
+    json_t *timing = json_object_get(out.result, "timing_ms");
+    CHECK(json_object_get(timing, "sweep") && json_object_get(timing, "ftest") &&
+          json_object_get(timing, "wiener") && json_object_get(timing, "total"));
+    srv_fit_out_free(&out);
+    /* without its last point (5.4, 5.4) the raster is no grid for Wiener, and an r = 9 F-test
+     * has 82 parameters for 80 points: both parts say so in the document, the fit is stored */
+    fit_scan_t holey = sf.scan;
+    holey.n--;
+    p.ftest_r = 9;
+    CHECK(srv_fit_run(&holey, &p, NULL, &out, &err) == 0);
+    json_t *ftest_error = json_object_get(json_object_get(out.result, "ftest"), "error"),
+           *wiener_error = json_object_get(json_object_get(out.result, "wiener"), "error");
+    CHECK(json_is_string(ftest_error) && strstr(json_string_value(ftest_error), "r = 9"));
+    CHECK(json_is_string(wiener_error) && strstr(json_string_value(wiener_error), "grid"));
+    CHECK(isnan(out.f_value) && isnan(out.p_value) && out.r > 0);
     srv_fit_out_free(&out);
     /* a stop flag set before the run: stopped before the first fit, nothing kept */
     atomic_store(&stop, 1);
+    steps_seen = 0;
     CHECK(srv_fit_run(&sf.scan, &p, &hooks, &out, &err) == -ECANCELED && !out.result);
+    CHECK(steps_seen == 0 && out.r == 0 && !out.S);
     srv_fit_out_free(&out);
     p.r_min = 5;
     p.r_max = 4;
@@ -284,6 +351,7 @@ static void test_fit_run(void)
     CHECK(srv_fit_run(&sf.scan, &p, NULL, &out, &err) == -EINVAL && strstr(err.msg, "r_min"));
     srv_fit_out_free(&out);
     scanfile_free(&sf);
+    json_decref(ref);
 }
 
 /* ---- parameters, raster size, command line ---- */

@@ -10,7 +10,6 @@
  * malformed grids are refused with a message naming the problem; and on the reference scan the
  * map shows the scene's fill-factor dips at the top, left and bottom edges but not the right. */
 #include <errno.h>
-#include <gsl/gsl_errno.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -356,7 +355,6 @@ out:
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     test_known_field(9, 7, 0.6, 0.6); /* square cells: kernel from the design matrix */
     test_known_field(7, 6, 0.5, 0.7); /* oblong cells: kernel from box integrals */
     test_delta(3, 2);

@@ -1,0 +1,218 @@
+/* pipeline.c: the fit job as one call (pipeline.h): the sweep over r and the choice of the best r
+ * (section IV: AIC = N ln(chi2/N) + 2p, BIC = N ln(chi2/N) + p ln N, the smallest among the fits
+ * that have a map), then the F-test, the Wiener baseline and the interpolated best-AIC map, with
+ * the watch consulted before and told after every step. The F-test reuses the sweep's fit at
+ * ftest_r as its H1 when the sweep has it and fitted it by the linear path, which is how H1 must
+ * be fitted (model.h); otherwise it fits its own. */
+#include "fit/pipeline.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/clock.h"
+#include "fit/interp.h"
+#include "gslerr.h"
+
+fit_pipeline_opts_t fit_pipeline_opts_default(void)
+{
+    return (fit_pipeline_opts_t){.r_min = 1, .r_max = 8, .fit = fit_options_default(),
+                                 .ftest_r = 7};
+}
+
+const char *fit_step_name(fit_step_kind_t kind)
+{
+    switch (kind) {
+    case FIT_STEP_SWEEP: return "sweep";
+    case FIT_STEP_FTEST: return "ftest";
+    case FIT_STEP_WIENER: return "wiener";
+    case FIT_STEP_INTERP: return "interp";
+    }
+    return "unknown";
+}
+
+/* The options, checked before any step runs. */
+static int check_opts(const fit_scan_t *scan, const fit_pipeline_opts_t *o, err_t *err)
+{
+    if (o->r_min < 1 || o->r_max > FIT_R_MAX || o->r_min > o->r_max)
+        return err_set(err, -EINVAL,
+                       "r range must satisfy 1 <= r_min <= r_max <= %d (got r_min %d, r_max %d)",
+                       FIT_R_MAX, o->r_min, o->r_max);
+    if ((unsigned)o->fit.noise > FIT_NOISE_SHOT_READ)
+        return err_set(err, -EINVAL, "unknown noise model %d", (int)o->fit.noise);
+    if ((unsigned)o->fit.method > FIT_BOTH)
+        return err_set(err, -EINVAL, "unknown fit method %d", (int)o->fit.method);
+    unsigned all_edges = FIT_EDGE_TOP | FIT_EDGE_LEFT | FIT_EDGE_BOTTOM | FIT_EDGE_RIGHT;
+    if (o->ftest_edges & ~all_edges)
+        return err_set(err, -EINVAL, "ftest_edges has unknown edge bits (0x%x)", o->ftest_edges);
+    if (o->ftest_edges && (o->ftest_r < 1 || o->ftest_r > FIT_R_MAX))
+        return err_set(err, -EINVAL, "ftest_r must be between 1 and %d (got %d)", FIT_R_MAX,
+                       o->ftest_r);
+    if (o->interp_n < 0 || o->interp_n > FIT_INTERP_MAX)
+        return err_set(err, -EINVAL, "interp_n must be between 0 and %d (got %d)",
+                       FIT_INTERP_MAX, o->interp_n);
+    return fit_scan_check(scan, err);
+}
+
+/* One run in progress. */
+struct run {
+    const fit_scan_t *scan;
+    const fit_pipeline_opts_t *o;
+    const fit_watch_t *watch;
+    fit_pipeline_t *out;
+    int done, total;
+    double best_aic, best_bic; /* the smallest AIC / BIC so far among fits with a map */
+};
+
+/* Before a step: asks the watch whether to stop. */
+static int step_begin(struct run *rn, fit_step_kind_t kind, int r, fit_step_t *step, err_t *err)
+{
+    *step = (fit_step_t){.kind = kind, .r = r, .index = rn->done, .total = rn->total};
+    const fit_watch_t *w = rn->watch;
+    if (!w || !w->stop || !w->stop(step, w->params)) return 0;
+    switch (kind) {
+    case FIT_STEP_SWEEP: return err_set(err, -ECANCELED, "fit stopped before r = %d", r);
+    case FIT_STEP_FTEST: return err_set(err, -ECANCELED, "fit stopped before the F-test");
+    case FIT_STEP_WIENER:
+        return err_set(err, -ECANCELED, "fit stopped before the Wiener baseline");
+    case FIT_STEP_INTERP:
+        return err_set(err, -ECANCELED, "fit stopped before the interpolation");
+    }
+    return err_set(err, -ECANCELED, "fit stopped");
+}
+
+/* After a step: tells the watch. */
+static void step_end(struct run *rn, const fit_step_t *step)
+{
+    rn->done++;
+    const fit_watch_t *w = rn->watch;
+    if (w && w->progress) w->progress(rn->done, rn->total, step, w->params);
+}
+
+/* The fit at r, a candidate for the best r when it has a map. */
+static int sweep_step(struct run *rn, int r, err_t *err)
+{
+    fit_sweep_t *sw = &rn->out->sweep;
+    fit_result_t *f = &sw->fits[r - sw->r_min];
+    int rc = fit_map(rn->scan, r, &rn->o->fit, f, err);
+    if (rc || !f->S) return rc; /* no map: not a candidate */
+    if (f->aic < rn->best_aic) rn->best_aic = f->aic, sw->best_aic = r;
+    if (f->bic < rn->best_bic) rn->best_bic = f->bic, sw->best_bic = r;
+    return 0;
+}
+
+static void ftest_step(struct run *rn)
+{
+    const fit_pipeline_opts_t *o = rn->o;
+    fit_pipeline_t *out = rn->out;
+    const fit_sweep_t *sw = &out->sweep;
+    fit_part_t *p = &out->ftest_part;
+    if (o->fit.method == FIT_LINEAR && o->ftest_r >= sw->r_min && o->ftest_r <= sw->r_max)
+        p->rc = fit_ftest_with_h1(rn->scan, &sw->fits[o->ftest_r - sw->r_min], o->ftest_edges,
+                                  &o->fit, &out->ftest, &p->err);
+    else
+        p->rc = fit_ftest_run(rn->scan, o->ftest_r, o->ftest_edges, &o->fit, &out->ftest, &p->err);
+}
+
+static void wiener_step(struct run *rn)
+{
+    fit_part_t *p = &rn->out->wiener_part;
+    p->rc = fit_wiener_run(rn->scan, rn->o->wiener_nsr, &rn->out->wiener, &p->err);
+}
+
+/* The best-AIC map on an n x n grid; none (interp_r 0) when no fit has a map. */
+static void interp_step(struct run *rn)
+{
+    fit_pipeline_t *out = rn->out;
+    const fit_sweep_t *sw = &out->sweep;
+    fit_part_t *p = &out->interp_part;
+    int r = sw->best_aic, n = rn->o->interp_n;
+    out->interp_n = n;
+    if (!r) return;
+    out->interp = malloc(sizeof(double) * (size_t)n * (size_t)n);
+    if (!out->interp) {
+        p->rc = err_set(&p->err, -ENOMEM, "interp: out of memory for a %d x %d grid", n, n);
+        return;
+    }
+    p->rc = fit_interp_bicubic(sw->fits[r - sw->r_min].S, r, n, out->interp, &p->err);
+    if (p->rc) {
+        free(out->interp);
+        out->interp = NULL;
+        return;
+    }
+    out->interp_r = r;
+}
+
+/* Runs an optional part as one step, timed into its fit_part_t. */
+static int part_step(struct run *rn, fit_step_kind_t kind, int r, fit_part_t *p,
+                     void (*body)(struct run *), err_t *err)
+{
+    fit_step_t step;
+    int rc = step_begin(rn, kind, r, &step, err);
+    if (rc) return rc;
+    p->asked = 1;
+    double t = clock_mono_ms();
+    body(rn);
+    p->ms = clock_mono_ms() - t;
+    step_end(rn, &step);
+    return 0;
+}
+
+static int run_steps(struct run *rn, err_t *err)
+{
+    const fit_pipeline_opts_t *o = rn->o;
+    fit_pipeline_t *out = rn->out;
+    fit_sweep_t *sw = &out->sweep;
+    sw->fits = calloc((size_t)(o->r_max - o->r_min + 1), sizeof *sw->fits);
+    if (!sw->fits) return err_set(err, -ENOMEM, "out of memory");
+    for (int r = o->r_min; r <= o->r_max; r++) {
+        fit_step_t step;
+        int rc = step_begin(rn, FIT_STEP_SWEEP, r, &step, err);
+        if (rc) return rc;
+        double t = clock_mono_ms();
+        if ((rc = sweep_step(rn, r, err))) return rc;
+        out->sweep_ms += clock_mono_ms() - t;
+        step_end(rn, &step);
+    }
+    int rc = 0;
+    if (o->ftest_edges)
+        rc = part_step(rn, FIT_STEP_FTEST, o->ftest_r, &out->ftest_part, ftest_step, err);
+    if (rc == 0 && o->wiener)
+        rc = part_step(rn, FIT_STEP_WIENER, 0, &out->wiener_part, wiener_step, err);
+    if (rc == 0 && o->interp_n)
+        rc = part_step(rn, FIT_STEP_INTERP, sw->best_aic, &out->interp_part, interp_step, err);
+    return rc;
+}
+
+int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,
+                     const fit_watch_t *watch, fit_pipeline_t *out, err_t *err)
+{
+    gslerr_policy();
+    memset(out, 0, sizeof *out);
+    fit_pipeline_opts_t o = opts ? *opts : fit_pipeline_opts_default();
+    int rc = check_opts(scan, &o, err);
+    if (rc) return rc;
+    double t0 = clock_mono_ms();
+    out->sweep.r_min = o.r_min;
+    out->sweep.r_max = o.r_max;
+    struct run rn = {.scan = scan, .o = &o, .watch = watch, .out = out,
+                     .total = o.r_max - o.r_min + 1 + (o.ftest_edges != 0) + (o.wiener != 0) +
+                              (o.interp_n != 0),
+                     .best_aic = INFINITY, .best_bic = INFINITY};
+    if ((rc = run_steps(&rn, err))) {
+        fit_pipeline_free(out); /* stopped or failed: nothing half-built is handed back */
+        return rc;
+    }
+    out->total_ms = clock_mono_ms() - t0;
+    return 0;
+}
+
+void fit_pipeline_free(fit_pipeline_t *pl)
+{
+    if (!pl) return;
+    fit_sweep_free(&pl->sweep);
+    fit_wiener_free(&pl->wiener);
+    free(pl->interp);
+    memset(pl, 0, sizeof *pl);
+}
