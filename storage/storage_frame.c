@@ -90,13 +90,7 @@ static int insert_point(storage_t *st, const storage_frame_t *f, const unsigned 
     if (ret == -EEXIST)
         return err_set(err, ret, "scan %lld point %d is stored already", (long long)f->scan_id,
                        f->point_index);
-    if (ret || (ret = stg_stmt(st, STG_SCAN_ADD_POINT, &q, err))) return ret;
-    stg_bind_int(q, 1, f->scan_id, &rc);
-    if (rc != SQLITE_OK) {
-        stg_reset(q);
-        return stg_error(st, rc, err, "updating scan progress");
-    }
-    return stg_run(st, q, err, "updating scan progress");
+    return ret ? ret : stg_scan_add_point(st, f->scan_id, err);
 }
 
 int storage_frame_put(storage_t *st, const storage_frame_t *f, err_t *err)

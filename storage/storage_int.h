@@ -63,7 +63,7 @@ enum stg_id {
     STG_N
 };
 
-/* Column lists of the SELECTs whose rows the readers (stg_read_*) decode, in this order. */
+/* Column lists of the SELECTs whose rows the row readers (read_* of each file) decode, in order. */
 #define STG_SENSOR_COLS                                                                           \
     "id, model, serial, n_cols, n_rows, pitch_um, gain_e_per_dn, read_noise_e, bias_dn, "         \
     "full_scale_dn, created_ms"
@@ -146,19 +146,33 @@ unsigned char *stg_blob_from_u16(const uint16_t *v, size_t n);
 double *stg_f64_from_blob(const void *blob, size_t bytes, size_t n, int *bad);
 uint16_t *stg_u16_from_blob(const void *blob, size_t bytes, size_t n, int *bad);
 
-/* Row readers for the STG_*_COLS lists; 0 or -ENOMEM (the struct is freed on failure). */
-int stg_read_sensor(sqlite3_stmt *s, storage_sensor_t *out);
-int stg_read_scan(sqlite3_stmt *s, storage_scan_t *out);
-int stg_read_job(sqlite3_stmt *s, storage_job_t *out);
+/* ---- steps of the per-table files, run inside the caller's transaction (docs/schema.md) ---- */
 
+/* storage_scan.c */
 /* Validation shared by the files; each returns 0 or -EINVAL naming the field. */
 int stg_check_scan(const storage_scan_t *sc, const storage_sensor_t *sensor, err_t *err);
-/* Inserts a scan inside the caller's write transaction. */
+/* Inserts a scan inside the caller's write transaction (-ENOENT: unknown sensor). */
 int stg_scan_insert(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t *err);
+/* Reads the scan inside the caller's transaction (-ENOENT when unknown). */
+int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err);
+/* Counts one more stored point (the frame's write transaction, storage_frame.c). */
+int stg_scan_add_point(storage_t *st, int64_t id, err_t *err);
+/* Cancels a queued or running scan (its job's cancel transaction, storage_job.c). */
+int stg_scan_cancel(storage_t *st, int64_t id, err_t *err);
+
+/* storage_job.c */
 /* Inserts a job inside the caller's write transaction. */
 int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_json,
                    int64_t scan_id, int64_t *id, err_t *err);
-/* Reads the scan inside the caller's transaction (-ENOENT when unknown). */
-int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err);
+/* Records the fit a job produced, inside the caller's write transaction (-ENOENT: no job). */
+int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
+
+/* storage_fit.c: checks a fit (its pixel inside the scan's sub-frame) and inserts it, inside the
+ * caller's write transaction. */
+int stg_fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *err);
+
+/* storage_calib.c: checks a calibration, supersedes the pixel's current one and inserts it,
+ * inside the caller's write transaction. */
+int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err);
 
 #endif

@@ -42,8 +42,10 @@ void storage_job_list_free(storage_job_list_t *l)
     memset(l, 0, sizeof *l);
 }
 
-int stg_read_job(sqlite3_stmt *s, storage_job_t *o)
+/* Reads a STG_JOB_COLS row (item: a storage_job_t); 0 or -ENOMEM (freed on failure). */
+static int read_job(sqlite3_stmt *s, void *item)
 {
+    storage_job_t *o = item;
     int oom = 0;
     memset(o, 0, sizeof *o);
     o->id = sqlite3_column_int64(s, 0);
@@ -63,8 +65,6 @@ int stg_read_job(sqlite3_stmt *s, storage_job_t *o)
     if (oom) storage_job_free(o);
     return oom ? -ENOMEM : 0;
 }
-
-static int rd_job(sqlite3_stmt *s, void *item) { return stg_read_job(s, item); }
 
 int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_json,
                    int64_t scan_id, int64_t *id, err_t *err)
@@ -117,7 +117,7 @@ static int job_load(storage_t *st, int64_t id, storage_job_t *out, err_t *err)
     stg_bind_int(q, 1, id, &rc);
     ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a job")
                           : stg_error(st, rc, err, "reading a job");
-    if (ret == 0 && stg_read_job(q, out)) ret = err_set(err, -ENOMEM, "job: out of memory");
+    if (ret == 0 && read_job(q, out)) ret = err_set(err, -ENOMEM, "job: out of memory");
     stg_reset(q);
     return ret == -ENOENT ? err_set(err, ret, "job %lld does not exist", (long long)id) : ret;
 }
@@ -252,24 +252,32 @@ int storage_job_release(storage_t *st, int64_t id, err_t *err)
     return sqlite3_changes(st->db) ? 0 : not_running(st, id, "job release", err);
 }
 
+int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_JOB_SET_FIT, &q, err))) return ret;
+    stg_bind_int(q, 1, job_id, &rc);
+    stg_bind_int(q, 2, fit_id, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "linking the job to its fit");
+    }
+    if ((ret = stg_run(st, q, err, "linking the job to its fit"))) return ret;
+    if (sqlite3_changes(st->db) == 0)
+        return err_set(err, -ENOENT, "job %lld does not exist", (long long)job_id);
+    return 0;
+}
+
 /* Inside the cancel transaction, after the job changed: cancels its scan if it has one. */
 static int cancel_scan_of(storage_t *st, int64_t id, err_t *err)
 {
     storage_job_t job;
-    sqlite3_stmt *q;
-    int ret = job_load(st, id, &job, err), rc = SQLITE_OK;
+    int ret = job_load(st, id, &job, err);
     if (ret) return ret;
     int64_t scan_id = job.kind == STORAGE_JOB_SCAN ? job.scan_id : 0;
     storage_job_free(&job);
-    if (!scan_id) return 0;
-    if ((ret = stg_stmt(st, STG_SCAN_CANCEL, &q, err))) return ret;
-    stg_bind_int(q, 1, scan_id, &rc);
-    stg_bind_int(q, 2, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
-        stg_reset(q);
-        return stg_error(st, rc, err, "cancelling the scan");
-    }
-    return stg_run(st, q, err, "cancelling the scan");
+    return scan_id ? stg_scan_cancel(st, scan_id, err) : 0;
 }
 
 int storage_job_cancel(storage_t *st, int64_t id, int *changed, err_t *err)
@@ -336,7 +344,7 @@ int storage_job_list(storage_t *st, int kind, int state, int64_t scan_id, int li
         ret = stg_error(st, rc, err, "listing jobs");
         goto out;
     }
-    ret = stg_collect(st, q, sizeof *out->items, rd_job, (void **)&out->items, &out->n, err,
+    ret = stg_collect(st, q, sizeof *out->items, read_job, (void **)&out->items, &out->n, err,
                       "listing jobs");
 out:
     if (ret == 0) ret = stg_commit(st, err);

@@ -1,5 +1,7 @@
-/* storage_scan.c: sensors, scans and their frames (one row per raster point), including the
- * per-point transaction the scan writer relies on for resume and the pixel raster the fit reads. */
+/* storage_scan.c: the scans table: one raster scan around one pixel of interest, from its
+ * validation and insert through its states, progress counter, setup (schema 2) and cancel, to
+ * paged listing. The job that runs a scan and the scan's frames are in storage_compose.c,
+ * storage_job.c and storage_frame.c, which call in here (never the other way). */
 #include "storage_int.h"
 
 #include <errno.h>
@@ -9,148 +11,6 @@
 
 /* the largest k*m*m sample count of one point's raw BLOB (128 MiB), far below SQLite's limit */
 #define STG_MAX_POINT_SAMPLES (1 << 26)
-
-/* ---- sensors ------------------------------------------------------------------------------ */
-
-void storage_sensor_free(storage_sensor_t *s)
-{
-    if (!s) return;
-    free(s->model);
-    free(s->serial);
-    memset(s, 0, sizeof *s);
-}
-
-void storage_sensor_list_free(storage_sensor_list_t *l)
-{
-    if (!l) return;
-    for (size_t i = 0; i < l->n; i++) storage_sensor_free(&l->items[i]);
-    free(l->items);
-    memset(l, 0, sizeof *l);
-}
-
-int stg_read_sensor(sqlite3_stmt *s, storage_sensor_t *o)
-{
-    int oom = 0;
-    memset(o, 0, sizeof *o);
-    o->id = sqlite3_column_int64(s, 0);
-    o->model = stg_col_text(s, 1, &oom);
-    o->serial = stg_col_text(s, 2, &oom);
-    o->n_cols = sqlite3_column_int(s, 3);
-    o->n_rows = sqlite3_column_int(s, 4);
-    o->pitch_um = stg_col_double(s, 5);
-    o->gain_e_per_dn = stg_col_double(s, 6);
-    o->read_noise_e = stg_col_double(s, 7);
-    o->bias_dn = stg_col_double(s, 8);
-    o->full_scale_dn = stg_col_double(s, 9);
-    o->created_ms = stg_col_id(s, 10);
-    if (oom) storage_sensor_free(o);
-    return oom ? -ENOMEM : 0;
-}
-
-static int rd_sensor(sqlite3_stmt *s, void *item) { return stg_read_sensor(s, item); }
-
-static int check_sensor(const storage_sensor_t *s, err_t *err)
-{
-    if (!s) return err_set(err, -EINVAL, "sensor: NULL");
-    if (!s->model || !*s->model) return err_set(err, -EINVAL, "sensor model: empty");
-    if (!s->serial || !*s->serial) return err_set(err, -EINVAL, "sensor serial: empty");
-    if (s->n_cols <= 0 || s->n_rows <= 0)
-        return err_set(err, -EINVAL, "sensor n_cols/n_rows: %d x %d, need > 0", s->n_cols,
-                       s->n_rows);
-    if (!(s->pitch_um > 0 && isfinite(s->pitch_um)))
-        return err_set(err, -EINVAL, "sensor pitch_um: %g, need > 0", s->pitch_um);
-    if (!(s->gain_e_per_dn > 0 && isfinite(s->gain_e_per_dn)))
-        return err_set(err, -EINVAL, "sensor gain_e_per_dn: %g, need > 0", s->gain_e_per_dn);
-    if (!(s->read_noise_e >= 0 && isfinite(s->read_noise_e)))
-        return err_set(err, -EINVAL, "sensor read_noise_e: %g, need >= 0", s->read_noise_e);
-    if (!isfinite(s->bias_dn)) return err_set(err, -EINVAL, "sensor bias_dn: not finite");
-    if (!(s->full_scale_dn > 0 && isfinite(s->full_scale_dn)))
-        return err_set(err, -EINVAL, "sensor full_scale_dn: %g, need > 0", s->full_scale_dn);
-    return 0;
-}
-
-int storage_sensor_create(storage_t *st, const storage_sensor_t *s, int64_t *id, err_t *err)
-{
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
-    if (!st || !id) return err_set(err, -EINVAL, "sensor create: NULL argument");
-    if ((ret = check_sensor(s, err)) || (ret = stg_stmt(st, STG_SENSOR_INSERT, &q, err)))
-        return ret;
-    stg_bind_text(q, 1, s->model, &rc);
-    stg_bind_text(q, 2, s->serial, &rc);
-    stg_bind_int(q, 3, s->n_cols, &rc);
-    stg_bind_int(q, 4, s->n_rows, &rc);
-    stg_bind_double(q, 5, s->pitch_um, &rc);
-    stg_bind_double(q, 6, s->gain_e_per_dn, &rc);
-    stg_bind_double(q, 7, s->read_noise_e, &rc);
-    stg_bind_double(q, 8, s->bias_dn, &rc);
-    stg_bind_double(q, 9, s->full_scale_dn, &rc);
-    stg_bind_int(q, 10, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
-        stg_reset(q);
-        return stg_error(st, rc, err, "sensor create");
-    }
-    ret = stg_run(st, q, err, "sensor create");
-    if (ret == -EEXIST)
-        return err_set(err, ret, "sensor model '%s' serial '%s' exists already", s->model,
-                       s->serial);
-    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
-    return ret;
-}
-
-/* Steps q (bound) for one sensor row into *out; -ENOENT when there is none. Resets q. */
-static int sensor_one(storage_t *st, sqlite3_stmt *q, int rc, storage_sensor_t *out, err_t *err)
-{
-    int ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a sensor")
-                              : stg_error(st, rc, err, "reading a sensor");
-    if (ret == 0 && stg_read_sensor(q, out)) ret = err_set(err, -ENOMEM, "sensor: out of memory");
-    stg_reset(q);
-    return ret;
-}
-
-int storage_sensor_get(storage_t *st, int64_t id, storage_sensor_t *out, err_t *err)
-{
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
-    if (!st || !out) return err_set(err, -EINVAL, "sensor get: NULL argument");
-    memset(out, 0, sizeof *out);
-    if ((ret = stg_stmt(st, STG_SENSOR_GET, &q, err))) return ret;
-    stg_bind_int(q, 1, id, &rc);
-    ret = sensor_one(st, q, rc, out, err);
-    return ret == -ENOENT ? err_set(err, ret, "sensor %lld does not exist", (long long)id) : ret;
-}
-
-int storage_sensor_find(storage_t *st, const char *model, const char *serial,
-                        storage_sensor_t *out, err_t *err)
-{
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
-    if (!st || !out || !model || !serial)
-        return err_set(err, -EINVAL, "sensor find: NULL argument");
-    memset(out, 0, sizeof *out);
-    if ((ret = stg_stmt(st, STG_SENSOR_FIND, &q, err))) return ret;
-    stg_bind_text(q, 1, model, &rc);
-    stg_bind_text(q, 2, serial, &rc);
-    ret = sensor_one(st, q, rc, out, err);
-    if (ret == -ENOENT) return err_set(err, ret, "no sensor '%s' serial '%s'", model, serial);
-    return ret;
-}
-
-int storage_sensor_list(storage_t *st, storage_sensor_list_t *out, err_t *err)
-{
-    sqlite3_stmt *q;
-    if (!st || !out) return err_set(err, -EINVAL, "sensor list: NULL argument");
-    memset(out, 0, sizeof *out);
-    int ret = stg_stmt(st, STG_SENSOR_LIST, &q, err);
-    if (ret) return ret;
-    ret = stg_collect(st, q, sizeof *out->items, rd_sensor, (void **)&out->items, &out->n, err,
-                      "listing sensors");
-    if (ret) storage_sensor_list_free(out);
-    else out->total = (int64_t)out->n;
-    return ret;
-}
-
-/* ---- scans -------------------------------------------------------------------------------- */
 
 void storage_scan_free(storage_scan_t *sc)
 {
@@ -167,8 +27,10 @@ void storage_scan_list_free(storage_scan_list_t *l)
     memset(l, 0, sizeof *l);
 }
 
-int stg_read_scan(sqlite3_stmt *s, storage_scan_t *o)
+/* Reads a STG_SCAN_COLS row (item: a storage_scan_t); 0 or -ENOMEM (freed on failure). */
+static int read_scan(sqlite3_stmt *s, void *item)
 {
+    storage_scan_t *o = item;
     int oom = 0;
     memset(o, 0, sizeof *o);
     o->id = sqlite3_column_int64(s, 0);
@@ -193,8 +55,6 @@ int stg_read_scan(sqlite3_stmt *s, storage_scan_t *o)
     if (oom) storage_scan_free(o);
     return oom ? -ENOMEM : 0;
 }
-
-static int rd_scan(sqlite3_stmt *s, void *item) { return stg_read_scan(s, item); }
 
 static int positive(double v) { return v > 0 && isfinite(v); }
 
@@ -270,21 +130,6 @@ int storage_scan_create(storage_t *st, const storage_scan_t *sc, int64_t *id, er
     return stg_commit(st, err);
 }
 
-int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *params_json,
-                        int64_t *scan_id, int64_t *job_id, err_t *err)
-{
-    if (!st || !sc || !params_json || !scan_id || !job_id)
-        return err_set(err, -EINVAL, "scan submit: NULL argument");
-    int ret = stg_begin_write(st, err);
-    if (ret) return ret;
-    if ((ret = stg_scan_insert(st, sc, scan_id, err)) ||
-        (ret = stg_job_insert(st, STORAGE_JOB_SCAN, params_json, *scan_id, job_id, err))) {
-        stg_rollback(st);
-        return ret;
-    }
-    return stg_commit(st, err);
-}
-
 int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err)
 {
     sqlite3_stmt *q;
@@ -294,7 +139,7 @@ int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err)
     stg_bind_int(q, 1, id, &rc);
     ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a scan")
                           : stg_error(st, rc, err, "reading a scan");
-    if (ret == 0 && stg_read_scan(q, out)) ret = err_set(err, -ENOMEM, "scan: out of memory");
+    if (ret == 0 && read_scan(q, out)) ret = err_set(err, -ENOMEM, "scan: out of memory");
     stg_reset(q);
     return ret == -ENOENT ? err_set(err, ret, "scan %lld does not exist", (long long)id) : ret;
 }
@@ -334,7 +179,7 @@ int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, in
         ret = stg_error(st, rc, err, "listing scans");
         goto out;
     }
-    ret = stg_collect(st, q, sizeof *out->items, rd_scan, (void **)&out->items, &out->n, err,
+    ret = stg_collect(st, q, sizeof *out->items, read_scan, (void **)&out->items, &out->n, err,
                       "listing scans");
 out:
     if (ret == 0) ret = stg_commit(st, err);
@@ -403,4 +248,33 @@ int storage_scan_get_setup(storage_t *st, int64_t id, char **json, err_t *err)
     stg_reset(q);
     if (oom) return err_set(err, -ENOMEM, "scan setup: out of memory");
     return ret == -ENOENT ? err_set(err, ret, "scan %lld does not exist", (long long)id) : ret;
+}
+
+/* ---- changes made inside other files' transactions ---------------------------------------- */
+
+int stg_scan_add_point(storage_t *st, int64_t id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_SCAN_ADD_POINT, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "updating scan progress");
+    }
+    return stg_run(st, q, err, "updating scan progress");
+}
+
+int stg_scan_cancel(storage_t *st, int64_t id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_SCAN_CANCEL, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    stg_bind_int(q, 2, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "cancelling the scan");
+    }
+    return stg_run(st, q, err, "cancelling the scan");
 }

@@ -1,7 +1,11 @@
-# Tests of storage/ (libipsstore): real SQLite files in a temporary directory.
+# Tests of storage/ (libipsstore): real SQLite files in a temporary directory, and the layering of
+# its files (no call cycle, statements by table) read from the built archive with nm.
 if(TARGET ipsstore)
     find_package(Threads REQUIRED)
     ipsd_add_test(test_storage ipsstore Threads::Threads)
     # white-box: it reads storage/storage_int.h (the migrations) to build an old schema by hand
     target_include_directories(test_storage PRIVATE ${PROJECT_SOURCE_DIR}/storage)
+    add_test(NAME test_storage_layers
+             COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_storage_layers.sh ${CMAKE_NM}
+                     $<TARGET_FILE:ipsstore> ${PROJECT_SOURCE_DIR}/storage)
 endif()

@@ -145,7 +145,7 @@ static void test_open_migrate(void)
     struct stat sb;
     char mode[32];
     CHECK(stat(db_path("open.db"), &sb) == 0);
-    CHECK(storage_schema_version() >= 1);
+    CHECK(storage_schema_version() == 2); /* docs/schema.md: "currently 2" (keep in step) */
     CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
     raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
     CHECK(strcmp(mode, "wal") == 0);
@@ -545,7 +545,16 @@ static void test_cancel(void)
     CHECK(storage_scan_submit(st, &sc, "{not json", &scan, &job, &err) == -EINVAL);
     CHECK(strstr(err.msg, "JSON") != NULL);
     CHECK(raw_int("cancel.db", "SELECT count(*) FROM scans") == 0);
+    sc.sub_px = 4; /* the scan is refused: no job either */
+    CHECK(storage_scan_submit(st, &sc, "{\"n\": 5}", &scan, &job, &err) == -EINVAL);
+    CHECK(strstr(err.msg, "sub_px") != NULL);
+    CHECK(raw_int("cancel.db", "SELECT count(*) FROM jobs WHERE kind = 'scan'") == 0);
+    sc.sub_px = 3;
     CHECK(storage_scan_submit(st, &sc, "{\"n\": 5}", &scan, &job, NULL) == 0);
+    CHECK(raw_int("cancel.db", "SELECT count(*) FROM scans") == 1);
+    CHECK(raw_int("cancel.db", "SELECT count(*) FROM jobs WHERE kind = 'scan' AND state = 'queued' "
+                               "AND scan_id = (SELECT id FROM scans) "
+                               "AND json_extract(params, '$.n') = 5") == 1);
     CHECK(storage_job_claim(st, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == job);
     CHECK(j.scan_id == scan);
     storage_job_free(&j);
@@ -631,6 +640,14 @@ static void test_fits(void)
     CHECK(storage_fit_put(st, &f, &c, 999, NULL, NULL, &err) == -ENOENT && strstr(err.msg, "999"));
     CHECK(raw_int("fits.db", "SELECT count(*) FROM fits") == 1);
     CHECK(raw_int("fits.db", "SELECT count(*) FROM calibrations") == 1);
+    /* a refused calibration (pixel off the 640 x 480 sensor) leaves no fit and no job link */
+    c.pixel_col = 640;
+    CHECK(storage_fit_put(st, &f, &c, job, NULL, NULL, &err) == -EINVAL);
+    CHECK(strstr(err.msg, "outside") != NULL);
+    c.pixel_col = 100;
+    CHECK(raw_int("fits.db", "SELECT count(*) FROM fits") == 1);
+    CHECK(raw_int("fits.db", "SELECT count(*) FROM calibrations") == 1);
+    CHECK(raw_int("fits.db", "SELECT count(*) FROM jobs WHERE fit_id = 1") == 1);
     CHECK(storage_fit_put(st, &f, NULL, 0, &fit_id, NULL, NULL) == 0);
     CHECK(storage_fit_get(st, fit_id, &g, NULL) == 0);
     CHECK(isnan(g.f_value) && isnan(g.p_value) && g.best_r_aic == 0 && g.best_r_bic == 5);

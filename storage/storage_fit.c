@@ -1,0 +1,131 @@
+/* storage_fit.c: the fits table: the whole result of one fit job (the `ips fit` JSON with the
+ * best r, F-test and Wiener baseline) for one sub-frame pixel of a scan or for an uploaded scan
+ * file; checked, inserted, read and listed per scan. Storing a fit together with its job link
+ * and calibration (storage_fit_put) is in storage_compose.c. */
+#include "storage_int.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+void storage_fit_free(storage_fit_t *f)
+{
+    if (!f) return;
+    free(f->noise_model);
+    free(f->result);
+    memset(f, 0, sizeof *f);
+}
+
+void storage_fit_list_free(storage_fit_list_t *l)
+{
+    if (!l) return;
+    for (size_t i = 0; i < l->n; i++) storage_fit_free(&l->items[i]);
+    free(l->items);
+    memset(l, 0, sizeof *l);
+}
+
+static int read_fit(sqlite3_stmt *s, void *item)
+{
+    storage_fit_t *o = item;
+    int oom = 0;
+    memset(o, 0, sizeof *o);
+    o->id = sqlite3_column_int64(s, 0);
+    o->scan_id = sqlite3_column_int64(s, 1);
+    o->dcol = sqlite3_column_int(s, 2);
+    o->drow = sqlite3_column_int(s, 3);
+    o->noise_model = stg_col_text(s, 4, &oom);
+    o->best_r_aic = (int)stg_col_id(s, 5);
+    o->best_r_bic = (int)stg_col_id(s, 6);
+    o->f_value = stg_col_double(s, 7);
+    o->p_value = stg_col_double(s, 8);
+    o->result = stg_col_text(s, 9, &oom);
+    o->created_ms = stg_col_id(s, 10);
+    if (oom) storage_fit_free(o);
+    return oom ? -ENOMEM : 0;
+}
+
+int stg_fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *err)
+{
+    storage_scan_t sc;
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!f->noise_model || !*f->noise_model) return err_set(err, -EINVAL, "fit noise_model: empty");
+    if (!f->result) return err_set(err, -EINVAL, "fit result: NULL");
+    if (f->best_r_aic < 0 || f->best_r_bic < 0)
+        return err_set(err, -EINVAL, "fit best_r: need >= 0 (0: none)");
+    int h = 0; /* a fit of an uploaded scan file (no scan) is of its one pixel, (0, 0) */
+    if (f->scan_id) {
+        if ((ret = stg_scan_load(st, f->scan_id, &sc, err))) return ret;
+        h = (sc.sub_px - 1) / 2;
+        storage_scan_free(&sc);
+    }
+    if (abs(f->dcol) > h || abs(f->drow) > h)
+        return err_set(err, -EINVAL, "fit pixel: (%d, %d) is outside scan %lld's sub-frame "
+                       "(offsets -%d..%d)", f->dcol, f->drow, (long long)f->scan_id, h, h);
+    if ((ret = stg_stmt(st, STG_FIT_INSERT, &q, err))) return ret;
+    stg_bind_id(q, 1, f->scan_id, &rc);
+    stg_bind_int(q, 2, f->dcol, &rc);
+    stg_bind_int(q, 3, f->drow, &rc);
+    stg_bind_text(q, 4, f->noise_model, &rc);
+    stg_bind_id(q, 5, f->best_r_aic, &rc);
+    stg_bind_id(q, 6, f->best_r_bic, &rc);
+    stg_bind_double(q, 7, f->f_value, &rc);
+    stg_bind_double(q, 8, f->p_value, &rc);
+    stg_bind_text(q, 9, f->result, &rc);
+    stg_bind_int(q, 10, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "storing a fit");
+    }
+    ret = stg_run(st, q, err, "storing a fit");
+    if (ret == -EINVAL) return err_set(err, ret, "fit result: not valid JSON text");
+    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
+    return ret;
+}
+
+int storage_fit_get(storage_t *st, int64_t id, storage_fit_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "fit get: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_FIT_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a fit")
+                          : stg_error(st, rc, err, "reading a fit");
+    if (ret == 0 && read_fit(q, out)) ret = err_set(err, -ENOMEM, "fit get: out of memory");
+    stg_reset(q);
+    return ret == -ENOENT ? err_set(err, ret, "fit %lld does not exist", (long long)id) : ret;
+}
+
+int storage_fit_list(storage_t *st, int64_t scan_id, int limit, int offset, storage_fit_list_t *out,
+                     err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "fit list: NULL argument");
+    memset(out, 0, sizeof *out);
+    if (offset < 0) return err_set(err, -EINVAL, "fit list offset: %d, need >= 0", offset);
+    if ((ret = stg_begin_read(st, err))) return ret;
+    if ((ret = stg_stmt(st, STG_FIT_COUNT, &q, err))) goto out;
+    stg_bind_int(q, 1, scan_id, &rc);
+    if ((ret = stg_count(st, q, rc, &out->total, err, "counting fits"))) goto out;
+    if ((ret = stg_stmt(st, STG_FIT_LIST, &q, err))) goto out;
+    stg_bind_int(q, 1, scan_id, &rc);
+    stg_bind_int(q, 2, limit > 0 ? limit : -1, &rc);
+    stg_bind_int(q, 3, offset, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "listing fits");
+        goto out;
+    }
+    ret = stg_collect(st, q, sizeof *out->items, read_fit, (void **)&out->items, &out->n, err,
+                      "listing fits");
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        storage_fit_list_free(out);
+    }
+    return ret;
+}
