@@ -10,34 +10,59 @@
 #include <string.h>
 
 #include "api_int.h"
+#include "fit/airy.h"
+#include "instrument/scan_limits.h"
 
-#define PAPER_WAVELENGTH_NM 550.0 /* the paper's illumination, default optics */
-#define PAPER_NA 0.25
+/* Field id of the scan request (scan_limits.h): its type (400), range and oddness (422), each
+ * error naming the field. *v is left alone when the member is absent (the caller's default). */
+static int get_field(api_req_t *q, json_t *o, scan_field_id_t id, double *v)
+{
+    const scan_field_t *f = &scan_fields[id];
+    const char *dot = strrchr(f->api, '.'), *key = dot ? dot + 1 : f->api;
+    long long n = 0;
+    if (!json_object_get(o, key)) return 0;
+    if (f->integer ? api_get_int(q, o, key, f->api, 0, (long long)f->min, (long long)f->max, &n)
+                   : api_get_num(q, o, key, f->api, 0, f->min, f->max, f->open_min, v))
+        return -1;
+    if (f->integer) *v = (double)n;
+    if (f->odd && n % 2 == 0) {
+        api_error(q, 422, "out_of_range", f->api, "%s must be odd (got %lld)", f->api, n);
+        return -1;
+    }
+    return 0;
+}
 
 /* Reads optics {wavelength_nm, na} or {spot_radius_um} into sc; -1 after replying. */
 static int read_optics(api_req_t *q, json_t *body, storage_scan_t *sc)
 {
     static const char *const keys[] = {"wavelength_nm", "na", "spot_radius_um", NULL};
     json_t *o;
-    double nm = PAPER_WAVELENGTH_NM, na = NAN, R = NAN;
+    double nm = scan_fields[SCAN_F_WAVELENGTH_NM].def, na = NAN, R = NAN;
     if (api_get_obj(q, body, "optics", "optics", &o)) return -1;
-    if (o && (api_no_unknown(q, o, "optics.", keys) ||
-              api_get_num(q, o, "wavelength_nm", "optics.wavelength_nm", 0, 0, 1e5, 1, &nm) ||
-              api_get_num(q, o, "na", "optics.na", 0, 0, 1.7, 1, &na) ||
-              api_get_num(q, o, "spot_radius_um", "optics.spot_radius_um", 0, 0, 1000, 1, &R)))
+    if (o && (api_no_unknown(q, o, "optics.", keys) || get_field(q, o, SCAN_F_WAVELENGTH_NM, &nm) ||
+              get_field(q, o, SCAN_F_NA, &na) || get_field(q, o, SCAN_F_SPOT_RADIUS_UM, &R)))
         return -1;
     if (isfinite(na) && isfinite(R)) {
         api_error(q, 422, "invalid", "optics.spot_radius_um",
                   "give optics.na or optics.spot_radius_um, not both");
         return -1;
     }
-    /* paper eq. 1: R = 1.22 lambda / (2 NA), solved for whichever is not given */
-    if (isfinite(R)) na = 1.22 * nm * 1e-3 / (2 * R);
-    if (!isfinite(na)) na = PAPER_NA;
-    if (!isfinite(R)) R = 1.22 * nm * 1e-3 / (2 * na);
-    if (!(na > 0 && na <= 1.7)) {
+    /* paper eq. 1 (fit/airy.h), solved for whichever is not given */
+    int have_na = isfinite(na);
+    if (isfinite(R)) na = fit_spot_na(nm * 1e-3, R);
+    if (!isfinite(na)) na = scan_fields[SCAN_F_NA].def;
+    if (!isfinite(R)) R = fit_spot_radius_um(nm * 1e-3, na);
+    if (!(na > 0 && na <= SCAN_NA_MAX)) {
         api_error(q, 422, "out_of_range", "optics.spot_radius_um",
-                  "a spot radius of %g um at %g nm needs NA %g, outside 0..1.7", R, nm, na);
+                  "a spot radius of %g um at %g nm needs NA %g, outside 0..%g", R, nm, na,
+                  SCAN_NA_MAX);
+        return -1;
+    }
+    if (!(R > 0 && isfinite(R))) { /* only at the ends of double precision */
+        const char *f = have_na ? "optics.na" : "optics.wavelength_nm";
+        api_error(q, 422, "out_of_range", f,
+                  "%g nm and NA %g give a spot radius of %g um by eq. 1: not a usable radius", nm,
+                  na, R);
         return -1;
     }
     sc->wavelength_um = nm * 1e-3;
@@ -51,19 +76,16 @@ static int read_raster(api_req_t *q, json_t *body, storage_scan_t *sc)
 {
     static const char *const keys[] = {"area_px", "step_um", "sub_px", "frames", NULL};
     json_t *o;
-    long long area = 5, sub = 9, frames = 12;
-    double step = 0.6;
+    double area = scan_fields[SCAN_F_AREA_PX].def, step = scan_fields[SCAN_F_STEP_UM].def,
+           sub = scan_fields[SCAN_F_SUB_PX].def, frames = scan_fields[SCAN_F_FRAMES].def;
+    err_t err = {{0}};
     if (api_get_obj(q, body, "raster", "raster", &o)) return -1;
-    if (o && (api_no_unknown(q, o, "raster.", keys) ||
-              api_get_int(q, o, "area_px", "raster.area_px", 0, 1, 101, &area) ||
-              api_get_num(q, o, "step_um", "raster.step_um", 0, 0, 1000, 1, &step) ||
-              api_get_int(q, o, "sub_px", "raster.sub_px", 0, 3, 99, &sub) ||
-              api_get_int(q, o, "frames", "raster.frames", 0, 1, 1000, &frames)))
+    if (o && (api_no_unknown(q, o, "raster.", keys) || get_field(q, o, SCAN_F_AREA_PX, &area) ||
+              get_field(q, o, SCAN_F_STEP_UM, &step) || get_field(q, o, SCAN_F_SUB_PX, &sub) ||
+              get_field(q, o, SCAN_F_FRAMES, &frames)))
         return -1;
-    if (area % 2 == 0 || sub % 2 == 0) {
-        const char *f = area % 2 == 0 ? "raster.area_px" : "raster.sub_px";
-        api_error(q, 422, "out_of_range", f, "%s must be odd (got %lld)", f,
-                  area % 2 == 0 ? area : sub);
+    if (scan_check_samples((int)frames, (int)sub, "raster.frames", &err)) {
+        api_error(q, 422, "out_of_range", "raster.frames", "%s", err.msg);
         return -1;
     }
     sc->area_px = (int)area;
@@ -73,11 +95,13 @@ static int read_raster(api_req_t *q, json_t *body, storage_scan_t *sc)
     return 0;
 }
 
-/* The POI must be on the sensor with the whole sub-frame, and the raster must be whole steps. */
+/* The POI must be on the sensor with the whole sub-frame, and the raster must be whole steps and
+ * at most SCAN_MAX_POINTS points (scan_limits.h). */
 static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storage_scan_t *sc)
 {
     int h = sc->sub_px / 2;
     const char *f = NULL;
+    err_t err = {{0}};
     if (sc->poi_col - h < 0 || sc->poi_col + h >= sn->n_cols)
         f = "poi.col";
     else if (sc->poi_row - h < 0 || sc->poi_row + h >= sn->n_rows)
@@ -89,12 +113,8 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
                   sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row, sn->n_cols, sn->n_rows);
         return -1;
     }
-    int nx = srv_raster_points(sn->pitch_um, sc->area_px, sc->step_um);
-    if (nx < 1 || (long long)nx * nx > 1000000) {
-        api_error(q, 422, "out_of_range", "raster.step_um",
-                  nx < 1 ? "%g um steps do not divide %d pixels of %g um into whole steps"
-                         : "%g um steps over %d pixels of %g um make more than 10^6 points",
-                  sc->step_um, sc->area_px, sn->pitch_um);
+    if (scan_check_raster(sn->pitch_um, sc->area_px, sc->step_um, "raster.step_um", NULL, &err)) {
+        api_error(q, 422, "out_of_range", "raster.step_um", "%s", err.msg);
         return -1;
     }
     return 0;
@@ -107,11 +127,12 @@ static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
     static const char *const keys[] = {"sensor_id",   "poi",   "optics", "raster",
                                        "exposure_us", "scene", "seed",   NULL};
     static const char *const poi_keys[] = {"col", "row", NULL};
-    long long sensor_id, col, row, seed = 1;
+    long long sensor_id, col, row;
+    double seed = scan_fields[SCAN_F_SEED].def;
     const char *scene = NULL;
     json_t *poi;
     storage_sensor_t sn;
-    *sc = (storage_scan_t){.exposure_us = 10000};
+    *sc = (storage_scan_t){.exposure_us = scan_fields[SCAN_F_EXPOSURE_US].def};
     *p = srv_scan_params_default();
     if (api_no_unknown(q, o, "", keys) ||
         api_get_int(q, o, "sensor_id", "sensor_id", 1, 1, INT64_MAX, &sensor_id) ||
@@ -124,10 +145,8 @@ static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
     if (api_no_unknown(q, poi, "poi.", poi_keys) ||
         api_get_int(q, poi, "col", "poi.col", 1, 0, 1000000, &col) ||
         api_get_int(q, poi, "row", "poi.row", 1, 0, 1000000, &row) || read_optics(q, o, sc) ||
-        read_raster(q, o, sc) ||
-        api_get_num(q, o, "exposure_us", "exposure_us", 0, 0, 1e9, 1, &sc->exposure_us) ||
-        api_get_str(q, o, "scene", "scene", 0, 31, &scene) ||
-        api_get_int(q, o, "seed", "seed", 0, 0, 4294967295LL, &seed))
+        read_raster(q, o, sc) || get_field(q, o, SCAN_F_EXPOSURE_US, &sc->exposure_us) ||
+        api_get_str(q, o, "scene", "scene", 0, 31, &scene) || get_field(q, o, SCAN_F_SEED, &seed))
         return -1;
     if (scene && strcmp(scene, "uniform") && strcmp(scene, "paperlike")) {
         api_error(q, 422, "out_of_range", "scene", "scene must be one of " SRV_SCENES " (got '%s')",

@@ -3,7 +3,10 @@
  * centring from a random start, focus, the 51 x 51 raster of 5 x 5 pixels with 9 x 9 sub-frames)
  * and the response of the pixel of interest at the positions inside it is written; --grid N
  * instead rasters N x N points directly inside the POI from its true centre (the paper's 9 x 9
- * of fig. 9). Prints a JSON summary (setup errors against the truth, work, timing). */
+ * of fig. 9). Prints a JSON summary (setup errors against the truth, work, timing). The scan's
+ * options take their defaults and ranges from instrument/scan_limits.h, as the HTTP API does;
+ * --dry-run checks them against the simulated bench and prints the configuration, simulating
+ * nothing. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -18,37 +21,66 @@
 #include "base/parse.h"
 #include "cliutil.h"
 #include "commands.h"
+#include "fit/airy.h"
 #include "instrument/scan.h"
+#include "instrument/scan_limits.h"
 #include "instrument/scanfile.h"
 #include "instrument/sim.h"
 #include "json/fitjson.h"
 
 #define TRUTH_R_MAX 10
 
-static const char usage[] =
-    "usage: ips simulate [options] -o FILE\n"
-    "  --scene S           uniform | paperlike[:M] | map:FILE (default paperlike)\n"
-    "  --seed N            seed of the noise and of the random start (default 1)\n"
-    "  --grid N            N x N points inside the POI from its true centre (no setup)\n"
-    "  --step UM           raster / grid step (default 0.6)\n"
-    "  --area N            raster over N x N pixels (default 5)\n"
-    "  --subframe M        M x M sub-frame per point (default 9)\n"
-    "  --pixel DC,DR       write sub-frame pixel (DC, DR) instead of the POI (0,0)\n"
-    "  --offset DX,DY      true spot position minus written position, um (default 0,0)\n"
-    "  --wavelength NM --na NA | --radius UM   the spot (default 550 nm, NA 0.25)\n"
-    "  --frames K          frames per point (default 12)\n"
-    "  --peak-e E          photo-electrons of the whole spot per frame at the reference\n"
-    "                      exposure on a uniform sensor (default 21500)\n"
-    "  --noiseless         no photon or read noise, no ADC rounding\n"
-    "  --leave-out TOL     simulator leave-out tolerance, fraction of the spot's flux (1e-4)\n"
-    "  --truth FILE        write the scene's true sub-pixel means for r = 1..10\n"
-    "  -o, --output FILE   the scan file to write (required)\n";
+/* The options that set a field of scan_limits.h: usage text around the table's range and
+ * default. */
+static const struct {
+    scan_field_id_t id;
+    const char *metavar, *text, *extra; /* extra: a line under it, or NULL */
+} field_usage[] = {
+    {SCAN_F_SEED, "N", "seed of the noise and of the random start", NULL},
+    {SCAN_F_GRID, "N", "N x N points inside the POI from its true centre, no setup", NULL},
+    {SCAN_F_STEP_UM, "UM", "raster / grid step", NULL},
+    {SCAN_F_AREA_PX, "N", "raster over N x N pixels", NULL},
+    {SCAN_F_SUB_PX, "M", "M x M sub-frame per point", NULL},
+    {SCAN_F_WAVELENGTH_NM, "NM", "wavelength of the spot", NULL},
+    {SCAN_F_NA, "NA", "numerical aperture of the spot",
+     "the simulated bench is dry: its NA must be below 1"},
+    {SCAN_F_SPOT_RADIUS_UM, "UM", "spot radius, instead of --wavelength and --na", NULL},
+    {SCAN_F_FRAMES, "K", "frames per point", NULL},
+};
+
+static void print_usage(void)
+{
+    fputs("usage: ips simulate [options] -o FILE\n"
+          "  --scene S           uniform | paperlike[:M] | map:FILE (default paperlike)\n",
+          stdout);
+    for (size_t i = 0; i < sizeof field_usage / sizeof field_usage[0]; i++) {
+        const scan_field_t *f = &scan_fields[field_usage[i].id];
+        char opt[32], range[64], def[40] = "";
+        snprintf(opt, sizeof opt, "--%s %s", f->cli, field_usage[i].metavar);
+        if (isfinite(f->def)) snprintf(def, sizeof def, "; default %.15g", f->def);
+        printf("  %-19s %s (%s%s)\n", opt, field_usage[i].text,
+               scan_field_range(f, range, sizeof range), def);
+        if (field_usage[i].extra) printf("  %-19s %s\n", "", field_usage[i].extra);
+    }
+    fputs(
+        "  --pixel DC,DR       write sub-frame pixel (DC, DR) instead of the POI (0,0)\n"
+        "  --offset DX,DY      true spot position minus written position, um (default 0,0)\n"
+        "  --peak-e E          photo-electrons of the whole spot per frame at the reference\n"
+        "                      exposure on a uniform sensor (default 21500)\n"
+        "  --noiseless         no photon or read noise, no ADC rounding\n"
+        "  --leave-out TOL     simulator leave-out tolerance, fraction of the spot's flux (1e-4)\n"
+        "  --truth FILE        write the scene's true sub-pixel means for r = 1..10\n"
+        "  --dry-run           check the options against the bench, print the configuration\n"
+        "                      as JSON and simulate nothing (no -o needed)\n"
+        "  -o, --output FILE   the scan file to write (required)\n",
+        stdout);
+}
 
 struct sim_args {
     sim_config_t sim;
     scan_config_t scan;
     const char *out, *truth;
-    int grid, dcol, drow, have_wavelength, have_na, have_radius;
+    int grid, dcol, drow, have_wavelength, have_na, have_radius, dry_run;
     double offset_x, offset_y;
 };
 
@@ -69,6 +101,7 @@ enum {
     OPT_NOISELESS,
     OPT_LEAVE,
     OPT_TRUTH,
+    OPT_DRY_RUN,
     OPT_HELP
 };
 
@@ -89,6 +122,7 @@ static const struct option long_opts[] = {
     {"noiseless", no_argument, NULL, OPT_NOISELESS},
     {"leave-out", required_argument, NULL, OPT_LEAVE},
     {"truth", required_argument, NULL, OPT_TRUTH},
+    {"dry-run", no_argument, NULL, OPT_DRY_RUN},
     {"output", required_argument, NULL, 'o'},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
@@ -112,34 +146,41 @@ static int pair(const char *name, const char *text, int ints, double *a, double 
     return 0;
 }
 
+/* A scan field's option: a number, checked against its row of scan_limits.h. */
+static int field_opt(scan_field_id_t id, const char *arg, double *v, err_t *err)
+{
+    const scan_field_t *f = &scan_fields[id];
+    char name[32];
+    snprintf(name, sizeof name, "--%s", f->cli);
+    if (parse_double(arg, v) < 0)
+        return err_set(err, -EINVAL, "%s must be a number (got '%s')", name, arg);
+    return scan_field_check(f, *v, name, err);
+}
+
 /* One option into a (opts_fn); returns 0 or -EINVAL with err. */
 static int parse_opt(int c, const char *arg, void *user, err_t *err)
 {
     struct sim_args *a = user;
-    double v, w;
-    int n = 0, rc = 0;
+    double v = 0, w;
+    int rc = 0;
     switch (c) {
     case OPT_SCENE:
         a->sim.scene = arg;
         break;
     case OPT_SEED:
-        if ((rc = opts_num("seed", arg, 0, 4294967295.0, &v, err)) == 0 && v != floor(v))
-            rc = err_set(err, -EINVAL, "--seed must be a whole number (got %s)", arg);
-        a->sim.seed = (unsigned long)v;
+        if ((rc = field_opt(SCAN_F_SEED, arg, &v, err)) == 0) a->sim.seed = (unsigned long)v;
         break;
     case OPT_GRID:
-        rc = opts_int32("grid", arg, 1, 200, &a->grid, err);
+        if ((rc = field_opt(SCAN_F_GRID, arg, &v, err)) == 0) a->grid = (int)v;
         break;
     case OPT_STEP:
-        rc = opts_num("step", arg, 1e-3, 1e3, &a->scan.step_um, err);
+        rc = field_opt(SCAN_F_STEP_UM, arg, &a->scan.step_um, err);
         break;
     case OPT_AREA:
-        rc = opts_int32("area", arg, 1, 50, &a->scan.area_px, err);
+        if ((rc = field_opt(SCAN_F_AREA_PX, arg, &v, err)) == 0) a->scan.area_px = (int)v;
         break;
     case OPT_SUBFRAME:
-        if ((rc = opts_int32("subframe", arg, 3, 63, &n, err)) == 0 && n % 2 == 0)
-            rc = err_set(err, -EINVAL, "--subframe must be odd (got %d)", n);
-        a->scan.subframe_px = n;
+        if ((rc = field_opt(SCAN_F_SUB_PX, arg, &v, err)) == 0) a->scan.subframe_px = (int)v;
         break;
     case OPT_PIXEL:
         if ((rc = pair("pixel", arg, 1, &v, &w, err)) == 0) a->dcol = (int)v, a->drow = (int)w;
@@ -148,17 +189,23 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
         rc = pair("offset", arg, 0, &a->offset_x, &a->offset_y, err);
         break;
     case OPT_WAVELENGTH:
-        rc = opts_num("wavelength", arg, 10, 100000, &v, err);
+        rc = field_opt(SCAN_F_WAVELENGTH_NM, arg, &v, err);
         a->sim.wavelength_um = v * 1e-3, a->have_wavelength = 1;
         break;
     case OPT_NA:
-        rc = opts_num("na", arg, 1e-3, 0.999, &a->sim.na, err), a->have_na = 1;
+        rc = field_opt(SCAN_F_NA, arg, &a->sim.na, err), a->have_na = 1;
+        /* the simulated bench's objective is dry: sim_open refuses NA >= 1 (sim.h) */
+        if (rc == 0 && !(a->sim.na < 1))
+            rc = err_set(err, -EINVAL,
+                         "--na must be below 1 on the simulated bench, a dry "
+                         "objective (got %s)",
+                         arg);
         break;
     case OPT_RADIUS:
-        rc = opts_num("radius", arg, 1e-3, 1e3, &a->sim.radius_um, err), a->have_radius = 1;
+        rc = field_opt(SCAN_F_SPOT_RADIUS_UM, arg, &a->sim.radius_um, err), a->have_radius = 1;
         break;
     case OPT_FRAMES:
-        rc = opts_int32("frames", arg, 1, 10000, &a->scan.frames, err);
+        if ((rc = field_opt(SCAN_F_FRAMES, arg, &v, err)) == 0) a->scan.frames = (int)v;
         break;
     case OPT_PEAK:
         rc = opts_num("peak-e", arg, 0, 1e12, &a->sim.flux_e, err);
@@ -172,6 +219,9 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
     case OPT_TRUTH:
         a->truth = arg;
         break;
+    case OPT_DRY_RUN:
+        a->dry_run = 1;
+        break;
     case 'o':
         a->out = arg;
         break;
@@ -184,18 +234,21 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
 static int parse_args(int argc, char **argv, struct sim_args *a)
 {
     a->sim = sim_config_default();
+    a->sim.wavelength_um = scan_fields[SCAN_F_WAVELENGTH_NM].def * 1e-3; /* the scan's defaults */
+    a->sim.na = scan_fields[SCAN_F_NA].def;
+    a->sim.seed = (unsigned long)scan_fields[SCAN_F_SEED].def;
     a->scan = scan_config_default();
     err_t err;
     int first, rc = opts_parse(argc, argv, "o:", long_opts, OPT_HELP, "ips simulate --help",
                                parse_opt, a, &first, &err);
     if (rc == 1) {
-        fputs(usage, stdout);
+        print_usage();
         return -1;
     }
     if (rc) return cli_fail(CLI_EXIT_USAGE, "simulate", "%s", err.msg);
     if (first < argc)
         return cli_fail(CLI_EXIT_USAGE, "simulate", "unexpected argument '%s'", argv[first]);
-    if (!a->out) return cli_fail(CLI_EXIT_USAGE, "simulate", "-o FILE is required");
+    if (!a->out && !a->dry_run) return cli_fail(CLI_EXIT_USAGE, "simulate", "-o FILE is required");
     if (a->have_radius && (a->have_wavelength || a->have_na))
         return cli_fail(CLI_EXIT_USAGE, "simulate", "give --radius or --wavelength/--na, not both");
     if (a->grid && (a->dcol || a->drow))
@@ -205,6 +258,46 @@ static int parse_args(int argc, char **argv, struct sim_args *a)
         return cli_fail(CLI_EXIT_USAGE, "simulate", "--pixel %d,%d is outside the %dx%d sub-frame",
                         a->dcol, a->drow, a->scan.subframe_px, a->scan.subframe_px);
     return 0;
+}
+
+/* The rules that need the bench (its sensor and spot), each naming the option: a usable spot
+ * (eq. 1), the sub-frame on the sensor, the samples of a point, and the raster's whole steps and
+ * size or the grid inside the pixel (scan_limits.h). */
+static int check_on_bench(sim_t *sim, const struct sim_args *a, err_t *err)
+{
+    const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
+    const scan_config_t *c = &a->scan;
+    double R = sim_spot_radius0(sim);
+    int h = c->subframe_px / 2, rc;
+    if (!(R > 0 && isfinite(R)))
+        return err_set(err, -EINVAL, "%s: eq. 1 gives a spot radius of %g um, not a usable radius",
+                       a->have_na ? "--na" : "--wavelength", R);
+    if (c->poi_col - h < 0 || c->poi_row - h < 0 || c->poi_col + h >= sn->cols ||
+        c->poi_row + h >= sn->rows)
+        return err_set(err, -EINVAL,
+                       "--subframe: the %dx%d sub-frame around pixel (%d, %d) leaves the %dx%d "
+                       "sensor",
+                       c->subframe_px, c->subframe_px, c->poi_col, c->poi_row, sn->cols, sn->rows);
+    if ((rc = scan_check_samples(c->frames, c->subframe_px, "--frames", err))) return rc;
+    if (a->grid) return scan_check_grid(sn->pitch_um, a->grid, c->step_um, "--grid", err);
+    return scan_check_raster(sn->pitch_um, c->area_px, c->step_um, "--step", NULL, err);
+}
+
+/* --dry-run: what would be simulated. */
+static json_t *dry_run(sim_t *sim, const struct sim_args *a)
+{
+    const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
+    const scan_config_t *c = &a->scan;
+    double R = sim_spot_radius0(sim), lambda = a->sim.wavelength_um;
+    double na = a->have_radius ? fit_spot_na(lambda, R) : a->sim.na;
+    json_t *grid = a->grid ? json_integer(a->grid) : json_null();
+    return json_pack("{s:s, s:s, s:I, s:o, s:[ii], s:{s:f, s:f, s:f}, s:{s:i, s:f, s:i, s:i, s:i}}",
+                     "scene", scene_name(sim_scene(sim)), "mode", a->grid ? "grid" : "procedure",
+                     "seed", (json_int_t)a->sim.seed, "grid", grid, "poi", c->poi_col, c->poi_row,
+                     "optics", "wavelength_nm", lambda * 1e3, "na", na, "spot_radius_um", R,
+                     "raster", "area_px", c->area_px, "step_um", c->step_um, "sub_px",
+                     c->subframe_px, "frames", c->frames, "points_per_axis",
+                     a->grid ? a->grid : scan_axis_points(sn->pitch_um, c->area_px, c->step_um));
 }
 
 /* The truth file: the scene's sub-pixel means for r = 1..TRUTH_R_MAX, raw and mean-1. */
@@ -354,6 +447,17 @@ int cmd_simulate(int argc, char **argv)
     a.scan.poi_col = sn->cols / 2;
     a.scan.poi_row = sn->rows / 2;
     a.scan.spot_radius_um = sim_spot_radius0(sim);
+    if ((rc = check_on_bench(sim, &a, &err)) != 0) {
+        sim_close(sim);
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "%s", err.msg);
+    }
+    if (a.dry_run) {
+        json_t *root = dry_run(sim, &a);
+        int code = root && fitjson_print(root, stdout) == 0 ? 0 : CLI_EXIT_FAILURE;
+        json_decref(root);
+        sim_close(sim);
+        return code;
+    }
     rc = a.grid ? run_grid(sim, &a, &o, &err) : run_procedure(sim, &a, &o, &err);
     json_t *extra = NULL;
     if (rc == 0) {

@@ -31,3 +31,9 @@ double fit_airy_envelope(double a, double rho)
 }
 
 void fit_radial(double v, double *q, double *p) { radial_eval(v, q, p); }
+
+/* Eq. 1, R NA = 1.22 lambda / 2, solved for NA: the same expression with R and NA swapped. */
+double fit_spot_na(double wavelength_um, double R_um)
+{
+    return fit_spot_radius_um(wavelength_um, R_um);
+}

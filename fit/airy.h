@@ -28,4 +28,8 @@ double fit_airy_envelope(double a, double rho);
  * relative (p keeps its relative precision as v -> 0). v >= 0. */
 void fit_radial(double v, double *q, double *p);
 
+/* Eq. 1 solved for the aperture: NA = 1.22 lambda / (2 R), the NA whose spot has first-zero
+ * radius R (the inverse of fit_spot_radius_um). */
+double fit_spot_na(double wavelength_um, double R_um);
+
 #endif

@@ -30,7 +30,12 @@
  * the top-left corner (index i: column i % nx, row i / nx). Positions depend only on the config and
  * the setup, so a raster can start at any index (resume after the last stored point).
  * Every captured point goes to hooks->point (the server stores it) and, when given, into a
- * scan_raster_t. The stop flag is read between points and between setup evaluations. */
+ * scan_raster_t. The stop flag is read between points and between setup evaluations.
+ *
+ * Files: scan_config.c (defaults and checks, from scan_limits.h: a scan's defaults and limits are
+ * defined there once), scan_setup.c (exposure, centring, focus), scan_raster.c (the raster and
+ * scan_raster_t), scan_extract.c (scan files: a pixel of a raster, the direct grid), and
+ * scan_capture.c (frames at a position, hooks; scan_int.h). */
 #ifndef IPSD_INSTRUMENT_SCAN_H
 #define IPSD_INSTRUMENT_SCAN_H
 
@@ -78,15 +83,18 @@ typedef struct scan_config {
     double spot_radius_um;   /* R of eq. 1 for the scan file; must be set (NaN: error) */
 } scan_config_t;
 
-/* The defaults above; the caller fills in the POI, the start and the spot radius. */
+/* The defaults above (the scan's own from scan_limits.h); the caller fills in the POI, the start
+ * and the spot radius. */
 scan_config_t scan_config_default(void);
 
-/* Checks cfg against the camera (info may be NULL to skip those checks). Returns 0 or -EINVAL
+/* Checks cfg: each field in its range (scan_limits.h), frames x subframe_px^2 samples a point,
+ * and against the camera (info may be NULL to skip those checks): the sub-frame on the sensor.
+ * The raster's whole steps need the pitch: scan_raster_init checks them. Returns 0 or -EINVAL
  * naming the field. */
 int scan_config_check(const scan_config_t *cfg, const cam_info_t *info, err_t *err);
 
-/* Raster points per axis (nx) for cfg: area_px * pitch / step + 1, or 0 when that is not an
- * integer (to 1e-6) or pitch is unknown. pitch_um: the sensor pitch to use. */
+/* Raster points per axis (nx) for cfg: scan_axis_points (scan_limits.h) of cfg's area and step.
+ * pitch_um: the sensor pitch to use. */
 int scan_points_per_axis(const scan_config_t *cfg, double pitch_um);
 
 /* What the setup found and the sensor constants it settled (cfg's, or the camera's where cfg
@@ -148,7 +156,8 @@ typedef struct scan_raster {
 int scan_prepare(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const scan_hooks_t *hooks,
                  scan_setup_t *setup, err_t *err);
 
-/* Allocates an empty raster for cfg and setup. Returns 0, -EINVAL or -ENOMEM. */
+/* Allocates an empty raster for cfg and setup. Returns 0, -EINVAL (cfg, or the raster rules of
+ * scan_limits.h: whole steps, at most SCAN_MAX_POINTS points) or -ENOMEM. */
 int scan_raster_init(scan_raster_t *r, const scan_config_t *cfg, const scan_setup_t *setup,
                      err_t *err);
 

@@ -13,7 +13,7 @@
 #include <unistd.h>
 
 #include "base/clock.h"
-#include "instrument/scan.h"
+#include "instrument/scan_limits.h"
 #include "srv_bench.h"
 
 #define EVENT_RING 4096 /* events kept for slow readers */
@@ -223,14 +223,6 @@ void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int 
     srv_events_publish(srv->events, &ev);
 }
 
-int srv_raster_points(double pitch_um, int area_px, double step_um)
-{
-    scan_config_t c = scan_config_default();
-    c.area_px = area_px;
-    c.step_um = step_um;
-    return scan_points_per_axis(&c, pitch_um);
-}
-
 /* Publishes the stored state of job id (quietly nothing when it cannot be read). */
 static void publish_stored(srv_t *srv, storage_t *st, int64_t id, int points_total)
 {
@@ -247,13 +239,10 @@ int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const s
     if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
     int ret = storage_sensor_get(st, sc->sensor_id, &sn, err);
     if (ret) return ret;
-    int nx = srv_raster_points(sn.pitch_um, sc->area_px, sc->step_um);
+    int nx;
+    ret = scan_check_raster(sn.pitch_um, sc->area_px, sc->step_um, "raster.step_um", &nx, err);
     storage_sensor_free(&sn);
-    if (nx < 1)
-        return err_set(err, -EINVAL,
-                       "raster.step_um: %g um does not divide the %d-pixel area "
-                       "into whole steps",
-                       sc->step_um, sc->area_px);
+    if (ret) return ret;
     storage_scan_t row = *sc;
     row.points_total = nx * nx;
     char *params = srv_scan_params_dump(p);

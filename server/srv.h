@@ -45,14 +45,10 @@ srv_events_t *srv_events(srv_t *srv);
 storage_t *srv_db_get(srv_t *srv, err_t *err);
 void srv_db_put(srv_t *srv, storage_t *st);
 
-/* Raster points per axis for a sensor pitch, area and step (area_px * pitch / step + 1), or 0
- * when that is not a whole number of steps. */
-int srv_raster_points(double pitch_um, int area_px, double step_um);
-
 /* Queues a scan: the scan row (points_total is computed here from the sensor's pitch) and its
  * scan job in one transaction (storage_scan_submit), then wakes the scan worker and publishes
- * the queued job. -EINVAL (e.g. step not dividing the area), -ENOENT (sensor), -ESHUTDOWN when
- * stopping. */
+ * the queued job. -EINVAL (e.g. the raster rules of instrument/scan_limits.h: step not dividing
+ * the area), -ENOENT (sensor), -ESHUTDOWN when stopping. */
 int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const srv_scan_params_t *p,
                     int64_t *scan_id, int64_t *job_id, err_t *err);
 

@@ -9,8 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* the largest k*m*m sample count of one point's raw BLOB (128 MiB), far below SQLite's limit */
-#define STG_MAX_POINT_SAMPLES (1 << 26)
+#include "instrument/scan_limits.h" /* a scan's limits (macros only) */
 
 void storage_scan_free(storage_scan_t *sc)
 {
@@ -60,26 +59,41 @@ static int positive(double v) { return v > 0 && isfinite(v); }
 
 int stg_check_scan(const storage_scan_t *sc, const storage_sensor_t *sn, err_t *err)
 {
+    /* a scan's limits are instrument/scan_limits.h's: its macros only (no instrument code is
+       linked into storage); the wavelength is stored in um, the limits are in nm */
     int h = (sc->sub_px - 1) / 2;
     if (sc->poi_col < 0 || sc->poi_row < 0 || sc->poi_col >= sn->n_cols ||
         sc->poi_row >= sn->n_rows)
         return err_set(err, -EINVAL, "scan poi: (%d, %d) is outside the %d x %d sensor",
                        sc->poi_col, sc->poi_row, sn->n_cols, sn->n_rows);
-    if (!positive(sc->wavelength_um)) return err_set(err, -EINVAL, "scan wavelength_um: need > 0");
-    if (!positive(sc->na)) return err_set(err, -EINVAL, "scan na: need > 0");
+    if (!positive(sc->wavelength_um) || sc->wavelength_um > SCAN_WAVELENGTH_NM_MAX * 1e-3)
+        return err_set(err, -EINVAL, "scan wavelength_um: %g, need > 0 and <= %g",
+                       sc->wavelength_um, SCAN_WAVELENGTH_NM_MAX * 1e-3);
+    if (!positive(sc->na) || sc->na > SCAN_NA_MAX)
+        return err_set(err, -EINVAL, "scan na: %g, need > 0 and <= %g", sc->na, SCAN_NA_MAX);
     if (!positive(sc->spot_radius_um))
         return err_set(err, -EINVAL, "scan spot_radius_um: need > 0");
-    if (sc->area_px <= 0) return err_set(err, -EINVAL, "scan area_px: %d, need > 0", sc->area_px);
-    if (!positive(sc->step_um)) return err_set(err, -EINVAL, "scan step_um: need > 0");
-    if (sc->sub_px <= 0 || sc->sub_px % 2 == 0)
-        return err_set(err, -EINVAL, "scan sub_px: %d, need an odd number > 0", sc->sub_px);
-    if (sc->frames <= 0) return err_set(err, -EINVAL, "scan frames: %d, need > 0", sc->frames);
-    if ((int64_t)sc->frames * sc->sub_px * sc->sub_px > STG_MAX_POINT_SAMPLES)
-        return err_set(err, -EINVAL, "scan frames x sub_px^2: more than %d samples per point",
-                       STG_MAX_POINT_SAMPLES);
-    if (!positive(sc->exposure_us)) return err_set(err, -EINVAL, "scan exposure_us: need > 0");
-    if (sc->points_total <= 0)
-        return err_set(err, -EINVAL, "scan points_total: %d, need > 0", sc->points_total);
+    if (sc->area_px < SCAN_AREA_PX_MIN || sc->area_px > SCAN_AREA_PX_MAX || sc->area_px % 2 == 0)
+        return err_set(err, -EINVAL, "scan area_px: %d, need an odd number in %d..%d", sc->area_px,
+                       SCAN_AREA_PX_MIN, SCAN_AREA_PX_MAX);
+    if (!positive(sc->step_um) || sc->step_um > SCAN_STEP_UM_MAX)
+        return err_set(err, -EINVAL, "scan step_um: %g, need > 0 and <= %g", sc->step_um,
+                       SCAN_STEP_UM_MAX);
+    if (sc->sub_px < SCAN_SUB_PX_MIN || sc->sub_px > SCAN_SUB_PX_MAX || sc->sub_px % 2 == 0)
+        return err_set(err, -EINVAL, "scan sub_px: %d, need an odd number in %d..%d", sc->sub_px,
+                       SCAN_SUB_PX_MIN, SCAN_SUB_PX_MAX);
+    if (sc->frames < SCAN_FRAMES_MIN || sc->frames > SCAN_FRAMES_MAX)
+        return err_set(err, -EINVAL, "scan frames: %d, need %d..%d", sc->frames, SCAN_FRAMES_MIN,
+                       SCAN_FRAMES_MAX);
+    if ((int64_t)sc->frames * sc->sub_px * sc->sub_px > SCAN_MAX_POINT_SAMPLES)
+        return err_set(err, -EINVAL, "scan frames x sub_px^2: more than %ld samples per point",
+                       SCAN_MAX_POINT_SAMPLES);
+    if (!positive(sc->exposure_us) || sc->exposure_us > SCAN_EXPOSURE_US_MAX)
+        return err_set(err, -EINVAL, "scan exposure_us: %g, need > 0 and <= %g", sc->exposure_us,
+                       SCAN_EXPOSURE_US_MAX);
+    if (sc->points_total <= 0 || sc->points_total > SCAN_MAX_POINTS)
+        return err_set(err, -EINVAL, "scan points_total: %d, need 1..%d", sc->points_total,
+                       SCAN_MAX_POINTS);
     if (sc->poi_col - h < 0 || sc->poi_row - h < 0 || sc->poi_col + h >= sn->n_cols ||
         sc->poi_row + h >= sn->n_rows)
         return err_set(err, -EINVAL, "scan sub_px: the %d x %d sub-frame around (%d, %d) leaves "

@@ -2,7 +2,9 @@
  * focus from random starts (fixed seeds) within 0.1 um and the focus depth tolerance, the
  * exposure choice, the raster geometry of the paper (51 x 51 points, 9 x 9 inside each pixel),
  * extracted scan files of the POI and of neighbours against fit_box_integral (noiseless uniform
- * pixels), stopping and resuming a raster, and bad configurations. */
+ * pixels), stopping and resuming a raster, bad configurations, and the scan's limits
+ * (scan_limits.h: points per axis, 10^6 points, samples a point, the grid, one field's range) and
+ * eq. 1 both ways (fit/airy.h). */
 #include <errno.h>
 #include <math.h>
 #include <stdatomic.h>
@@ -16,6 +18,7 @@
 #include "fit/box.h"
 #include "check.h"
 #include "instrument/scan.h"
+#include "instrument/scan_limits.h"
 #include "instrument/scanfile.h"
 #include "instrument/sim.h"
 
@@ -212,6 +215,56 @@ static void test_bad_config(void)
     sim_close(s);
 }
 
+/* The scan's rules (scan_limits.h) against numbers worked out by hand, and eq. 1 both ways. */
+static void test_limits(void)
+{
+    err_t err;
+    int nx = 0;
+    /* points per axis: the paper's 5 pixels of 6 um in 0.6 um steps are 50 steps, 51 points */
+    CHECK(scan_axis_points(6.0, 5, 0.6) == 51);
+    CHECK(scan_axis_points(6.0, 3, 1.0) == 19);
+    CHECK(scan_axis_points(6.0, 5, 0.7) == 0 && scan_axis_points(6.0, 5, -0.6) == 0);
+    CHECK(scan_axis_points(NAN, 5, 0.6) == 0 && scan_axis_points(6.0, 0, 0.6) == 0);
+    /* at most 10^6 points: 6 um in 999 steps is 1000^2 points, in 1000 steps 1001^2 */
+    CHECK(scan_check_raster(6.0, 1, 6.0 / 999, "step", &nx, &err) == 0 && nx == 1000);
+    CHECK(scan_check_raster(6.0, 1, 6.0 / 1000, "step", &nx, &err) == -EINVAL && nx == 1001);
+    CHECK(strstr(err.msg, "step") == err.msg && strstr(err.msg, "1000000"));
+    CHECK(scan_check_raster(6.0, 5, 0.7, "--step", NULL, &err) == -EINVAL);
+    CHECK(strstr(err.msg, "--step") == err.msg && strstr(err.msg, "whole number"));
+    /* samples a point: 2^26 = 67108864; 1032 x 255^2 = 67105800 fits, 1033 x 255^2 does not */
+    CHECK(scan_check_samples(1032, 255, "frames", &err) == 0);
+    CHECK(scan_check_samples(1033, 255, "frames", &err) == -EINVAL);
+    /* a grid inside a 6 um pixel: 10 steps of 0.6 um span it all, which is not inside */
+    CHECK(scan_check_grid(6.0, 10, 0.6, "grid", &err) == 0);
+    CHECK(scan_check_grid(6.0, 11, 0.6, "grid", &err) == -EINVAL && strstr(err.msg, "grid"));
+    /* one field: its ends, just outside, oddness, whole numbers, the name in the message */
+    const scan_field_t *area = &scan_fields[SCAN_F_AREA_PX], *step = &scan_fields[SCAN_F_STEP_UM];
+    CHECK(scan_field_by_api("raster.area_px") == area && scan_field_by_api("raster.nope") == NULL);
+    CHECK(scan_field_check(area, area->min, "--area", &err) == 0);
+    CHECK(scan_field_check(area, area->max, "--area", &err) == 0);
+    CHECK(scan_field_check(area, area->max + 2, "--area", &err) == -EINVAL);
+    CHECK(scan_field_check(area, 4, "--area", &err) == -EINVAL && strstr(err.msg, "odd"));
+    CHECK(strstr(err.msg, "--area") == err.msg);
+    CHECK(scan_field_check(area, 2.5, "--area", &err) == -EINVAL && strstr(err.msg, "integer"));
+    CHECK(scan_field_check(step, 0, "step_um", &err) == -EINVAL); /* exclusive minimum */
+    CHECK(scan_field_check(step, NAN, "step_um", &err) == -EINVAL);
+    CHECK(scan_field_check(step, step->max, "step_um", &err) == 0);
+    /* the paper's scan is the default (section II.B), and within its own limits */
+    scan_config_t c = scan_config_default();
+    CHECK(c.area_px == 5 && c.step_um == 0.6 && c.subframe_px == 9 && c.frames == 12);
+    CHECK(scan_fields[SCAN_F_WAVELENGTH_NM].def == 550 && scan_fields[SCAN_F_NA].def == 0.25);
+    CHECK(scan_config_check(&c, NULL, &err) == 0);
+    c.area_px = 4;
+    CHECK(scan_config_check(&c, NULL, &err) == -EINVAL && strstr(err.msg, "area_px"));
+    c = scan_config_default();
+    c.subframe_px = 255, c.frames = 1033;
+    CHECK(scan_config_check(&c, NULL, &err) == -EINVAL && strstr(err.msg, "frames"));
+    /* eq. 1 both ways: the paper's 550 nm and NA 0.25 give R = 1.22 x 0.55 / 0.5 = 1.342 um */
+    CHECK(fabs(fit_spot_radius_um(0.55, 0.25) - 1.342) < 1e-12);
+    CHECK(fabs(fit_spot_na(0.55, 1.342) - 0.25) < 1e-12);
+    CHECK(fabs(fit_spot_na(0.55, fit_spot_radius_um(0.55, 1.3)) - 1.3) < 1e-12);
+}
+
 int main(void)
 {
     gsl_set_error_handler_off();
@@ -219,5 +272,6 @@ int main(void)
     test_setup("paperlike", 2, 21);
     test_raster();
     test_bad_config();
+    test_limits();
     CHECK_DONE();
 }

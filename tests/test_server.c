@@ -1,8 +1,8 @@
 /* test_server.c: pieces of the server core (server/) without HTTP: the event hub (order, waiting
  * and waking, dropped events, heartbeats, shutdown), the scan setup's JSON round trip, the pixel
  * extraction from stored points against the instrument's own extraction from the raster in memory
- * (scan_extract_pixel, an independent implementation), the job parameters, the raster size rule of
- * the paper (51 x 51 points), and the command line. */
+ * (scan_extract_pixel, an independent implementation), the job parameters, and the command line.
+ * (The raster size rule, 51 x 51 points for the paper, is tested with it in test_scan.c.) */
 #define _GNU_SOURCE /* mkdtemp */
 #include <errno.h>
 #include <math.h>
@@ -354,13 +354,10 @@ static void test_fit_run(void)
     json_decref(ref);
 }
 
-/* ---- parameters, raster size, command line ---- */
+/* ---- parameters, command line ---- */
 
 static void test_params(void)
 {
-    CHECK(srv_raster_points(6.0, 5, 0.6) == 51); /* the paper: 5 x 5 pixels in 0.6 um steps */
-    CHECK(srv_raster_points(6.0, 3, 1.0) == 19);
-    CHECK(srv_raster_points(6.0, 5, 0.7) == 0 && srv_raster_points(6.0, 5, -0.6) == 0);
     srv_fit_params_t p = srv_fit_params_auto(42), back;
     char edges[64];
     CHECK(strcmp(srv_edges_text(p.ftest_edges, edges, sizeof edges), "top,left,bottom") == 0);
