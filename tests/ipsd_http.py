@@ -35,15 +35,17 @@ except (OSError, AttributeError):
 DEADLINE_S = 60  # how long a wait may take on a busy machine (ASan, other tests) before it fails
 
 
-def wait_for(cond, timeout=DEADLINE_S, interval=0.01):
+def wait_for(cond, timeout=DEADLINE_S, interval=0.005, max_interval=0.05):
     """Calls cond() until it returns a true value (returned) or timeout seconds pass (the last
-    false value is returned)."""
+    false value is returned). The pause between calls grows from interval to max_interval, so a
+    long wait does not take much CPU from the daemon it waits for."""
     end = time.monotonic() + timeout
     while True:
         v = cond()
         if v or time.monotonic() > end:
             return v
         time.sleep(interval)
+        interval = min(interval * 2, max_interval)
 
 
 class Checks:
@@ -312,7 +314,7 @@ class Ipsd:
             r = self.get("/api/jobs/%d" % job)
             last = r.json() if r.status == 200 else {"state": "HTTP %d" % r.status}
             return last.get("state") == want
-        if wait_for(reached, timeout, interval=0.02):
+        if wait_for(reached, timeout):
             return last
         print("job %d is %r, not %r after %ds" % (job, last.get("state"), want, timeout),
               file=sys.stderr)
