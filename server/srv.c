@@ -15,6 +15,7 @@
 #include "base/clock.h"
 #include "instrument/scan_limits.h"
 #include "srv_bench.h"
+#include "srv_failpoint.h"
 
 #define EVENT_RING 4096 /* events kept for slow readers */
 #define IDLE_POLL_MS 1000 /* workers also poll: jobs may be queued by another process */
@@ -71,7 +72,10 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
     pthread_cond_init(&srv->cv, NULL);
     int ret = 0;
     if (cfg->token && !(srv->cfg.token = strdup(cfg->token))) ret = -ENOMEM;
-    if (ret || (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
+    if (ret ||
+        (ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
+                                   &srv->failpoints, err)) ||
+        (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
         (ret = srv_dbpool_open(cfg->db_path, &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||
         (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
@@ -128,6 +132,7 @@ void srv_close(srv_t *srv)
     pthread_cond_destroy(&srv->cv);
     pthread_mutex_destroy(&srv->mu);
     free(srv->cfg.token);
+    srv_failpoints_close(srv->failpoints);
     if (srv->lock_fd >= 0) close(srv->lock_fd); /* releases the flock */
     free(srv);
 }

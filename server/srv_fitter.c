@@ -18,6 +18,7 @@
 #include "instrument/scanfile.h"
 #include "server/srv_fit.h"
 #include "server/srv_setup.h"
+#include "srv_failpoint.h"
 #include "srv_int.h"
 
 #define FIT_NICE 10 /* CFS weight 110 against the HTTP threads' 1024 */
@@ -117,6 +118,7 @@ static void on_progress(double fraction, void *user)
             atomic_store(&fw->w->stop, 1);
     }
     srv_publish_job(fw->w->srv, &j, "fit", 0, NAN);
+    if (srv_failpoint(fw->w, "fit.step", NULL)) atomic_store(&fw->w->stop, 1); /* test hook */
 }
 
 /* After a stopped fit: cancelled by the user (nothing to do), else the shutdown (or a cancel

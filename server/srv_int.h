@@ -19,6 +19,8 @@ typedef struct srv_worker {
     atomic_int stop;  /* stops that job at its next check (cancel or shutdown) */
 } srv_worker_t;
 
+typedef struct srv_failpoints srv_failpoints_t; /* test hooks, srv_failpoint.h */
+
 struct srv {
     srv_config_t cfg; /* a copy; cfg.token is owned */
     srv_dbpool_t *pool;
@@ -30,6 +32,7 @@ struct srv {
     srv_worker_t *workers; /* [0] the scan worker, then the fit workers */
     int n_workers, stopped;
     int lock_fd; /* flock on DB-ipsd.lock: one ipsd per database, -1 when not held */
+    srv_failpoints_t *failpoints; /* armed test hooks (IPSD_FAILPOINTS), NULL: none */
 };
 
 /* A worker's life: claims jobs of kind in queue order and runs each with run, waiting for

@@ -16,6 +16,7 @@
 #include "instrument/scan.h"
 #include "server/srv_setup.h"
 #include "srv_bench.h"
+#include "srv_failpoint.h"
 #include "srv_int.h"
 
 #define HEARTBEAT_S 1.0 /* a running scan job writes its heartbeat and progress this often */
@@ -93,6 +94,7 @@ static int store_point(const scan_point_t *pt, void *user)
     int run_done = done - r->first;
     double eta = run_done > 0 ? (now - r->t0) / run_done * (total - done) : NAN;
     publish(r, "raster", done, eta);
+    if ((r->store_rc = srv_failpoint(r->w, "scan.point", &r->err))) return 1; /* test hook */
     return 0;
 }
 
@@ -193,6 +195,7 @@ static int capture(struct scan_run *r)
     int ret = storage_frame_last(r->st, r->scan.id, &last, &count, &r->err);
     r->first = last + 1;
     if (ret == 0) ret = setup(r, &hooks);
+    if (ret == 0) ret = srv_failpoint(r->w, "scan.setup", &r->err); /* test hook */
     if (ret || r->first >= r->scan.points_total) return ret;
     r->t0 = r->last_beat = clock_mono_s();
     publish(r, "raster", r->first, NAN);

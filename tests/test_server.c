@@ -6,6 +6,7 @@
 #define _GNU_SOURCE /* mkdtemp */
 #include <errno.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -16,6 +17,7 @@
 
 #include <gsl/gsl_errno.h>
 
+#include "base/clock.h"
 #include "instrument/scan.h"
 #include "check.h"
 #include "instrument/scanfile.h"
@@ -42,6 +44,33 @@ static void on_sleep(void *c)
 static void on_wake(void *c)
 {
     ((struct counter *)c)->wakes++;
+}
+
+/* A counter of wakes that another thread (the hub's ticker) calls, and a wait for it. */
+struct woken {
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int wakes;
+};
+static void on_wake_locked(void *c)
+{
+    struct woken *w = c;
+    pthread_mutex_lock(&w->mu);
+    w->wakes++;
+    pthread_cond_broadcast(&w->cv);
+    pthread_mutex_unlock(&w->mu);
+}
+/* The wakes once there are at least n, or fewer after a generous deadline (a busy machine). */
+static int wait_woken(struct woken *w, int n, int ms)
+{
+    struct timespec until = clock_deadline(CLOCK_REALTIME, ms);
+    pthread_mutex_lock(&w->mu);
+    int rc = 0;
+    while (w->wakes < n && rc == 0)
+        rc = pthread_cond_timedwait(&w->cv, &w->mu, &until);
+    int wakes = w->wakes;
+    pthread_mutex_unlock(&w->mu);
+    return wakes;
 }
 
 static srv_event_t event(int64_t job, int done)
@@ -88,19 +117,30 @@ static void test_events(void)
     CHECK(srv_events_readers(h) == 0);
     srv_events_close(h);
 
-    /* heartbeats: a waiting reader is woken and told, once per period */
-    struct counter cc = {0};
-    srv_sub_t *c = NULL;
+    /* heartbeats: a waiting reader is woken by the ticker thread (waited for, not slept on) and
+     * told; woken once per sleep: while two more periods pass (a probe reader sees them) it is
+     * not woken again */
+    struct woken cc = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0};
+    struct woken cp = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0};
+    srv_sub_t *c = NULL, *probe = NULL;
     CHECK(srv_events_open(8, 40, &h, NULL) == 0);
-    CHECK(srv_events_subscribe(h, on_sleep, on_wake, &cc, &c) == 0);
+    CHECK(srv_events_subscribe(h, NULL, on_wake_locked, &cc, &c) == 0);
+    CHECK(srv_events_subscribe(h, NULL, on_wake_locked, &cp, &probe) == 0);
     CHECK(srv_events_next(h, c, &got) == SRV_EV_NONE);
-    struct timespec t = {0, 150 * 1000000L};
-    nanosleep(&t, NULL);
+    CHECK(wait_woken(&cc, 1, 30000) == 1);
+    for (int k = 1; k <= 2; k++) {
+        while (srv_events_next(h, probe, &got) == SRV_EV_HEARTBEAT)
+            ; /* until it waits: the wake then means a period ended after this point */
+        CHECK(wait_woken(&cp, k, 30000) == k);
+    }
+    pthread_mutex_lock(&cc.mu);
     CHECK(cc.wakes == 1);
+    pthread_mutex_unlock(&cc.mu);
     CHECK(srv_events_next(h, c, &got) == SRV_EV_HEARTBEAT);
     srv_events_shutdown(h);
     CHECK(srv_events_next(h, c, &got) == SRV_EV_CLOSED);
     srv_events_unsubscribe(h, c);
+    srv_events_unsubscribe(h, probe);
     srv_events_close(h);
 }
 

@@ -1,0 +1,178 @@
+/* srv_failpoint.c: the workers' test hooks (see srv_failpoint.h): the IPSD_FAILPOINTS parser, hit
+ * counting, and the hold. A hold polls (every HOLD_POLL_MS) for its release file and the worker's
+ * stop flag: the flag is a plain atomic that a cancel or the shutdown sets without a wake-up, and
+ * a hold is test-only, so a short poll is simpler than a second signalling path. */
+#include "srv_failpoint.h"
+
+#include <errno.h>
+#include <limits.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "base/parse.h"
+
+#define MAX_TERMS 16
+#define HOLD_POLL_MS 2
+
+enum fp_action { FP_OFF, FP_HOLD, FP_ERROR };
+
+/* One NAME=ACTION[@N] term and the hits of its point so far. */
+struct fp_term {
+    char name[16];
+    enum fp_action action;
+    long long at; /* the hit it fires on, 0: every hit */
+    long long hits;
+};
+
+struct srv_failpoints {
+    pthread_mutex_t mu; /* guards the hit counters */
+    struct fp_term terms[MAX_TERMS];
+    int n;
+    char dir[PATH_MAX / 2]; /* "" : no held files */
+};
+
+/* The points the workers have (a misspelt name must not arm nothing silently). */
+static const char *const POINTS[] = {"scan.setup", "scan.point", "fit.step"};
+
+static int parse_term(char *text, struct fp_term *t, err_t *err)
+{
+    char *eq = strchr(text, '=');
+    if (!eq) return err_set(err, -EINVAL, "IPSD_FAILPOINTS: '%s' is not NAME=ACTION[@N]", text);
+    *eq = '\0';
+    char *action = eq + 1, *at = strchr(action, '@');
+    if (at) *at++ = '\0';
+    int known = 0;
+    for (size_t i = 0; i < sizeof POINTS / sizeof *POINTS; i++) known |= !strcmp(text, POINTS[i]);
+    if (!known)
+        return err_set(err, -EINVAL,
+                       "IPSD_FAILPOINTS: unknown point '%s' (scan.setup, scan.point, fit.step)",
+                       text);
+    snprintf(t->name, sizeof t->name, "%s", text);
+    if (!strcmp(action, "hold")) t->action = FP_HOLD;
+    else if (!strcmp(action, "error")) t->action = FP_ERROR;
+    else if (!strcmp(action, "off")) t->action = FP_OFF;
+    else
+        return err_set(err, -EINVAL, "IPSD_FAILPOINTS: %s: unknown action '%s' (hold, error, off)",
+                       text, action);
+    if (at && (parse_ll(at, &t->at) || t->at < 1))
+        return err_set(err, -EINVAL, "IPSD_FAILPOINTS: %s: '@%s' is not a hit number >= 1", text,
+                       at);
+    return 0;
+}
+
+int srv_failpoints_open(const char *spec, const char *dir, srv_failpoints_t **out, err_t *err)
+{
+    *out = NULL;
+    if (!spec || !*spec) return 0;
+    srv_failpoints_t *fp = calloc(1, sizeof *fp);
+    char *copy = strdup(spec);
+    if (!fp || !copy) {
+        free(fp);
+        free(copy);
+        return err_set(err, -ENOMEM, "out of memory");
+    }
+    int ret = 0;
+    if (dir && snprintf(fp->dir, sizeof fp->dir, "%s", dir) >= (int)sizeof fp->dir)
+        ret = err_set(err, -EINVAL, "IPSD_FAILPOINT_DIR: path too long");
+    char *save = NULL;
+    for (char *t = strtok_r(copy, ";", &save); t && ret == 0; t = strtok_r(NULL, ";", &save)) {
+        if (fp->n == MAX_TERMS)
+            ret = err_set(err, -EINVAL, "IPSD_FAILPOINTS: more than %d terms", MAX_TERMS);
+        else
+            ret = parse_term(t, &fp->terms[fp->n++], err);
+    }
+    free(copy);
+    if (ret) {
+        free(fp);
+        return ret;
+    }
+    pthread_mutex_init(&fp->mu, NULL);
+    fprintf(stderr, "ipsd: test hooks armed: IPSD_FAILPOINTS=%s\n", spec);
+    *out = fp;
+    return 0;
+}
+
+void srv_failpoints_close(srv_failpoints_t *fp)
+{
+    if (!fp) return;
+    pthread_mutex_destroy(&fp->mu);
+    free(fp);
+}
+
+/* Creates the held file (written under a temporary name, then renamed: a reader never sees it
+ * half-written). Returns 0 or -errno; path is "" when there is no directory. */
+static int make_held_file(const srv_failpoints_t *fp, const char *name, long long job,
+                          long long hit, char *path, size_t size)
+{
+    path[0] = '\0';
+    if (!fp->dir[0]) return 0;
+    char tmp[PATH_MAX];
+    snprintf(path, size, "%s/%s.%lld.held", fp->dir, name, job);
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    FILE *f = fopen(tmp, "w");
+    if (!f || fprintf(f, "job %lld hit %lld\n", job, hit) < 0 || fclose(f) != 0 ||
+        rename(tmp, path) != 0) {
+        int e = errno;
+        fprintf(stderr, "ipsd: failpoint %s: cannot create %s: %s\n", name, path, strerror(e));
+        path[0] = '\0';
+        return -e;
+    }
+    return 0;
+}
+
+/* Blocks worker w until the held file is removed (0) or its stop flag is set (-ECANCELED). */
+static int hold(srv_failpoints_t *fp, srv_worker_t *w, const char *name, long long hit)
+{
+    long long job = atomic_load(&w->job);
+    char path[PATH_MAX];
+    make_held_file(fp, name, job, hit, path, sizeof path);
+    fprintf(stderr, "ipsd: failpoint %s: holding job %lld at hit %lld%s%s\n", name, job, hit,
+            path[0] ? " until removed: " : "", path);
+    struct timespec pause = {0, HOLD_POLL_MS * 1000000L};
+    int ret;
+    for (;;) {
+        if (atomic_load(&w->stop) || atomic_load(&w->srv->stopping)) {
+            ret = -ECANCELED;
+            break;
+        }
+        if (path[0] && access(path, F_OK) != 0 && errno == ENOENT) {
+            ret = 0;
+            break;
+        }
+        nanosleep(&pause, NULL);
+    }
+    if (ret && path[0]) unlink(path);
+    fprintf(stderr, "ipsd: failpoint %s: job %lld %s\n", name, job,
+            ret ? "no longer held: cancelled or stopping" : "released");
+    return ret;
+}
+
+int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err)
+{
+    srv_failpoints_t *fp = w->srv->failpoints;
+    enum fp_action fire = FP_OFF;
+    long long hit = 0;
+    pthread_mutex_lock(&fp->mu);
+    for (int i = 0; i < fp->n; i++) {
+        struct fp_term *t = &fp->terms[i];
+        if (strcmp(t->name, name) != 0) continue;
+        t->hits++;
+        /* of the terms that fire on this hit, an error wins over a hold */
+        if ((t->at == 0 || t->hits == t->at) && t->action > fire) {
+            fire = t->action;
+            hit = t->hits;
+        }
+    }
+    pthread_mutex_unlock(&fp->mu);
+    if (fire == FP_HOLD) return hold(fp, w, name, hit);
+    if (fire == FP_ERROR) {
+        fprintf(stderr, "ipsd: failpoint %s: error in job %lld at hit %lld\n", name,
+                (long long)atomic_load(&w->job), hit);
+        return err_set(err, -EIO, "failpoint %s: injected error (hit %lld)", name, hit);
+    }
+    return 0;
+}

@@ -1,0 +1,43 @@
+/* srv_failpoint.h: test hooks of the workers ("failpoints", in the style of FreeBSD's fail(9) and
+ * etcd's gofail): named points in the scan and fit workers where a test can hold a job, or make
+ * it fail, so that it acts on a scan or a fit at a known point instead of racing the worker.
+ * Armed only from the environment when ipsd starts (docs/server.md, "Test hooks"):
+ *
+ *   IPSD_FAILPOINTS="NAME=ACTION[@N];..."   e.g. "scan.point=hold@100;fit.step=hold"
+ *   IPSD_FAILPOINT_DIR=DIR                  where held points show as files (optional)
+ *
+ * Points: scan.setup (after the scan's setup is taken or made, before its raster), scan.point
+ * (after a raster point is stored and published), fit.step (after each step of a fit: each r,
+ * the F-test, the Wiener baseline). ACTION: hold (block the worker there), error (the point
+ * fails: -EIO) or off. @N: only the N-th hit of that point since ipsd started, counted over all
+ * jobs; without it, every hit. Several terms may name one point.
+ *
+ * A hold writes "ipsd: failpoint NAME: holding job ID at hit N" to stderr and creates
+ * DIR/NAME.ID.held; it ends when the test removes that file (released: the worker goes on), or
+ * when the job is cancelled or ipsd stops (the worker's stop flag: -ECANCELED). No database
+ * transaction is open at any point. Not armed (no IPSD_FAILPOINTS), a point costs one branch. */
+#ifndef IPSD_SERVER_SRV_FAILPOINT_H
+#define IPSD_SERVER_SRV_FAILPOINT_H
+
+#include "base/err.h"
+#include "srv_int.h"
+
+/* The armed failpoints of spec (IPSD_FAILPOINTS' syntax) with held files in dir (NULL or "":
+ * none). *out is NULL when spec is NULL or empty (nothing armed). Returns 0 or -EINVAL (bad
+ * spec, with err naming the term) / -ENOMEM. */
+int srv_failpoints_open(const char *spec, const char *dir, srv_failpoints_t **out, err_t *err);
+
+/* Frees the failpoints (accepts NULL). */
+void srv_failpoints_close(srv_failpoints_t *fp);
+
+/* The slow path of srv_failpoint. */
+int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err);
+
+/* A hit of point name by worker w (running a job). Returns 0 (go on: not armed, not this hit,
+ * or released), -ECANCELED (a hold ended by the stop flag) or -EIO with err (an error action). */
+static inline int srv_failpoint(srv_worker_t *w, const char *name, err_t *err)
+{
+    return w->srv->failpoints ? srv_failpoint_eval(w, name, err) : 0;
+}
+
+#endif

@@ -1,0 +1,360 @@
+"""ipsd_http.py: what the HTTP tests of ipsd (tests/test_server_*.py) share, standard library only.
+
+- Ipsd: a real daemon on a free loopback port (--listen 127.0.0.1:0, the port read back from
+  --port-file) with its database and log in a temporary directory; started, stopped with SIGTERM
+  (its exit status) or killed with SIGKILL (a crash); optionally with failpoints armed
+  (IPSD_FAILPOINTS, docs/server.md "Test hooks") so a scan or a fit is held at a known point.
+- Client: one long-lived HTTP/1.1 client per daemon (http.client, one kept-alive connection).
+- EventStream: a reader of GET /api/events in a thread, keeping every line it got.
+- sql(): the database read by Python's sqlite3 module, an independent reader of what ipsd stored.
+- wait_for(): polls a condition until a generous deadline: tests wait for states, never for time.
+- Checks: counts checks and failures; finish() prints the tally and gives the exit status.
+"""
+import http.client
+import json
+import os
+import shutil
+import signal
+import socket
+import sqlite3
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+try:  # Linux: ipsd gets SIGKILL when the test dies (e.g. killed by ctest's TIMEOUT)
+    import ctypes
+    _libc = ctypes.CDLL(None, use_errno=True)
+
+    def _die_with_parent():
+        _libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+except (OSError, AttributeError):
+    _die_with_parent = None
+
+DEADLINE_S = 60  # how long a wait may take on a busy machine (ASan, other tests) before it fails
+
+
+def wait_for(cond, timeout=DEADLINE_S, interval=0.005, max_interval=0.05):
+    """Calls cond() until it returns a true value (returned) or timeout seconds pass (the last
+    false value is returned). The pause between calls grows from interval to max_interval, so a
+    long wait does not take much CPU from the daemon it waits for."""
+    end = time.monotonic() + timeout
+    while True:
+        v = cond()
+        if v or time.monotonic() > end:
+            return v
+        time.sleep(interval)
+        interval = min(interval * 2, max_interval)
+
+
+class Checks:
+    def __init__(self):
+        self.n = 0
+        self.fails = 0
+
+    def ok(self, cond, msg):
+        """Counts a check; prints msg when cond is false. Returns cond."""
+        self.n += 1
+        if not cond:
+            self.fails += 1
+            print("FAIL:", msg, file=sys.stderr, flush=True)
+        return cond
+
+    def eq(self, got, want, msg):
+        return self.ok(got == want, "%s: got %r, want %r" % (msg, got, want))
+
+    def status(self, r, want, msg):
+        return self.ok(r.status == want, "%s: status %d, want %d (body: %s)"
+                       % (msg, r.status, want, r.text[:300]))
+
+    def error(self, r, status, field, msg):
+        """An error answer: that status and the body {"error": {"code", "message", "field"}}
+        naming field ("" for none), with a code and a message."""
+        self.status(r, status, msg)
+        try:
+            e = r.json()["error"]
+            got = (e.get("field", ""), bool(e["code"] and e["message"]))
+        except (ValueError, KeyError, TypeError):
+            got = None
+        return self.ok(got == (field, True), "%s: error field, has code and message = %r, want %r "
+                       "(body: %s)" % (msg, got, (field, True), r.text[:300]))
+
+    def finish(self):
+        print("%d checks, %d failed" % (self.n, self.fails), flush=True)
+        return 0 if self.fails == 0 else 1
+
+
+class Response:
+    def __init__(self, status, body, headers):
+        self.status = status
+        self.body = body
+        self.headers = headers
+        self._json = None
+
+    @property
+    def text(self):
+        return self.body.decode("utf-8", "replace")
+
+    def json(self):
+        if self._json is None:
+            self._json = json.loads(self.body)
+        return self._json
+
+
+class Client:
+    """One kept-alive connection to 127.0.0.1:port. A connection the server closed while idle is
+    opened again once (the request had not reached the server)."""
+
+    def __init__(self, port, timeout=DEADLINE_S):
+        self.port = port
+        self.timeout = timeout
+        self.conn = None
+        self.used = False  # the connection answered a request already
+
+    def close(self):
+        if self.conn:
+            self.conn.close()
+        self.conn = None
+
+    def request(self, method, path, body=None, headers=None, chunked=False):
+        """body: a dict or list (sent as JSON), str or bytes. A non-empty body is sent as
+        application/json unless headers name a Content-Type (None: send none). chunked:
+        Transfer-Encoding: chunked."""
+        h = dict(headers or {})
+        if isinstance(body, (dict, list)):
+            body = json.dumps(body)
+        if isinstance(body, str):
+            body = body.encode()
+        if body and not any(k.lower() == "content-type" for k in h):
+            h["Content-Type"] = "application/json"
+        h = {k: v for k, v in h.items() if v is not None}
+        while True:
+            if self.conn is None:
+                self.conn = http.client.HTTPConnection("127.0.0.1", self.port,
+                                                       timeout=self.timeout)
+                self.used = False
+            reused = self.used
+            try:
+                if chunked:
+                    self.conn.request(method, path, body=iter([body]), headers=h,
+                                      encode_chunked=True)
+                else:
+                    self.conn.request(method, path, body=body, headers=h)
+                r = self.conn.getresponse()
+                data = r.read()
+            except (http.client.RemoteDisconnected, BrokenPipeError, ConnectionResetError):
+                self.close()
+                if reused:
+                    continue  # a stale kept-alive connection: once more on a new one
+                raise
+            self.used = True
+            if r.will_close:
+                self.close()
+            return Response(r.status, data, r.headers)
+
+
+class EventStream:
+    """GET path (an event stream) on its own connection, read by a thread into lines. Ready (the
+    subscription exists) once the stream's first comment arrived."""
+
+    def __init__(self, port, path="/api/events"):
+        self.lines = []
+        self.lock = threading.Lock()
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=DEADLINE_S * 3)
+        self.sock.sendall(("GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n"
+                           "\r\n" % path).encode())
+        self.resp = http.client.HTTPResponse(self.sock, method="GET")
+        self.resp.begin()
+        self.status = self.resp.status
+        self.thread = threading.Thread(target=self._read, daemon=True)
+        self.thread.start()
+        self.ready = wait_for(lambda: self.has(": ipsd events"))
+
+    def _read(self):
+        try:
+            for raw in iter(self.resp.readline, b""):
+                with self.lock:
+                    self.lines.append(raw.decode().rstrip("\r\n"))
+        except (OSError, ValueError, http.client.HTTPException):
+            pass  # closed by close() or by ipsd
+
+    def snapshot(self):
+        with self.lock:
+            return list(self.lines)
+
+    def has(self, line):
+        return line in self.snapshot()
+
+    def events(self):
+        """The data of every event so far, parsed."""
+        return [json.loads(l[6:]) for l in self.snapshot() if l.startswith("data: ")]
+
+    def close(self):
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self.thread.join(DEADLINE_S)
+        self.resp.close()
+        self.sock.close()
+
+
+class Ipsd:
+    """The daemon under test on tmp/ipsd.db (log: tmp/ipsd.log, appended over restarts)."""
+
+    def __init__(self, exe, tmp):
+        self.exe = exe
+        self.tmp = tmp
+        self.db = os.path.join(tmp, "ipsd.db")
+        self.log = os.path.join(tmp, "ipsd.log")
+        self.fp_dir = os.path.join(tmp, "failpoints")
+        self.proc = None
+        self.client = None
+        self.port = None
+
+    def start(self, *args, failpoints=None):
+        """Starts ipsd with args (after --listen, --port-file, --db, --heartbeat 1) and waits for
+        its port; failpoints: IPSD_FAILPOINTS for this run (held files in self.fp_dir)."""
+        port_file = os.path.join(self.tmp, "port")
+        if os.path.exists(port_file):
+            os.remove(port_file)
+        env = {k: v for k, v in os.environ.items() if not k.startswith("IPSD_FAILPOINT")}
+        if failpoints:
+            os.makedirs(self.fp_dir, exist_ok=True)
+            env["IPSD_FAILPOINTS"] = failpoints
+            env["IPSD_FAILPOINT_DIR"] = self.fp_dir
+        with open(self.log, "ab") as log:
+            self.proc = subprocess.Popen(
+                [self.exe, "--listen", "127.0.0.1:0", "--port-file", port_file, "--db", self.db,
+                 "--heartbeat", "1", *args], stdout=log, stderr=subprocess.STDOUT, env=env,
+                preexec_fn=_die_with_parent)
+
+        def port():
+            try:
+                with open(port_file) as f:
+                    return f.read().strip() or None
+            except FileNotFoundError:
+                return "exited" if self.proc.poll() is not None else None
+        p = wait_for(port)
+        if not p or p == "exited":
+            sys.stderr.write("ipsd did not start:\n" + self.log_text())
+            raise SystemExit(1)
+        self.port = int(p)
+        self.client = Client(self.port)
+        return self
+
+    def req(self, method, path, body=None, headers=None, chunked=False):
+        return self.client.request(method, path, body, headers, chunked)
+
+    def get(self, path, headers=None):
+        return self.client.request("GET", path, headers=headers)
+
+    def post(self, path, body=None, headers=None):
+        return self.client.request("POST", path, body, headers)
+
+    def stop_term(self):
+        """SIGTERM; waits for the exit (a deadline, then SIGKILL); returns the exit status (None
+        when it had to be killed)."""
+        self.client.close()
+        self.proc.send_signal(signal.SIGTERM)
+        try:
+            rc = self.proc.wait(DEADLINE_S)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            rc = None
+        self.proc = None
+        return rc
+
+    def stop_kill(self):
+        """SIGKILL (a crash) and wait."""
+        self.client.close()
+        self.proc.kill()
+        self.proc.wait()
+        self.proc = None
+
+    def cleanup(self):
+        if self.proc and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+    def log_text(self):
+        with open(self.log, errors="replace") as f:
+            return f.read()
+
+    # ---- failpoints ----
+    def held_path(self, name, job):
+        return os.path.join(self.fp_dir, "%s.%d.held" % (name, job))
+
+    def wait_held(self, name, job, timeout=DEADLINE_S):
+        """Until the worker holds job at failpoint name (its held file exists)."""
+        return wait_for(lambda: os.path.exists(self.held_path(name, job)), timeout)
+
+    def release(self, name, job):
+        os.remove(self.held_path(name, job))
+
+    def wait_hold_ended(self, name, job, timeout=DEADLINE_S):
+        """Until the worker left the hold (it removes the held file when a cancel or the
+        shutdown ends it, before it goes on)."""
+        return wait_for(lambda: not os.path.exists(self.held_path(name, job)), timeout)
+
+    # ---- jobs ----
+    def job_state(self, job):
+        r = self.get("/api/jobs/%d" % job)
+        return r.json().get("state") if r.status == 200 else None
+
+    def wait_job(self, job, want, timeout=DEADLINE_S):
+        """Polls GET /api/jobs/ID until its state is want; the last answer's JSON, or None (after
+        saying what the state was)."""
+        last = {}
+
+        def reached():
+            nonlocal last
+            r = self.get("/api/jobs/%d" % job)
+            last = r.json() if r.status == 200 else {"state": "HTTP %d" % r.status}
+            return last.get("state") == want
+        if wait_for(reached, timeout):
+            return last
+        print("job %d is %r, not %r after %ds" % (job, last.get("state"), want, timeout),
+              file=sys.stderr)
+        return None
+
+
+class Db:
+    """The test database read (and, for crafted rows, written) by Python's sqlite3 module: each
+    statement in its own transaction, so it sees what ipsd committed."""
+
+    def __init__(self, path):
+        self.conn = sqlite3.connect(path, timeout=DEADLINE_S, isolation_level=None)
+
+    def all(self, query, *args):
+        return self.conn.execute(query, args).fetchall()
+
+    def one(self, query, *args):
+        """The first row (a tuple), or None."""
+        return self.conn.execute(query, args).fetchone()
+
+    def val(self, query, *args):
+        """The first column of the first row."""
+        row = self.one(query, *args)
+        return row[0] if row else None
+
+    def close(self):
+        self.conn.close()
+
+
+def main(test, argv):
+    """Runs test(checks, tmp, argv, daemons) in a temporary directory, removed afterwards, and
+    returns the exit status. test appends its Ipsd instances to daemons: any left running at the
+    end (a failed test) is killed."""
+    checks = Checks()
+    tmp = tempfile.mkdtemp(prefix="ipsd-http-", dir=os.environ.get("TMPDIR"))
+    daemons = []
+    try:
+        test(checks, tmp, argv, daemons)
+    finally:
+        for d in daemons:
+            d.cleanup()
+        shutil.rmtree(tmp, ignore_errors=True)
+    return checks.finish()

@@ -1,0 +1,243 @@
+#!/usr/bin/env python3
+"""test_server_flow.py IPSD IPS: the full path through a real ipsd (simulated bench) with a real
+HTTP client: create a sensor, submit a small simulated scan, look at it held mid-raster (the
+scan.point failpoint: what is stored and served while a scan runs), follow it to done (and over
+the event stream), get the automatic fit, read the calibration back as JSON and CSV, and check the
+map against `ips fit` run on the pixel raster downloaded from the API (the independent path: the
+command-line tool over the scan-file contract) and against the database read by Python's sqlite3
+module. Then a fit of another pixel with other options, a fit of an uploaded scan file that
+supersedes the first calibration (history), the search, and a graceful stop."""
+import csv
+import io
+import json
+import os
+import struct
+import subprocess
+import sys
+
+import ipsd_http
+from ipsd_http import Db, EventStream, Ipsd, wait_for
+
+HOLD_AT = 480  # the raster point (1-based hit of scan.point) the scan is held at
+
+
+def ips_fit(ips, scan_path, out_path, *opts):
+    """`ips fit SCAN OPTS...` into out_path; its exit status."""
+    with open(out_path, "wb") as out:
+        return subprocess.run([ips, "fit", scan_path, *opts], stdout=out).returncode
+
+
+def compare_with_ips(scan, ips, cal, fit, csv_text, db):
+    """The stored calibration (JSON, CSV, database) and fit document against `ips fit`'s output on
+    the downloaded raster. Returns the list of differences."""
+    bic = ips["best_r"]["bic"]
+    best = [f for f in ips["fits"] if f["r"] == bic][0]
+    fails = []
+
+    def near(a, b, what):
+        if len(a) != len(b) or any(abs(x - y) > 1e-9 for x, y in zip(a, b)):
+            fails.append(what)
+    if cal["r"] != bic:
+        fails.append("calibration r %d != ips fit best BIC r %d" % (cal["r"], bic))
+    near(cal["S"], best["S"], "S vs ips fit")
+    near(cal["S_err"], best["S_err"], "S_err vs ips fit")
+    if abs(cal["I0"] - best["I0"]) > 1e-9 * abs(best["I0"]):
+        fails.append("I0")
+    if cal["status"] != best["status"] or cal["scan_id"] != scan:
+        fails.append("status/provenance")
+    if fit["best_r"] != ips["best_r"]:
+        fails.append("fit best_r")
+    # the stored document follows the `ips fit` schema: the same fits, key for key (timing aside)
+    def strip(f):
+        return {k: v for k, v in f.items() if k != "timing_ms"}
+    if [strip(f) for f in fit["result"]["fits"]] != [strip(f) for f in ips["fits"]]:
+        fails.append("stored fits[] differ from ips fit's")
+    for k in ("N", "n_points", "sigma", "method", "nonneg", "design_tol", "full_scale_dn",
+              "best_r"):
+        if fit["result"][k] != ips[k]:
+            fails.append("result." + k)
+    if abs(fit["result"]["ftest"]["F"] - ips["ftest"]["F"]) > 1e-9 * ips["ftest"]["F"]:
+        fails.append("F")
+    near(fit["result"]["wiener"]["S"], ips["wiener"]["S"], "Wiener S")
+    # CSV: one line per sub-pixel, row-major j*r + i
+    rows = list(csv.DictReader(io.StringIO(csv_text)))
+    if len(rows) != bic * bic:
+        fails.append("CSV lines")
+    near([float(r["S"]) for r in rows], [best["S"][int(r["j"]) * bic + int(r["i"])] for r in rows],
+         "CSV S")
+    # the database, read by Python's sqlite3 (little-endian float64 BLOBs, docs/schema.md)
+    r, s = db.one("SELECT r, s FROM calibrations WHERE pixel_col = 50 AND pixel_row = 60 "
+                  "AND superseded_by IS NULL")
+    near(struct.unpack("<%dd" % (r * r), s), best["S"], "database S")
+    return fails
+
+
+def test(c, t, argv, daemons):
+    ipsd_exe, ips = argv[1], argv[2]
+    d = Ipsd(ipsd_exe, t)
+    daemons.append(d)
+    d.start(failpoints="scan.point=hold@%d" % HOLD_AT)
+    db = Db(d.db)
+    sse = EventStream(d.port)
+    c.ok(sse.ready, "event stream subscribed")
+
+    r = d.post("/api/sensors", {"model": "IMX-T", "serial": "flow-1", "n_cols": 128,
+                                "n_rows": 96})
+    c.status(r, 201, "create sensor")
+    sensor = r.json()["id"]
+    r = d.get("/api/sensors/%d" % sensor)
+    c.eq((r.json()["n_cols"], r.json()["pitch_um"], r.json()["serial"]), (128, 6.0, "flow-1"),
+         "sensor read back")
+
+    # 3 x 3 pixels in 0.6 um steps: 31 x 31 points, 9 x 9 of them inside the POI (enough for r = 8)
+    scan_req = {"sensor_id": sensor, "poi": {"col": 50, "row": 60},
+                "raster": {"area_px": 3, "step_um": 0.6, "sub_px": 3, "frames": 2}, "seed": 7}
+    r = d.post("/api/scans", scan_req)
+    c.status(r, 202, "submit scan")
+    scan, job = r.json()["scan"]["id"], r.json()["job"]["id"]
+    c.eq(r.json()["scan"]["raster"]["points_total"], 961, "scan answer: 961 points planned")
+    # the job row was committed before the answer
+    c.eq(db.val("SELECT count(*) FROM jobs WHERE id = ?", job), 1, "job row exists at once")
+
+    # held after its 480th point: what a running scan shows
+    c.ok(d.wait_held("scan.point", job), "scan held at point %d" % HOLD_AT)
+    r = d.get("/api/scans/%d" % scan)
+    c.eq((r.json()["state"], r.json()["points_done"]), ("running", HOLD_AT),
+         "running scan: points_done while held")
+    c.eq(db.one("SELECT count(*), min(point_index), max(point_index) FROM frames "
+                "WHERE scan_id = ?", scan), (HOLD_AT, 0, HOLD_AT - 1),
+         "points 0..479 stored while held")
+    c.status(d.get("/api/scans/%d/points/%d" % (scan, HOLD_AT - 1)), 200, "last stored point")
+    c.error(d.get("/api/scans/%d/points/%d" % (scan, HOLD_AT)), 404, "index",
+            "the next point is not stored yet")
+    c.error(d.post("/api/scans/%d/fits" % scan, {}), 409, "", "fit a running scan")
+    c.eq(d.job_state(job), "running", "scan job running while held")
+    d.release("scan.point", job)
+
+    c.ok(d.wait_job(job, "done"), "scan job done")
+    r = d.get("/api/scans/%d" % scan).json()
+    c.eq((r["state"], r["points_done"], r["job_id"]), ("done", 961, job), "scan done, every point")
+    c.eq(r["setup"]["pitch_um"], 6.0, "setup stored")
+    c.eq(db.val("SELECT count(*) FROM frames WHERE scan_id = ?", scan), 961, "961 frame rows")
+
+    # the automatic fit of the POI
+    r = d.get("/api/jobs?kind=fit&scan=%d" % scan).json()
+    c.eq(r["total"], 1, "one automatic fit job")
+    fitjob = r["items"][0]["id"]
+    j = d.wait_job(fitjob, "done")
+    c.ok(j, "automatic fit done")
+    fit_id = j["fit_id"]
+    p = j["params"]
+    c.eq((p["ftest"], p["ftest_r"], p["wiener"], p["r_max"]), ("top,left,bottom", 7, True, 8),
+         "fit job params: paper's F-test, Wiener")
+
+    # the pixel raster as a scan file, fitted by ips fit with the same options
+    r = d.get("/api/scans/%d/pixels/0/0" % scan)
+    c.status(r, 200, "pixel raster")
+    pixel_path = os.path.join(t, "pixel.json")
+    with open(pixel_path, "wb") as f:
+        f.write(r.body)
+    pixel = r.json()
+    c.eq(len(pixel["x_um"]), 81, "pixel raster: 81 points inside")
+    c.eq(ips_fit(ips, pixel_path, os.path.join(t, "ips.json"), "--ftest", "top,left,bottom",
+                 "--wiener"), 0, "ips fit on the downloaded raster")
+
+    calib_path = "/api/sensors/%d/pixels/50/60/calibration" % sensor
+    r = d.get(calib_path)
+    c.status(r, 200, "calibration JSON")
+    cal = r.json()
+    csv1 = d.get(calib_path + "?format=csv").text
+    csv2 = d.get(calib_path, headers={"Accept": "text/csv"}).text
+    c.ok(csv1 == csv2, "Accept: text/csv gives the same CSV")
+    fit = d.get("/api/fits/%d" % fit_id).json()
+    with open(os.path.join(t, "ips.json")) as f:
+        ipsout = json.load(f)
+    fails = compare_with_ips(scan, ipsout, cal, fit, csv1, db)
+    for f in fails:
+        print("FAIL:", f, file=sys.stderr)
+    c.ok(not fails, "stored calibration = ips fit on the downloaded raster (JSON, CSV, database)")
+
+    # the event stream saw the scan run (progress, ETA) and both jobs finish (the fit job's done
+    # event is published just after the row is written: waited for, with the heartbeat)
+    wait_for(lambda: any(e["id"] == fitjob and e["state"] == "done" for e in sse.events())
+             and sse.has(": heartbeat"))
+    ev = sse.events()
+    run = [e for e in ev if e["id"] == job and e["state"] == "running" and e["phase"] == "raster"]
+    good = (len(run) > 10 and all(e["points_total"] == 961 for e in run)
+            and any(e["eta_s"] is not None and e["points_done"] > 0 for e in run)
+            and any(e["id"] == job and e["state"] == "done" for e in ev)
+            and any(e["id"] == fitjob and e["state"] == "done" for e in ev)
+            and sorted(e["points_done"] for e in run) == [e["points_done"] for e in run])
+    if not good:
+        print("events:", ev[:3], len(ev), file=sys.stderr)
+    c.ok(good, "SSE: running progress with ETA, then done, for the scan and its fit")
+    c.ok(sse.has(": heartbeat"), "SSE heartbeat comment")
+    # the raster's start (0 points), then one event per stored point, in order, none twice
+    c.eq([e["points_done"] for e in run if e["points_done"] <= HOLD_AT],
+         list(range(0, HOLD_AT + 1)), "SSE: one event per stored point up to the hold")
+    sse.close()
+    # ?job=ID: the job's current state first, then only its events
+    one = EventStream(d.port, "/api/events?job=%d" % job)
+    wait_for(lambda: one.events())
+    e = one.events()[0] if one.events() else {}
+    c.eq((e.get("id"), e.get("state"), e.get("points_done"), e.get("points_total")),
+         (job, "done", 961, 961), "SSE ?job: its current state first")
+    c.ok(one.has("retry: 3000"), "SSE retry hint")
+    one.close()
+
+    # a fit of another pixel with other options
+    r = d.post("/api/scans/%d/fits" % scan, {"dcol": 1, "drow": 0, "r_min": 1, "r_max": 4,
+                                              "sigma": "shot+read"})
+    c.status(r, 202, "fit another pixel")
+    j2 = r.json()["job"]["id"]
+    c.ok(d.wait_job(j2, "done"), "second fit done")
+    p10 = os.path.join(t, "pixel10.json")
+    with open(p10, "wb") as f:
+        f.write(d.get("/api/scans/%d/pixels/1/0" % scan).body)
+    ips_fit(ips, p10, os.path.join(t, "ips10.json"), "--r-min", "1", "--r-max", "4", "--sigma",
+            "shot+read")
+    cal10 = d.get("/api/sensors/%d/pixels/51/60/calibration" % sensor).json()
+    with open(os.path.join(t, "ips10.json")) as f:
+        ips10 = json.load(f)
+    best = [f for f in ips10["fits"] if f["r"] == ips10["best_r"]["bic"]][0]
+    c.ok(cal10["r"] == best["r"] and cal10["noise_model"] == "shot+read" and
+         max(abs(a - b) for a, b in zip(cal10["S"], best["S"])) < 1e-9,
+         "pixel (+1, 0) fitted with shot+read, r <= 4, = ips fit")
+
+    # an uploaded scan file (the same pixel's data) becomes the new calibration of (50, 60)
+    upload = {"scan": pixel, "sensor_id": sensor, "pixel": {"col": 50, "row": 60},
+              "optics": {"wavelength_nm": 550, "na": 0.25}, "ftest": "top,left,bottom",
+              "wiener": True}
+    r = d.post("/api/fits", upload)
+    c.status(r, 202, "upload fit")
+    j3 = d.wait_job(r.json()["job"]["id"], "done")
+    c.ok(j3, "upload fit done")
+    f3 = j3["fit_id"] if j3 else 0
+    c.eq(d.get("/api/fits/%d" % f3).json()["scan_id"], None, "upload fit has no scan")
+    h = d.get("/api/sensors/%d/pixels/50/60/history" % sensor).json()
+    it = h["items"]
+    c.eq((len(it), it[0]["current"], it[1]["superseded_by"] == it[0]["id"],
+          it[0]["S"] == it[1]["S"]), (2, True, True, True),
+         "history: two maps, newest first, the old one superseded")
+    rr = it[0]["r"]
+    hcsv = d.get("/api/sensors/%d/pixels/50/60/history?format=csv" % sensor).body
+    c.eq(hcsv.count(b"\n"), 2 * rr * rr + 1, "history CSV lines")
+    c.eq(d.get("/api/calibrations?sensor=%d&current=1" % sensor).json()["total"], 2,
+         "search: two current maps")
+    c.eq(d.get("/api/calibrations?sensor=%d" % sensor).json()["total"], 3,
+         "search: three maps in all")
+    r = d.get("/api/scans?sensor=%d&state=done" % sensor).json()
+    c.eq((r["total"], r["items"][0]["id"]), (1, scan), "scan list filter")
+    r = d.get("/api/scans/%d/points/480" % scan).json()
+    c.eq((len(r["raw"]), len(r["raw"][0]), len(r["mean"])), (2, 9, 9),
+         "a point's frames: 2 raw 3x3 frames")
+
+    db.close()
+    c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+    log = d.log_text()
+    c.ok("ipsd: stopped" in log, "graceful stop logged")
+    c.ok("failpoint scan.point: job %d released" % job in log, "the hold and its release logged")
+
+
+if __name__ == "__main__":
+    sys.exit(ipsd_http.main(test, sys.argv))
