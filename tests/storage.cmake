@@ -9,4 +9,5 @@ if(TARGET ipsstore)
     add_test(NAME test_storage_layers
              COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_storage_layers.sh ${CMAKE_NM}
                      $<TARGET_FILE:ipsstore> ${PROJECT_SOURCE_DIR}/storage)
+    set_tests_properties(test_storage_layers PROPERTIES TIMEOUT 60) # nm and a sort: about 1 s
 endif()

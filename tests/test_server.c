@@ -249,20 +249,32 @@ static void test_pixel_scan(void)
     CHECK(storage_open(path, &st, &err) == 0);
     storage_scan_t row;
     CHECK(storage_scan_get(st, store_raster(st, &r), &row, NULL) == 0);
-    int pix[][2] = {{0, 0}, {1, -1}, {-1, 0}};
+    /* What each pixel's scan file must hold, worked out from the raster's geometry and the
+     * camera's own frames, not by the extraction code: the raster is 19 x 19 points in 1 um steps
+     * centred on the found centre, so pixel (dcol, drow) sees the 5 x 5 points at 1..5 um from
+     * its corner (row-major, y downward), and each point's signal is the mean of the point's two
+     * raw frames at that sub-frame pixel. */
+    const double p = 6.0, R = 1.22 * 0.55 / (2 * 0.25); /* the bench's pitch; eq. 1 by hand */
+    int pix[][2] = {{0, 0}, {1, -1}, {-1, 0}}, nx = 19, h = 9, m = 3;
+    CHECK(r.nx == nx && r.count == (size_t)nx * nx);
     for (size_t q = 0; q < 3; q++) {
-        scanfile_t want, got, all;
-        CHECK(scan_extract_pixel(&r, pix[q][0], pix[q][1], &want, &err) == 0);
-        CHECK(srv_pixel_scan(st, &row, pix[q][0], pix[q][1], 0, &got, &err) == 0);
-        CHECK(got.scan.n == want.scan.n && want.scan.n == 25); /* 5 x 5 inside at 1 um steps */
-        for (size_t k = 0; k < want.scan.n && got.scan.n == want.scan.n; k++)
-            CHECK(got.x_um[k] == want.x_um[k] && got.y_um[k] == want.y_um[k] &&
-                  got.signal_dn[k] == want.signal_dn[k]);
-        CHECK(memcmp(&got.scan.pitch_um, &want.scan.pitch_um,
-                     sizeof(fit_scan_t) - offsetof(fit_scan_t, pitch_um)) == 0);
-        CHECK(srv_pixel_scan(st, &row, pix[q][0], pix[q][1], 1, &all, &err) == 0);
+        int dc = pix[q][0], dr = pix[q][1];
+        scanfile_t got, all;
+        CHECK(srv_pixel_scan(st, &row, dc, dr, 0, &got, &err) == 0);
+        CHECK(got.scan.n == 25); /* 5 x 5 inside at 1 um steps */
+        for (size_t k = 0; k < got.scan.n && got.scan.n == 25; k++) {
+            int a = (int)(k % 5), b = (int)(k / 5); /* column and row of the point in the pixel */
+            int ix = h + a + 1 - 3 + 6 * dc, iy = h + b + 1 - 3 + 6 * dr; /* raster indexes */
+            size_t i = (size_t)iy * nx + (size_t)ix, at = (size_t)(1 + dr) * m + (size_t)(1 + dc);
+            const uint16_t *f0 = r.raw + i * 2 * (size_t)(m * m), *f1 = f0 + m * m;
+            CHECK(fabs(got.x_um[k] - (a + 1)) < 1e-9 && fabs(got.y_um[k] - (b + 1)) < 1e-9);
+            CHECK(got.signal_dn[k] == (f0[at] + f1[at]) / 2.0);
+        }
+        CHECK(got.scan.pitch_um == p && got.scan.bias_dn == 100 && got.scan.frames == 2);
+        CHECK(got.scan.gain_e_per_dn == 3.153 && got.scan.read_noise_e == 5.67);
+        CHECK(got.scan.full_scale_dn == 16383 && fabs(got.scan.spot_radius_um - R) < 1e-12);
+        CHECK(srv_pixel_scan(st, &row, dc, dr, 1, &all, &err) == 0);
         CHECK(all.scan.n == r.count); /* all = 1: every point, also outside the pixel */
-        scanfile_free(&want);
         scanfile_free(&got);
         scanfile_free(&all);
     }
