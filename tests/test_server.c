@@ -1,7 +1,7 @@
 /* test_server.c: pieces of the server core (server/) without HTTP: the event hub (order, waiting
  * and waking, dropped events, heartbeats, shutdown), the scan setup's JSON round trip, the pixel
- * extraction from stored points against the instrument's own extraction from the raster in memory
- * (scan_extract_pixel, an independent implementation), the job parameters, and the command line.
+ * extraction from stored points against the raster's geometry and the camera's raw frames, the
+ * fit job against the published reference fits, the job parameters, and the command line.
  * (The raster size rule, 51 x 51 points for the paper, is tested with it in test_scan.c.) */
 #define _GNU_SOURCE /* mkdtemp */
 #include <errno.h>
