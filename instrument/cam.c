@@ -155,7 +155,10 @@ static int backend_of(const char *name, const struct cam_backend **out, err_t *e
     char names[128] = "";
     for (size_t i = 0; i < N_SLOTS; i++)
         snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s",
-                 i == 0 ? "" : i + 1 == N_SLOTS ? " or " : ", ", slots[i].name);
+                 i == 0             ? ""
+                 : i + 1 == N_SLOTS ? " or "
+                                    : ", ",
+                 slots[i].name);
     return err_set(err, -EINVAL, "unknown camera backend '%s' (%s)", name, names);
 }
 

@@ -36,12 +36,12 @@ struct cam_ops {
 
 /* A backend (cam.h's semantics for list and open; open gives the state ops works on). */
 struct cam_backend {
-    unsigned abi;                               /* CAM_BACKEND_ABI */
-    unsigned info_size, frame_size, err_size;   /* sizeof cam_info_t, cam_frame_t, err_t */
-    const char *name;                           /* "sim", "libcamera" */
+    unsigned abi;                             /* CAM_BACKEND_ABI */
+    unsigned info_size, frame_size, err_size; /* sizeof cam_info_t, cam_frame_t, err_t */
+    const char *name;                         /* "sim", "libcamera" */
     int (*list)(cam_info_t **infos, size_t *n, err_t *err);
     int (*open)(const char *id, void **impl, err_t *err);
-    const struct cam_ops *ops;                  /* of what open gives */
+    const struct cam_ops *ops; /* of what open gives */
 };
 
 /* The initialiser of the version and layout fields. */

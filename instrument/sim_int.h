@@ -65,7 +65,7 @@ struct sim {
     stage_t *stage;
     double exposure_us, gain; /* the camera's settings (cam_sim.c); sim_expected scales by the
                                  exposure */
-    cam_t *cam;                     /* the handle sim_camera gives out (cam_sim.c), made once */
+    cam_t *cam;               /* the handle sim_camera gives out (cam_sim.c), made once */
     void (*cam_release)(cam_t *cam); /* how sim_close releases it */
     struct sim_memo memo;
     struct sim_ask *asks; /* this capture's misses */
