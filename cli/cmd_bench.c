@@ -7,12 +7,23 @@
  *     build time, and the cost in radial evaluations; also for extreme spots (R = 30, 0.05 um).
  * (b) The full job on the reference scan (bench_scan.h, generated from the reference file):
  *     sweep r = 1..8, F-test at r = 7 (top, left, bottom) and Wiener, min and median wall time
- *     over repeated runs on one core (this program is single-threaded), and the LM sweep. */
+ *     over repeated runs on one core (this program is single-threaded), and the LM sweep.
+ * (c) Process start-up: the wall time of starting (posix_spawn: vfork + exec) and reaping
+ *     `ips box` (this executable) and /bin/true, interleaved, median and min of many runs,
+ *     measured first while this process is small; the difference is what a short `ips` command
+ *     costs beyond the operating system's own price of a process (loading its libraries, mostly;
+ *     target <= 3 ms). */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
+#include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+extern char **environ;
 
 #include "base/clock.h"
 #include "bench_scan.h"
@@ -28,13 +39,14 @@
 #define BENCH_R 7           /* the paper's r */
 #define REF_TOL 1e-14       /* accuracy of the reference matrix */
 #define MAX_RUNS 100000     /* cap on timed repetitions of one measurement */
+#define STARTUP_RUNS 300    /* start-ups of each program (--quick: STARTUP_RUNS / 5) */
 
 static const char usage[] =
     "usage: ips bench [--quick] [--json]\n"
     "  Design-matrix accuracy against run time, and the time of the full fit of the reference\n"
-    "  scan (sweep r = 1..8, F-test, Wiener), and the simulated bench's full paper scan with\n"
-    "  its leave-out rule. --quick: fewer repetitions. --json: machine-\n"
-    "  readable output.\n";
+    "  scan (sweep r = 1..8, F-test, Wiener), the start-up cost of an ips process against\n"
+    "  /bin/true, and the simulated bench's full paper scan with its leave-out rule.\n"
+    "  --quick: fewer repetitions. --json: machine-readable output.\n";
 
 /* Accuracy settings of the table: a target tolerance and the quadrature order it stands for;
  * the segment spans come from fit_design_opts_for_tol(tol). */
@@ -246,6 +258,72 @@ out:
     return rc;
 }
 
+/* ---- process start-up ---- */
+
+struct startup {
+    int runs;
+    char box_cmd[64];
+    double true_median, true_min, box_median, box_min, overhead;
+};
+
+/* Wall time (ms) of starting argv[0] with argv (posix_spawn: vfork + exec, as hyperfine does),
+ * and of its exit, its output discarded; -1 if it could not run or did not exit 0. */
+static double spawn_ms(char *const argv[])
+{
+    posix_spawn_file_actions_t fa;
+    if (posix_spawn_file_actions_init(&fa)) return -1;
+    posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_adddup2(&fa, STDOUT_FILENO, STDERR_FILENO);
+    double t0 = clock_mono_ms();
+    pid_t pid;
+    int rc = posix_spawn(&pid, argv[0], &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (rc) return -1;
+    int status;
+    while (waitpid(pid, &status, 0) < 0)
+        if (errno != EINTR) return -1;
+    double t = clock_mono_ms() - t0;
+    return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? t : -1;
+}
+
+/* `ips box` (the paper's spot in the middle of a 6 um pixel) against /bin/true, interleaved so that
+ * both see the same load. */
+static int bench_startup(int quick, struct startup *su, err_t *err)
+{
+    char self[4096];
+    ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (len <= 0) {
+        int e = len < 0 ? errno : ENOENT;
+        return err_set(err, -e, "cannot find this executable: %s", strerror(e));
+    }
+    self[len] = '\0';
+    char *box[] = {self, "box", "1.34", "0", "6", "0", "6", "3", "3", NULL};
+    char *tru[] = {access("/bin/true", X_OK) == 0 ? "/bin/true" : "/usr/bin/true", NULL};
+    snprintf(su->box_cmd, sizeof su->box_cmd, "ips box 1.34 0 6 0 6 3 3");
+    int runs = quick ? STARTUP_RUNS / 5 : STARTUP_RUNS;
+    double *t = malloc(sizeof(double) * 2 * (size_t)runs);
+    if (!t) return err_set(err, -ENOMEM, "out of memory");
+    double *tt = t, *tb = t + runs;
+    spawn_ms(tru), spawn_ms(box); /* warm the page cache */
+    for (int i = 0; i < runs; i++) {
+        tt[i] = spawn_ms(tru);
+        tb[i] = spawn_ms(box);
+        if (tt[i] < 0 || tb[i] < 0) {
+            const char *what = tt[i] < 0 ? tru[0] : su->box_cmd;
+            free(t);
+            return err_set(err, -EIO, "%s did not run", what);
+        }
+    }
+    su->runs = runs;
+    su->true_median = median(tt, runs);
+    su->true_min = tt[0]; /* median sorted them */
+    su->box_median = median(tb, runs);
+    su->box_min = tb[0];
+    su->overhead = su->box_median - su->true_median;
+    free(t);
+    return 0;
+}
+
 /* ---- output ---- */
 
 /* Whether the measured row error meets the setting's tolerance, as far as the reference can
@@ -284,6 +362,23 @@ static void print_table(const struct design_row *rows, int n, const struct job_t
     printf("  (best r by AIC %d; F = %.4f, p = %.3g)\n", jt->best_aic, jt->F, jt->p_value);
     printf("  LM sweep (method lm, same settings): median %.3f ms over %d run%s\n", jt->lm_sweep,
            jt->lm_runs, jt->lm_runs == 1 ? "" : "s");
+}
+
+static void print_startup(const struct startup *su)
+{
+    printf("\nProcess start-up (spawn, exec, exit; %d runs of each, interleaved)\n", su->runs);
+    printf("  %-26s median %7.3f ms   min %7.3f ms\n", "/bin/true", su->true_median, su->true_min);
+    printf("  %-26s median %7.3f ms   min %7.3f ms\n", su->box_cmd, su->box_median, su->box_min);
+    printf("  ips box - /bin/true        median %7.3f ms   (target <= 3 ms)\n", su->overhead);
+}
+
+static json_t *startup_json(const struct startup *su)
+{
+    return json_pack("{s:i, s:s, s:{s:o, s:o}, s:{s:o, s:o}, s:o}", "runs", su->runs, "command",
+                     su->box_cmd, "true_ms", "median", fitjson_num(su->true_median), "min",
+                     fitjson_num(su->true_min), "ips_box_ms", "median",
+                     fitjson_num(su->box_median), "min", fitjson_num(su->box_min),
+                     "overhead_ms", fitjson_num(su->overhead));
 }
 
 static json_t *bench_json(const struct design_row *rows, int n, const struct job_times *jt)
@@ -330,11 +425,17 @@ int cmd_bench(int argc, char **argv)
     }
     struct design_row rows[N_SETTINGS * sizeof radii / sizeof radii[0]];
     struct job_times jt = {0};
+    struct startup su = {0};
     int n_rows, rc;
     err_t err;
-    if ((rc = bench_design(quick, rows, &n_rows, &err)) || (rc = bench_job(quick, &jt, &err)))
+    /* start-up first, while this process is small */
+    if ((rc = bench_startup(quick, &su, &err)) || (rc = bench_design(quick, rows, &n_rows, &err)) ||
+        (rc = bench_job(quick, &jt, &err)))
         return cli_fail(CLI_EXIT_FAILURE, "bench", "%s", err.msg);
-    if (!as_json) print_table(rows, n_rows, &jt);
+    if (!as_json) {
+        print_table(rows, n_rows, &jt);
+        print_startup(&su);
+    }
     fflush(stdout);
     simperf_t sp; /* the simulated bench: the paper's full scan and the leave-out rule */
     if (simperf_measure(quick, &sp, &err) != 0)
@@ -345,6 +446,7 @@ int cmd_bench(int argc, char **argv)
         return 0;
     }
     json_t *root = bench_json(rows, n_rows, &jt);
+    if (root) json_object_set_new(root, "startup", startup_json(&su));
     if (root) json_object_set_new(root, "simulator", simperf_json(&sp));
     rc = root ? fitjson_print(root, stdout) : -ENOMEM;
     json_decref(root);

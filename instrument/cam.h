@@ -1,12 +1,15 @@
 /* cam.h: the camera interface of the bench, one small C header for every backend.
  *
- * Backends are compiled in at build time and chosen by name when a camera is opened:
- *   "sim"        the simulated bench's camera (always built; see sim.h). cam_open("sim", SPEC)
+ * Backends are chosen by name when a camera is listed or opened (cam.c keeps a table of them):
+ *   "sim"        the simulated bench's camera (always built in; see sim.h). cam_open("sim", SPEC)
  *                opens a bench of its own with the paper's defaults on scene SPEC ("uniform",
  *                "paperlike", "map:FILE"; NULL or "" for paperlike); sim.h opens configured ones.
- *   "libcamera"  a camera driven by libcamera (cam_libcamera.cpp, built when pkg-config finds
- *                libcamera; otherwise opening it fails with -ENOTSUP). ID is libcamera's camera id,
- *                or NULL / "" for the first camera.
+ *   "libcamera"  a camera driven by libcamera: a module (libipscam_libcamera.so, built when
+ *                pkg-config finds libcamera) loaded the first time the backend is listed or
+ *                opened, looked for in $IPSD_CAM_MODULE_PATH (directories, colon-separated) or
+ *                else the build tree and the install location; when it is missing or does not
+ *                load, listing and opening fail with -ENOTSUP and the loader's reason. ID is
+ *                libcamera's camera id, or NULL / "" for the first camera.
  * A frame is a region of interest (ROI) of 16-bit DN values, row-major, with its metadata. A
  * handle is used by one thread at a time. */
 #ifndef IPSD_INSTRUMENT_CAM_H
@@ -56,13 +59,13 @@ typedef struct cam_frame {
 } cam_frame_t;
 
 /* Lists the cameras of backend ("sim" or "libcamera"). *infos (n entries) is owned by the caller
- * (free()). Returns 0 (possibly with n = 0), -ENOTSUP for a backend not built in, -EINVAL for an
- * unknown backend, or another negative errno from the backend. */
+ * (free()). Returns 0 (possibly with n = 0), -ENOTSUP for a backend whose module is not built or
+ * does not load, -EINVAL for an unknown backend, or another negative errno from the backend. */
 int cam_list(const char *backend, cam_info_t **infos, size_t *n, err_t *err);
 
 /* Opens camera id of backend (see above). *out is owned by the caller (cam_close). Returns 0,
  * -ENODEV (no such camera; for libcamera with none present: "no camera found by libcamera"),
- * -ENOTSUP (backend not built), -EINVAL, -EBUSY or -ENOMEM. */
+ * -ENOTSUP (backend's module not built or not loadable), -EINVAL, -EBUSY or -ENOMEM. */
 int cam_open(const char *backend, const char *id, cam_t **out, err_t *err);
 
 /* Closes the camera (stops it, releases it); accepts NULL. */
@@ -86,7 +89,9 @@ int cam_capture(cam_t *cam, const cam_roi_t *roi, cam_frame_t *frame, err_t *err
 /* Releases what the frame owns and zeroes it; accepts NULL. */
 void cam_frame_free(cam_frame_t *frame);
 
-/* Names of the backends built in, NULL-terminated (static). */
+/* Names of the backends available, NULL-terminated (static): the built-in ones, and those whose
+ * module file is in the module path at the first call. Loads nothing: a module listed here may
+ * still fail to load (a library it needs missing), which cam_list and cam_open report. */
 const char *const *cam_backends(void);
 
 #endif

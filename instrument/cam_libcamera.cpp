@@ -1,6 +1,10 @@
 /* cam_libcamera.cpp: the "libcamera" camera backend (cam.h), the only C++ file of ipsd: a narrow
- * shim over libcamera. Every difference between libcamera releases is kept behind the
- * <libcamera/version.h> checks in this file (Debian 12 ships 0.0.3; newer releases build too).
+ * shim over libcamera, built as a module of its own (libipscam_libcamera.so) that cam.c loads
+ * with dlopen only when the backend is listed or opened, so that ips and ipsd link neither
+ * libcamera nor libstdc++. Its one exported symbol is ipsd_cam_backend_v1() (cam_impl.h); it needs
+ * nothing from the program that loads it (err_set and cam_roi_check are compiled into it). Every
+ * difference between libcamera releases is kept behind the <libcamera/version.h> checks in this
+ * file (Debian 12 ships 0.0.3; newer releases build too).
  *
  * What it does: one raw stream (StreamRole::Raw) at the sensor's configured size, one request
  * buffer; auto-exposure off, ExposureTime and AnalogueGain set in every request; a capture queues
@@ -24,10 +28,12 @@
 #include <cstring>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "cam_impl.h"
+#include "cam_roi.h"
 
 #define IPSD_LIBCAMERA_AT_LEAST(ma, mi, pa)                                                        \
     (LIBCAMERA_VERSION_MAJOR > (ma) ||                                                             \
@@ -323,12 +329,9 @@ int lc_capture(void *impl, const cam_roi_t *roi, cam_frame_t *f, err_t *err)
     return 0;
 }
 
-const struct cam_ops lc_ops = {"libcamera",     lc_close,    lc_info,
-                               lc_set_exposure, lc_set_gain, lc_capture};
+const struct cam_ops lc_ops = {lc_close, lc_info, lc_set_exposure, lc_set_gain, lc_capture};
 
-} /* namespace */
-
-extern "C" int cam_libcamera_list(cam_info_t **infos, size_t *n, err_t *err)
+int lc_list(cam_info_t **infos, size_t *n, err_t *err)
 {
     *infos = nullptr;
     *n = 0;
@@ -359,12 +362,16 @@ extern "C" int cam_libcamera_list(cam_info_t **infos, size_t *n, err_t *err)
     return rc;
 }
 
-extern "C" int cam_libcamera_open(const char *id, cam_t **out, err_t *err)
+int lc_open(const char *id, void **out, err_t *err)
 {
     *out = nullptr;
     int rc = manager_acquire(err);
     if (rc) return rc;
-    LcCam *c = new LcCam;
+    LcCam *c = new (std::nothrow) LcCam;
+    if (!c) {
+        manager_release();
+        return err_set(err, -ENOMEM, "out of memory for the camera");
+    }
     std::vector<std::shared_ptr<Camera>> cams = manager->cameras();
     if (cams.empty())
         rc = err_set(err, -ENODEV, "no camera found by libcamera");
@@ -377,8 +384,21 @@ extern "C" int cam_libcamera_open(const char *id, cam_t **out, err_t *err)
         rc = err_set(err, -EBUSY, "camera %s is in use by another process", c->cam->id().c_str());
     c->acquired = rc == 0;
     if (rc == 0) rc = setup(c, err);
-    if (rc == 0 && !(*out = cam_wrap(&lc_ops, c)))
-        rc = err_set(err, -ENOMEM, "out of memory for the camera");
-    if (rc) lc_close(c); /* releases the manager too */
-    return rc;
+    if (rc) {
+        lc_close(c); /* releases the manager too */
+        return rc;
+    }
+    *out = c;
+    return 0;
+}
+
+const struct cam_backend lc_backend = {CAM_BACKEND_HEADER, "libcamera", lc_list, lc_open, &lc_ops};
+
+} /* namespace */
+
+/* The module's entry point (cam_impl.h), the one symbol it exports. */
+extern "C" __attribute__((visibility("default"))) const struct cam_backend *
+ipsd_cam_backend_v1(void)
+{
+    return &lc_backend;
 }

@@ -273,7 +273,7 @@ static int focus(struct setup_ctx *x, err_t *err)
 {
     const scan_config_t *c = x->cfg;
     int K = (int)floor(c->focus_range_um / c->focus_step_um + 1e-9), n = c->focus_points, rc;
-    double z0 = c->start.z_um, best = INFINITY, zb = z0, f;
+    double z0 = c->start.z_um, best = INFINITY, zb = z0, f = INFINITY;
     for (int k = -K; k <= K; k++) { /* coarse sweep */
         scan_progress(x->hooks, "focus", (size_t)(k + K + 1), (size_t)(2 * K + 1));
         if ((rc = focus_metric(x, z0 + k * c->focus_step_um, c->setup_frames, &f, err)) != 0)

@@ -83,7 +83,9 @@ int sim_open(const sim_config_t *cfg, sim_t **out, err_t *err);
 /* Closes the bench and its camera and stage handles; accepts NULL. */
 void sim_close(sim_t *sim);
 
-/* The bench's camera and stage: borrowed, valid until sim_close; do not close them. */
+/* The bench's camera and stage: borrowed, valid until sim_close; do not close them. The camera
+ * handle is made at the first sim_camera call (cam_sim.c), which returns NULL only when that
+ * small allocation fails. */
 cam_t *sim_camera(sim_t *sim);
 stage_t *sim_stage(sim_t *sim);
 
@@ -115,7 +117,7 @@ stage_pos_t sim_pixel_centre(const sim_t *sim, int col, int row);
 int sim_expected(sim_t *sim, double xs, double ys, double R_um, const cam_roi_t *roi, double *e_out,
                  double *left_out_e, err_t *err);
 
-/* What the camera does (cam.h semantics; cam_sim.c maps the camera calls here). */
+/* What the camera does (cam.h semantics; the simulated camera of cam_sim.c). */
 int sim_info(sim_t *sim, cam_info_t *info);
 int sim_set_exposure(sim_t *sim, double exposure_us, err_t *err);
 int sim_set_gain(sim_t *sim, double gain, err_t *err);

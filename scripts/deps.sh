@@ -11,6 +11,7 @@ IPSD_PACKAGES=(
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
     curl wrk python3                        # HTTP tests, load benchmark, test scripts
     chromium                                # the dashboard's browser test (headless)
+    clang                                   # scripts/build-matrix.sh's second compiler
 )
 # node and npm run the browser test's driver (playwright-core from the npm registry). Machines
 # that already have a node (e.g. from nodesource) keep it: Debian's npm conflicts with that one.

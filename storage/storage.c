@@ -311,7 +311,7 @@ out:
 /* Refuses a schema this code does not know; *v gets the file's version. Only reads. */
 static int check_version(storage_t *st, const char *path, int *v_out, err_t *err)
 {
-    int v, ret = user_version(st, &v, err);
+    int v = 0, ret = user_version(st, &v, err);
     if (ret) {
         err_t inner = {{0}};
         if (err) memcpy(&inner, err, sizeof inner);

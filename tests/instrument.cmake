@@ -5,7 +5,31 @@ ipsd_add_test(test_stage ipsinstr)
 ipsd_add_test(test_cam_sim ipsinstr)
 ipsd_add_test(test_scan ipsinstr)
 set_tests_properties(test_scan PROPERTIES TIMEOUT 200) # busy, ASan: 47 s (optimised 6 s); 4x
+
+# the libcamera backend: a module loaded at run time; the test knows whether it was built and
+# where (to check IPSD_CAM_MODULE_PATH)
 ipsd_add_test(test_cam_libcamera ipsinstr)
+if(TARGET ipscam_libcamera)
+    add_dependencies(test_cam_libcamera ipscam_libcamera)
+    target_compile_definitions(test_cam_libcamera PRIVATE IPSD_HAVE_LIBCAMERA
+        IPSD_TEST_CAM_MODULE_DIR="$<TARGET_FILE_DIR:ipscam_libcamera>")
+endif()
+
+# ips and ipsd load libcamera only when its backend is asked for: neither needs libcamera, nor
+# libstdc++ (ldd lists what the loader maps at start; libc proves ldd read the file). Sanitized
+# builds are let off libstdc++: the UBSan run-time brings it.
+if(IPSD_SANITIZE)
+    set(ipsd_unwanted_libs "libcamera")
+else()
+    set(ipsd_unwanted_libs "libcamera|libstdc\\+\\+")
+endif()
+foreach(exe ips ipsd)
+    if(TARGET ${exe})
+        add_test(NAME test_${exe}_without_libcamera
+                 COMMAND sh -c "l=$(ldd \"$1\") && echo \"$l\" | grep -q 'libc\\.so' && ! echo \"$l\" | grep -E \"$2\""
+                         sh $<TARGET_FILE:${exe}> "${ipsd_unwanted_libs}")
+    endif()
+endforeach()
 
 if(TARGET ips)
     add_test(NAME test_simulate

@@ -42,6 +42,9 @@ if job["best_r_aic"] != min(ref, key=lambda f: f["aic"])["r"]: bad.append("best 
 if abs(job["F"] - wft["F"]) > 1e-6 * wft["F"]: bad.append(f"F {job['F']}")
 if abs(job["p_value"] - wft["p_value"]) > 1e-6 * wft["p_value"]: bad.append("p_value")
 if not (0 < job["total_ms"]["min"] <= job["total_ms"]["median"]): bad.append("total_ms")
+su = out["startup"]  # process start-up: measured (figures only, no target asserted)
+if not (su["runs"] >= 10 and all(0 < su[k]["min"] <= su[k]["median"] for k in ("true_ms", "ips_box_ms"))):
+    bad.append(f"startup {su}")
 for b in bad: print("FAIL:", b)
 print(f"{len(rows)} design rows, {len(bad)} failures")
 sys.exit(1 if bad else 0)
