@@ -18,7 +18,7 @@
 
 #include "fit/airy.h"
 #include "corner.h"
-#include "gslerr.h"
+#include "fit/gslerr.h"
 
 #define QAG_LIMIT 4000
 
@@ -159,7 +159,7 @@ static int box_outside(gsl_integration_workspace *ws, double a, double u[2], dou
 int fit_box_integral(double R_um, const fit_rect_t *rect, double xk, double yk, double rel_tol,
                      double *value, double *err_bound, err_t *err)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     if (!(R_um > 0) || !isfinite(R_um))
         return err_set(err, -EINVAL, "spot radius must be a positive finite number (got %g)", R_um);
     if (!isfinite(rect->x0) || !isfinite(rect->x1) || !isfinite(rect->y0) ||

@@ -10,7 +10,7 @@
 #include <string.h>
 
 #include "fit/model.h"
-#include "gslerr.h"
+#include "fit/gslerr.h"
 #include "wls.h"
 
 static const struct {
@@ -104,7 +104,7 @@ out:
 int fit_ftest_with_h1(const fit_scan_t *scan, const fit_result_t *h1, unsigned edges,
                       const fit_options_t *opts, fit_ftest_t *out, err_t *err)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     memset(out, 0, sizeof *out);
     out->r = h1->r;
     out->edges = edges;
@@ -132,7 +132,7 @@ int fit_ftest_with_h1(const fit_scan_t *scan, const fit_result_t *h1, unsigned e
 
 double fit_ftest_p_value(double F, int d1, int d2)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     if (isnan(F) || d1 < 1 || d2 < 1) return NAN;
     return gsl_cdf_fdist_Q(F, d1, d2);
 }
@@ -140,7 +140,7 @@ double fit_ftest_p_value(double F, int d1, int d2)
 int fit_ftest_run(const fit_scan_t *scan, int r, unsigned edges, const fit_options_t *opts,
                   fit_ftest_t *out, err_t *err)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     fit_options_t o = opts ? *opts : fit_options_default();
     o.method = FIT_LINEAR;
     memset(out, 0, sizeof *out);

@@ -1,6 +1,6 @@
 /* gslerr.c: fit/'s GSL error policy (see gslerr.h): GSL's aborting default handler is turned off
  * once per process, a handler of the program's own is left in place. */
-#include "gslerr.h"
+#include "fit/gslerr.h"
 
 #include <gsl/gsl_errno.h>
 #include <pthread.h>
@@ -16,7 +16,7 @@ static void policy_apply(void)
     if (previous) gsl_set_error_handler(previous);
 }
 
-void gslerr_policy(void)
+void fit_gsl_policy(void)
 {
     pthread_once(&policy_once, policy_apply);
 }

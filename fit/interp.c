@@ -13,7 +13,7 @@
 #include <gsl/gsl_spline2d.h>
 #include <stdlib.h>
 
-#include "gslerr.h"
+#include "fit/gslerr.h"
 
 /* Output coordinate k of n, clamped to the sample centres [c0, c1]. */
 static double clamped_point(int k, int n, double c0, double c1)
@@ -24,7 +24,7 @@ static double clamped_point(int k, int n, double c0, double c1)
 
 int fit_interp_bicubic(const double *map, int r, int n, double *out, err_t *err)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     if (!map || !out) return err_set(err, -EINVAL, "interp: map and output must not be NULL");
     if (r < 1) return err_set(err, -EINVAL, "interp: map size r must be >= 1 (got %d)", r);
     if (n < 1) return err_set(err, -EINVAL, "interp: output size n must be >= 1 (got %d)", n);

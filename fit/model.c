@@ -11,7 +11,7 @@
 #include <time.h>
 
 #include "base/clock.h"
-#include "gslerr.h"
+#include "fit/gslerr.h"
 #include "lm.h"
 #include "wls.h"
 
@@ -242,7 +242,7 @@ static int fill_model(const fit_scan_t *scan, const double *A, const struct poin
 int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result_t *out,
             err_t *err)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     memset(out, 0, sizeof *out);
     out->r = r;
     out->params = r * r + 1;

@@ -13,7 +13,7 @@
 
 #include "base/clock.h"
 #include "fit/interp.h"
-#include "gslerr.h"
+#include "fit/gslerr.h"
 
 fit_pipeline_opts_t fit_pipeline_opts_default(void)
 {
@@ -188,7 +188,7 @@ static int run_steps(struct run *rn, err_t *err)
 int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,
                      const fit_watch_t *watch, fit_pipeline_t *out, err_t *err)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     memset(out, 0, sizeof *out);
     fit_pipeline_opts_t o = opts ? *opts : fit_pipeline_opts_default();
     int rc = check_opts(scan, &o, err);

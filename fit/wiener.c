@@ -46,7 +46,7 @@
 #include "fit/box.h"
 #include "fit/design.h"
 #include "fit/noise.h"
-#include "gslerr.h"
+#include "fit/gslerr.h"
 
 #define GRID_REL_TOL 1e-6     /* a point may be this many steps off its grid node */
 #define KERNEL_REL_CUT 1e-12  /* kernel entries below this fraction of the peak are left out */
@@ -401,7 +401,7 @@ out:
 
 int fit_wiener_run(const fit_scan_t *scan, double nsr, fit_wiener_t *out, err_t *err)
 {
-    gslerr_policy();
+    fit_gsl_policy();
     if (!out) return err_set(err, -EINVAL, "wiener: no output");
     *out = (fit_wiener_t){0};
     int rc = check_scan(scan, nsr, err);

@@ -10,6 +10,7 @@
 #include <gsl/gsl_multifit.h>
 
 #include "scan_int.h"
+#include "fit/gslerr.h"
 
 /* The exposure search (choose_exposure). */
 #define EXPOSURE_TRIES 40      /* looks at most: 6 lengthenings span 16^6 = 1.7e7, 1 us to 17 s */
@@ -336,6 +337,7 @@ static int settle_constants(const scan_config_t *c, const cam_info_t *in, scan_s
 int scan_prepare(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const scan_hooks_t *hooks,
                  scan_setup_t *su, err_t *err)
 {
+    fit_gsl_policy(); /* GSL reports failures by return code, never by abort() */
     memset(su, 0, sizeof *su);
     su->centre = cfg->start;
     su->exposure_us = cfg->exposure_us;

@@ -1,6 +1,7 @@
 /* scene.c: the simulated bench's sensor and sensitivity maps (see scene.h): the built-in uniform
  * and paperlike scenes, maps read from JSON files, and the exact sub-pixel truth. */
 #include "instrument/scene.h"
+#include "fit/gslerr.h"
 
 #include <errno.h>
 #include <math.h>
@@ -73,6 +74,7 @@ static void compute_stats(scene_t *s)
 int scene_open_map(const double *map, int m, const scene_sensor_t *sensor, const char *name,
                    scene_t **out, err_t *err)
 {
+    fit_gsl_policy(); /* GSL reports failures by return code, never by abort() */
     *out = NULL;
     int rc = scene_sensor_check(sensor, err);
     if (rc) return rc;
@@ -188,6 +190,7 @@ out:
 
 int scene_open(const char *spec, const scene_sensor_t *sensor, scene_t **out, err_t *err)
 {
+    fit_gsl_policy(); /* GSL reports failures by return code, never by abort() */
     *out = NULL;
     if (!spec) spec = "paperlike";
     int rc = scene_sensor_check(sensor, err);

@@ -18,6 +18,7 @@
 #include "fit/airy.h"
 #include "fit/design.h"
 #include "sim_int.h"
+#include "fit/gslerr.h"
 
 sim_config_t sim_config_default(void)
 {
@@ -74,6 +75,7 @@ static int check_config(const sim_config_t *c, err_t *err)
 
 int sim_open(const sim_config_t *cfg, sim_t **out, err_t *err)
 {
+    fit_gsl_policy(); /* GSL reports failures by return code, never by abort() */
     *out = NULL;
     int rc = check_config(cfg, err);
     if (rc) return rc;

@@ -7,9 +7,11 @@
 #include <string.h>
 
 #include "stage_impl.h"
+#include "fit/gslerr.h"
 
 int stage_open_sim(const stage_sim_config_t *cfg, stage_t **out, err_t *err)
 {
+    fit_gsl_policy(); /* GSL reports failures by return code, never by abort() */
     *out = NULL;
     void *impl;
     int rc = stage_sim_new(cfg, &impl, err);

@@ -8,7 +8,6 @@
 #include <stdio.h>
 #include <string.h>
 
-#include <gsl/gsl_errno.h>
 
 /* Writes the bound port to cfg->port_file (written to FILE.tmp, then renamed: a reader never
  * sees a half-written number). */
@@ -57,7 +56,6 @@ static int serve(srv_t *srv, const srv_frontend_t *fe, const sigset_t *sigs)
 
 int srv_main(int argc, char **argv, const srv_frontend_t *fe)
 {
-    gsl_set_error_handler_off();
     srv_config_t cfg = srv_config_default();
     err_t err = {{0}};
     int rc = srv_config_parse(argc, argv, &cfg, &err);

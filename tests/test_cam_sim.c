@@ -9,7 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <gsl/gsl_errno.h>
 
 #include "fit/airy.h"
 #include "fit/box.h"
@@ -261,7 +260,6 @@ static void test_interface(void)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     test_uniform_vs_box();
     test_paperlike_vs_box();
     test_flux_conservation();

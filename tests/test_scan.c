@@ -11,7 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <gsl/gsl_errno.h>
 #include <gsl/gsl_rng.h>
 
 #include "fit/airy.h"
@@ -267,7 +266,6 @@ static void test_limits(void)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     test_setup("uniform", 4, 11);
     test_setup("paperlike", 2, 21);
     test_raster();

@@ -8,7 +8,6 @@
 #include <string.h>
 #include <unistd.h>
 
-#include <gsl/gsl_errno.h>
 
 #include "check.h"
 #include "instrument/scene.h"
@@ -167,7 +166,6 @@ static void test_map_files(void)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     test_sensor();
     test_uniform();
     test_paperlike();

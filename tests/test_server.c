@@ -15,7 +15,6 @@
 #include <time.h>
 #include <unistd.h>
 
-#include <gsl/gsl_errno.h>
 
 #include "base/clock.h"
 #include "instrument/scan.h"
@@ -467,7 +466,6 @@ static void test_config(void)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     const char *base = getenv("TMPDIR");
     snprintf(tmpdir, sizeof tmpdir, "%s/ipsd-test-server-XXXXXX", base && *base ? base : "/tmp");
     if (!mkdtemp(tmpdir)) return 1;

@@ -5,7 +5,6 @@
 #include <math.h>
 #include <string.h>
 
-#include <gsl/gsl_errno.h>
 
 #include "check.h"
 #include "instrument/stage.h"
@@ -108,7 +107,6 @@ static void test_drift(void)
 
 int main(void)
 {
-    gsl_set_error_handler_off();
     test_moves();
     test_positioning_error();
     test_drift();
