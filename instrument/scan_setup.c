@@ -9,8 +9,8 @@
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit.h>
 
-#include "scan_int.h"
 #include "fit/gslerr.h"
+#include "scan_int.h"
 
 /* The exposure search (choose_exposure). */
 #define EXPOSURE_TRIES 40      /* looks at most: 6 lengthenings span 16^6 = 1.7e7, 1 us to 17 s */

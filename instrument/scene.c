@@ -1,7 +1,6 @@
 /* scene.c: the simulated bench's sensor and sensitivity maps (see scene.h): the built-in uniform
  * and paperlike scenes, maps read from JSON files, and the exact sub-pixel truth. */
 #include "instrument/scene.h"
-#include "fit/gslerr.h"
 
 #include <errno.h>
 #include <math.h>
@@ -11,6 +10,8 @@
 
 #include <gsl/gsl_integration.h>
 #include <jansson.h>
+
+#include "fit/gslerr.h"
 
 struct scene {
     scene_sensor_t sensor;

@@ -17,16 +17,17 @@
 #include "cam_roi.h"
 #include "fit/airy.h"
 #include "fit/design.h"
-#include "sim_int.h"
 #include "fit/gslerr.h"
+#include "instrument/scan_limits.h"
+#include "sim_int.h"
 
 sim_config_t sim_config_default(void)
 {
     return (sim_config_t){
         .scene = "paperlike",
         .sensor = scene_sensor_default(),
-        .wavelength_um = 0.55,
-        .na = 0.25,
+        .wavelength_um = SCAN_DEFAULT_WAVELENGTH_NM * 1e-3, /* the scan's defaults (scan_limits.h) */
+        .na = SCAN_DEFAULT_NA,
         .radius_um = 0,
         .z_focus_um = 0,
         .depth_um = 0,
@@ -37,7 +38,7 @@ sim_config_t sim_config_default(void)
         .leave_out_tol = 1e-4,
         .design_tol = 1e-7,
         .temperature_c = 25,
-        .seed = 1,
+        .seed = SCAN_DEFAULT_SEED,
         .stage = stage_sim_config_default(),
     };
 }

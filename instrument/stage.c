@@ -6,8 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "stage_impl.h"
 #include "fit/gslerr.h"
+#include "stage_impl.h"
 
 int stage_open_sim(const stage_sim_config_t *cfg, stage_t **out, err_t *err)
 {

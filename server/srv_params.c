@@ -8,11 +8,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "instrument/scan_limits.h"
 #include "instrument/scanfile.h"
 
 srv_scan_params_t srv_scan_params_default(void)
 {
-    srv_scan_params_t p = {.seed = 1};
+    srv_scan_params_t p = {.seed = SCAN_DEFAULT_SEED};
     snprintf(p.scene, sizeof p.scene, "paperlike");
     return p;
 }
