@@ -112,6 +112,24 @@ export function clearError(form) {
     }
 }
 
+// Submits form through send(body) (the API call and what follows it): the error box is cleared
+// first, the submit button disabled while it runs, and an API error shown at the form.
+export function onSubmit(form, send) {
+    form.addEventListener('submit', async (e) => {
+        e.preventDefault();
+        clearError(form);
+        const btn = form.querySelector('button[type=submit]');
+        btn.disabled = true;
+        try {
+            await send(formBody(form));
+        } catch (ex) {
+            showError(form, ex);
+        } finally {
+            btn.disabled = false;
+        }
+    });
+}
+
 let errorSeq = 0;
 // The error box a form shows API errors in (role=alert, so screen readers announce it).
 export function errorBox() {

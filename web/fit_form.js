@@ -2,7 +2,7 @@
 // (POST /api/scans/ID/fits). The bounds and defaults of r and the noise models come from the
 // server's rules (rules.js); the pixel offsets are bounded by the scan's own sub-frame.
 import { post } from './api.js';
-import { clearError, errorBox, field, formBody, h, showError } from './dom.js';
+import { errorBox, field, h, onSubmit } from './dom.js';
 import { choices, ruleAttrs } from './rules.js';
 
 // rule: the rules of POST /api/scans/{id}/fits; scan: the scan (its id and sub-frame);
@@ -28,18 +28,6 @@ export function buildFitForm(rule, scan, onQueued) {
         h('label', { class: 'fld check' }, h('input', { type: 'checkbox', checked: true,
             'data-field': 'wiener', 'data-type': 'bool' }), ' Wiener baseline')),
     err, h('button', { type: 'submit' }, 'Queue fit'));
-    form.addEventListener('submit', async (e) => {
-        e.preventDefault();
-        clearError(form);
-        const btn = form.querySelector('button[type=submit]');
-        btn.disabled = true;
-        try {
-            await onQueued(await post(`/api/scans/${scan.id}/fits`, formBody(form)));
-        } catch (ex) {
-            showError(form, ex);
-        } finally {
-            btn.disabled = false;
-        }
-    });
+    onSubmit(form, async (body) => onQueued(await post(`/api/scans/${scan.id}/fits`, body)));
     return form;
 }

@@ -4,7 +4,7 @@
 // this file: the optics and raster are filled in with the server's defaults, the exposure and
 // seed shown as placeholders (empty inputs are not sent, so the server's defaults apply).
 import { post } from './api.js';
-import { clearError, errorBox, field, fmt, formBody, h, showError } from './dom.js';
+import { errorBox, field, fmt, h, onSubmit } from './dom.js';
 import { choices, ruleAttrs } from './rules.js';
 
 // rule: the rules of POST /api/scans (rules.js); sensorSelect: the sensor <select> (filled by
@@ -64,18 +64,6 @@ export function buildScanForm(rule, sensorSelect, onQueued) {
         int('Seed', 'seed', { placeholder: true })),
     err,
     h('button', { type: 'submit', class: 'primary' }, 'Start scan'));
-    form.addEventListener('submit', async (e) => {
-        e.preventDefault();
-        clearError(form);
-        const btn = form.querySelector('button[type=submit]');
-        btn.disabled = true;
-        try {
-            await onQueued(await post('/api/scans', formBody(form)));
-        } catch (ex) {
-            showError(form, ex);
-        } finally {
-            btn.disabled = false;
-        }
-    });
+    onSubmit(form, async (body) => onQueued(await post('/api/scans', body)));
     return form;
 }

@@ -2,7 +2,7 @@
 // (the paper's sensor) and the bounds come from the server's rules (rules.js): the size and pitch
 // are filled in, the other constants shown as placeholders and left to the server when empty.
 import { post } from './api.js';
-import { clearError, errorBox, field, formBody, h, showError } from './dom.js';
+import { errorBox, field, h, onSubmit } from './dom.js';
 import { ruleAttrs } from './rules.js';
 
 // rule: the rules of POST /api/sensors (rules.js); onCreated(sensor) after a 201.
@@ -27,21 +27,11 @@ export function buildSensorForm(rule, onCreated) {
     err,
     h('button', { type: 'submit' }, 'Create sensor'));
     const details = h('details', { class: 'new-sensor' }, h('summary', {}, 'New sensor…'), form);
-    form.addEventListener('submit', async (e) => {
-        e.preventDefault();
-        clearError(form);
-        const btn = form.querySelector('button[type=submit]');
-        btn.disabled = true;
-        try {
-            const s = await post('/api/sensors', formBody(form));
-            details.open = false;
-            form.reset();
-            await onCreated(s);
-        } catch (ex) {
-            showError(form, ex);
-        } finally {
-            btn.disabled = false;
-        }
+    onSubmit(form, async (body) => {
+        const s = await post('/api/sensors', body);
+        details.open = false;
+        form.reset();
+        await onCreated(s);
     });
     return details;
 }
