@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# build-matrix.sh [NAME...]: builds ipsd in every configuration a packager or developer uses, each
-# from scratch into build-matrix/NAME, with -DIPSD_WERROR=ON and libcamera auto, and fails on the
-# first warning (compiler, linker or CMake: -Werror alone does not cover the last two). NAMEs
-# (default: all, in this order):
+# build-matrix.sh [--incremental] [NAME...]: builds ipsd in every configuration a packager or
+# developer uses, each from scratch into build-matrix/NAME, with -DIPSD_WERROR=ON and libcamera
+# auto, and fails on the first warning (compiler, linker or CMake: -Werror alone does not cover
+# the last two). --incremental keeps what an earlier run built (scripts/test.sh uses it: a
+# compiler warning is an error under -Werror, so it cannot hide in an object kept from before).
+# NAMEs (default: all, in this order):
 #   gcc-release  gcc-debug  gcc-relwithdebinfo  clang-release
 # JOBS sets the parallel build jobs (default: nproc). Prints each configuration's time.
 set -euo pipefail
@@ -15,6 +17,11 @@ declare -A build_type=([gcc-release]=Release [gcc-debug]=Debug
 declare -A cc=([gcc-release]=gcc [gcc-debug]=gcc [gcc-relwithdebinfo]=gcc [clang-release]=clang)
 declare -A cxx=([gcc-release]=g++ [gcc-debug]=g++ [gcc-relwithdebinfo]=g++
                 [clang-release]=clang++)
+incremental=0
+if [[ ${1:-} == --incremental ]]; then
+    incremental=1
+    shift
+fi
 names=("$@")
 ((${#names[@]})) || names=(gcc-release gcc-debug gcc-relwithdebinfo clang-release)
 jobs=${JOBS:-$(nproc)}
@@ -23,7 +30,7 @@ start_all=$SECONDS
 for name in "${names[@]}"; do
     [[ -n "${build_type[$name]:-}" ]] || { echo "build-matrix: unknown configuration '$name'" >&2; exit 2; }
     dir=build-matrix/$name
-    rm -rf "$dir"
+    ((incremental)) || rm -rf "$dir"
     mkdir -p "$dir"
     start=$SECONDS
     echo "== $name (${cc[$name]}, ${build_type[$name]})"

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # test.sh: installs what is missing, builds ipsd twice (optimised, and with AddressSanitizer +
-# UndefinedBehaviorSanitizer) and runs every test in both builds. Both builds' tests run even
-# when the first set fails, so one run shows everything; exit status 0 only when all pass.
+# UndefinedBehaviorSanitizer) and runs every test in both builds; on the way it checks that gcc
+# Release and Debug and clang Release build without a warning (scripts/build-matrix.sh). Both
+# builds' tests run even when the first set fails, so one run shows everything; exit status 0
+# only when all pass.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -9,6 +11,8 @@ scripts/deps.sh
 
 scripts/build.sh build
 scripts/build.sh build-asan -DIPSD_SANITIZE=ON
+# the other configurations packagers use must build warning-free too (build is gcc RelWithDebInfo)
+scripts/build-matrix.sh --incremental gcc-release gcc-debug clang-release
 # the browser test's driver, pinned by tests/web/package-lock.json (the browser is Debian's)
 npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
 
