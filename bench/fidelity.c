@@ -32,12 +32,13 @@ static const double fluxes[] = {1.0, 0.1};
 /* Ratio of a pick's rms to the best in hindsight (1 = as good as can be). */
 static double ratio(const fid_result_t *f, int r)
 {
-    return r > 0 && f->r_best > 0 ? f->rms[r] / f->rms[f->r_best] : NAN;
+    /* floor 1e-3: a flat pixel's r = 1 map is exact (rms 0), and 0.1 % is below any noise */
+    return r > 0 && f->r_best > 0 ? f->rms[r] / fmax(f->rms[f->r_best], 1e-3) : NAN;
 }
 
 struct tally {
-    int cases, aic_ok, bic_ok; /* picks within 1.1x of the best */
-    double aic_worst, bic_worst, wiener_sum, best_sum;
+    int cases, aic_ok, bic_ok, cv_ok; /* picks within 1.1x of the best */
+    double aic_worst, bic_worst, cv_worst, wiener_sum, best_sum;
 };
 
 int main(int argc, char **argv)
@@ -60,9 +61,9 @@ int main(int argc, char **argv)
     memset(t, 0, sizeof t);
     double t0 = clock_mono_s();
     printf("map rms error against the simulator's truth (mean-1 maps, %d x %d samples)\n", 240, 240);
-    printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s | %7s %7s %7s | %7s | rms by r = 1..%d\n",
-           "scene", "raster", "flux", "seed", "N", "AIC", "BIC", "bst", "rmsAIC", "rmsBIC",
-           "rmsBest", "Wiener", r_max);
+    printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s | %7s %7s %7s %7s | %7s | rms by r = 1..%d\n",
+           "scene", "raster", "flux", "seed", "N", "AIC", "BIC", "CV", "bst", "rmsAIC", "rmsBIC",
+           "rmsCV", "rmsBest", "Wiener", r_max);
     for (size_t ri = 0; ri < N_RASTERS; ri++)
         for (size_t si = 0; si < N_SCENES; si++)
             for (size_t fi = 0; fi < (quick ? 1 : N_FLUXES); fi++)
@@ -78,32 +79,36 @@ int main(int argc, char **argv)
                                c.flux_scale, seed, err.msg);
                         continue;
                     }
-                    printf("%-11s %-12s %5.2f %4d %6zu | %3d %3d %3d | %7.4f %7.4f %7.4f | %7.4f |",
+                    printf("%-11s %-12s %5.2f %4d %6zu | %3d %3d %3d %3d | %7.4f %7.4f %7.4f %7.4f | "
+                           "%7.4f |",
                            c.scene, rasters[ri].name, c.flux_scale, seed, f.n_points, f.r_aic,
-                           f.r_bic, f.r_best, f.r_aic ? f.rms[f.r_aic] : NAN,
-                           f.r_bic ? f.rms[f.r_bic] : NAN, f.r_best ? f.rms[f.r_best] : NAN,
-                           f.rms_wiener);
+                           f.r_bic, f.r_cv, f.r_best, f.r_aic ? f.rms[f.r_aic] : NAN,
+                           f.r_bic ? f.rms[f.r_bic] : NAN, f.r_cv ? f.rms[f.r_cv] : NAN,
+                           f.r_best ? f.rms[f.r_best] : NAN, f.rms_wiener);
                     for (int r = 1; r <= r_max; r++) printf(" %.3f", f.rms[r]);
                     printf("\n");
                     fflush(stdout);
                     struct tally *k = &t[ri];
-                    double ra = ratio(&f, f.r_aic), rb = ratio(&f, f.r_bic);
+                    double ra = ratio(&f, f.r_aic), rb = ratio(&f, f.r_bic), rc = ratio(&f, f.r_cv);
                     k->cases++;
                     k->aic_ok += ra <= 1.1;
                     k->bic_ok += rb <= 1.1;
                     k->aic_worst = fmax(k->aic_worst, ra);
                     k->bic_worst = fmax(k->bic_worst, rb);
+                    k->cv_ok += rc <= 1.1;
+                    k->cv_worst = fmax(k->cv_worst, rc);
                     k->best_sum += f.r_best ? f.rms[f.r_best] : 0;
                     k->wiener_sum += isfinite(f.rms_wiener) ? f.rms_wiener : 0;
                 }
     printf("\nsummary per raster: picks within 1.1x of the best r in hindsight, worst ratio, mean "
            "rms of the best map and of Wiener\n");
-    printf("%-12s %5s | %9s %9s | %9s %9s | %8s %8s\n", "raster", "cases", "AIC ok", "AIC worst",
-           "BIC ok", "BIC worst", "best", "Wiener");
+    printf("%-12s %5s | %9s %9s | %9s %9s | %9s %9s | %8s %8s\n", "raster", "cases", "AIC ok",
+           "AIC worst", "BIC ok", "BIC worst", "CV ok", "CV worst", "best", "Wiener");
     for (size_t ri = 0; ri < N_RASTERS; ri++) {
         const struct tally *k = &t[ri];
-        printf("%-12s %5d | %4d/%-4d %9.2f | %4d/%-4d %9.2f | %8.4f %8.4f\n", rasters[ri].name,
-               k->cases, k->aic_ok, k->cases, k->aic_worst, k->bic_ok, k->cases, k->bic_worst,
+        printf("%-12s %5d | %4d/%-4d %9.2f | %4d/%-4d %9.2f | %4d/%-4d %9.2f | %8.4f %8.4f\n",
+               rasters[ri].name, k->cases, k->aic_ok, k->cases, k->aic_worst, k->bic_ok, k->cases,
+               k->bic_worst, k->cv_ok, k->cases, k->cv_worst,
                k->cases ? k->best_sum / k->cases : NAN, k->cases ? k->wiener_sum / k->cases : NAN);
     }
     printf("\ntotal %.1f s\n", clock_mono_s() - t0);

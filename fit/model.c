@@ -172,6 +172,32 @@ static int run_lm(const double *A, const struct points *p, size_t m, const fit_o
     return rc;
 }
 
+/* Leave-one-out prediction chi2 of a linear least-squares fit, without refitting: with the
+ * weighted hat matrix H = W^1/2 A C A^T W^1/2, C = (A^T W A)^-1, the residual of point k when it
+ * is left out is e_k / (1 - h_kk) (the PRESS identity), so sum w_k (e_k / (1 - h_kk))^2 is the
+ * chi2 of predicting every point from all the others. A point that alone determines a
+ * parameter (h_kk -> 1) makes it infinite. */
+static double loo_chi2(const double *A, const struct points *p, size_t m, const double *T,
+                       const double *C)
+{
+    double sum = 0;
+    for (size_t k = 0; k < p->n; k++) {
+        const double *a = A + k * m;
+        double e = p->d[k], h = 0;
+        for (size_t i = 0; i < m; i++) {
+            double ci = 0;
+            for (size_t j = 0; j < m; j++) ci += C[i * m + j] * a[j];
+            h += a[i] * ci;
+            e -= a[i] * T[i];
+        }
+        h *= p->w[k];
+        if (!(h < 1 - 1e-12)) return INFINITY;
+        double loo = e / (1 - h);
+        sum += p->w[k] * loo * loo;
+    }
+    return sum;
+}
+
 /* Solves for T = I0 S on the selected points and fills the result's statistics and map. */
 static int solve(const double *A, const struct points *p, int r, const fit_options_t *opts,
                  fit_result_t *res)
@@ -184,6 +210,7 @@ static int solve(const double *A, const struct points *p, int r, const fit_optio
     if ((rc = wls_solve(A, p->w, p->d, n, m, opts->nonneg, T, cov, &w))) goto out;
     res->chi2 = w.chi2;
     res->cond = w.rcond > 0 ? 1 / w.rcond : INFINITY;
+    res->cv_chi2 = loo_chi2(A, p, m, T, cov);
     if (opts->method != FIT_LINEAR && !opts->nonneg && (rc = run_lm(A, p, m, opts, T, res)))
         goto out;
     res->chi2_red = n > (size_t)res->params ? res->chi2 / (double)(n - (size_t)res->params) : NAN;
@@ -246,7 +273,7 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
     memset(out, 0, sizeof *out);
     out->r = r;
     out->params = r * r + 1;
-    out->lm_chi2 = out->chi2 = out->chi2_red = out->aic = out->bic = NAN;
+    out->lm_chi2 = out->chi2 = out->chi2_red = out->aic = out->bic = out->cv_chi2 = NAN;
     out->I0 = out->I0_err = out->cond = NAN;
     fit_options_t o = opts ? *opts : fit_options_default();
     if (r < 1 || r > 32) return err_set(err, -EINVAL, "r must be between 1 and 32 (got %d)", r);

@@ -63,6 +63,7 @@ typedef struct fit_result {
     double lm_chi2;            /* LM's chi2 (method lm/both), else NaN */
     int lm_iterations;
     fit_design_stats_t design; /* leave-out statistics of the design matrix */
+    double cv_chi2;            /* leave-one-out prediction chi2 (see fit_loo_chi2 in model.c) */
     double design_ms, solve_ms;/* cost of this fit */
 } fit_result_t;
 

@@ -97,7 +97,8 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     if (r_max < 1 || r_max > FID_R_MAX)
         return err_set(err, -EINVAL, "r_max must be 1..%d (got %d)", FID_R_MAX, r_max);
     out->r_max = r_max;
-    for (int r = 0; r <= FID_R_MAX; r++) out->rms[r] = out->chi2_red[r] = NAN;
+    for (int r = 0; r <= FID_R_MAX; r++)
+        out->rms[r] = out->chi2_red[r] = out->cv_chi2[r] = out->serr_rms[r] = NAN;
     out->rms_wiener = NAN;
     sim_config_t sc = sim_config_default();
     sc.scene = c->scene;
@@ -124,7 +125,12 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     for (int r = 1; r <= r_max; r++) {
         const fit_result_t *f = &sw.fits[r - 1];
         out->chi2_red[r] = f->chi2_red;
+        out->cv_chi2[r] = f->cv_chi2;
         if (!f->S) continue;
+        if (!out->r_cv || f->cv_chi2 < out->cv_chi2[out->r_cv]) out->r_cv = r;
+        double v = 0;
+        for (int j = 0; j < r * r; j++) v += f->S_err[j] * f->S_err[j];
+        out->serr_rms[r] = sqrt(v / (r * r));
         out->rms[r] = fid_map_rms(f->S, r, T, m, SAMPLES);
         if (out->rms[r] < best) best = out->rms[r], out->r_best = r;
     }

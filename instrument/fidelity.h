@@ -32,7 +32,10 @@ typedef struct fid_result {
     int r_max;                 /* fits r = 1..r_max */
     double rms[FID_R_MAX + 1]; /* rms[r]: map error of the r x r fit (NaN: no map) */
     double chi2_red[FID_R_MAX + 1];
+    double cv_chi2[FID_R_MAX + 1];
     int r_aic, r_bic, r_best;  /* picks (0: none) and the smallest rms in hindsight */
+    int r_cv;                  /* smallest leave-one-out prediction chi2 */
+    double serr_rms[FID_R_MAX + 1]; /* the map's own noise: rms of S_err over the sub-pixels */
     double rms_wiener;         /* the Wiener baseline's map error (NaN when it failed) */
     double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */
 } fid_result_t;
