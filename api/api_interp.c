@@ -1,6 +1,6 @@
 /* api_interp.c: the interpolated IPS map of a stored map, for display (the paper's "interpolated
  * IPS map", Fig. IPSV_3D (b)): GET /api/fits/{id}/interp?r=R&n=N (any r of the fit's sweep; by
- * default the best-BIC map, the one stored as the calibration) and GET
+ * default the recommended map, the one stored as the calibration) and GET
  * /api/calibrations/{id}/interp?n=N. Both are computed by fit_interp_bicubic (fit/interp.h), the
  * code `ips fit --interp` uses, so the dashboard shows what the command-line tool prints and no
  * client repeats the interpolation. */
@@ -85,7 +85,14 @@ static void fit_interp(api_req_t *q, const storage_fit_t *f, long long r_asked, 
 {
     json_t *doc = f->result ? json_loads(f->result, JSON_DECODE_ANY, NULL) : NULL;
     json_t *fits = json_object_get(doc, "fits"), *entry, *found = NULL;
-    int r = r_asked ? (int)r_asked : f->best_r_bic, r_lo = 0, r_hi = 0;
+    /* default: the recommended map, the one the fit's calibration stores (documents stored before
+     * recommended_r existed fall back to the best-BIC r, which their calibration stored) */
+    json_t *rec = json_object_get(doc, "recommended_r");
+    int r = r_asked                ? (int)r_asked
+            : json_is_integer(rec) ? (int)json_integer_value(rec)
+            : json_is_null(rec)    ? 0
+                                   : f->best_r_bic,
+        r_lo = 0, r_hi = 0;
     size_t i;
     json_array_foreach(fits, i, entry)
     {
@@ -96,7 +103,7 @@ static void fit_interp(api_req_t *q, const storage_fit_t *f, long long r_asked, 
     }
     if (!r) {
         api_error(q, 422, "missing", "r",
-                  "fit %lld has no best-BIC map: give r (its sweep is %d..%d)", (long long)f->id,
+                  "fit %lld has no recommended map: give r (its sweep is %d..%d)", (long long)f->id,
                   r_lo, r_hi);
     } else if (!found) {
         api_error(q, 422, "out_of_range", "r", "r must be in fit %lld's sweep %d..%d (got %d)",

@@ -1,9 +1,12 @@
 /* fidelity.c: ipsd-bench-fidelity, the evidence table for the map's scientific choices: every
  * scene family of the simulated bench, scanned by the paper's rasters at two photon levels and
  * several seeds, fitted for r = 1..R; prints per case the rms error of each r's map against the
- * simulator's truth, the r AIC and BIC pick, the best r in hindsight, and the Wiener baseline,
- * then a summary per raster (instrument/fidelity.h). A benchmark: it prints, it never fails on
- * numbers. Usage: ipsd-bench-fidelity [--quick] [--r-max R] [--seeds N]. */
+ * simulator's truth, the r AIC, BIC, leave-one-out CV and the recommended-r rule pick
+ * (fit/recommend.h), the best r in hindsight, and the Wiener baseline, then a summary per raster
+ * (instrument/fidelity.h). --tune measures a grid of the rule's two settings instead.
+ * A benchmark: it prints, it never fails on numbers.
+ * Usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max R] [--seeds N] [--sigma MODEL]
+ * (the fits' noise model, default shot+read: the physically consistent one, numerics.md). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -28,89 +31,161 @@ static const double fluxes[] = {1.0, 0.1};
 #define N_SCENES (sizeof scenes / sizeof scenes[0])
 #define N_RASTERS (sizeof rasters / sizeof rasters[0])
 #define N_FLUXES (sizeof fluxes / sizeof fluxes[0])
+#define OK_RATIO 1.1 /* the target: a pick within 1.1x of the best map in hindsight */
 
-/* Ratio of a pick's rms to the best in hindsight (1 = as good as can be). */
+/* Ratio of a pick's rms to the best in hindsight (1 = as good as can be); floor 1e-3: a flat
+ * pixel's r = 1 map is exact (rms 0), and 0.1 % is below any noise. */
 static double ratio(const fid_result_t *f, int r)
 {
-    /* floor 1e-3: a flat pixel's r = 1 map is exact (rms 0), and 0.1 % is below any noise */
-    return r > 0 && f->r_best > 0 ? f->rms[r] / fmax(f->rms[f->r_best], 1e-3) : NAN;
+    return r > 0 && f->r_best > 0 ? f->rms[r] / fmax(f->rms[f->r_best], 1e-3) : INFINITY;
 }
 
-struct tally {
-    int cases, aic_ok, bic_ok, cv_ok; /* picks within 1.1x of the best */
-    double aic_worst, bic_worst, cv_worst, wiener_sum, best_sum;
+/* How one rule did over a set of cases. */
+struct score {
+    int ok;
+    double worst;
 };
 
-int main(int argc, char **argv)
+static void score_add(struct score *s, double ratio)
 {
-    int quick = 0, r_max = 10, seeds = 3;
+    s->ok += ratio <= OK_RATIO;
+    s->worst = fmax(s->worst, ratio);
+}
+
+enum { RULE_AIC, RULE_BIC, RULE_CV, RULE_REC, N_FIXED };
+
+struct tally {
+    int cases;
+    struct score s[N_FIXED + FID_MAX_RULES];
+    double wiener_sum, best_sum;
+};
+
+struct run {
+    int quick, tune, r_max, seeds;
+    fit_noise_t noise;
+    fit_recommend_opts_t rules[FID_MAX_RULES];
+    int n_rules;
+};
+
+static int parse(int argc, char **argv, struct run *u)
+{
+    *u = (struct run){.r_max = 10, .seeds = 3, .noise = FIT_NOISE_SHOT_READ};
     for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--quick") == 0) quick = 1;
-        else if (strcmp(argv[i], "--r-max") == 0 && i + 1 < argc && parse_int(argv[i + 1], &r_max) == 0 &&
-                 r_max >= 1 && r_max <= FID_R_MAX) i++;
-        else if (strcmp(argv[i], "--seeds") == 0 && i + 1 < argc && parse_int(argv[i + 1], &seeds) == 0 &&
-                 seeds >= 1) i++;
+        if (strcmp(argv[i], "--quick") == 0) u->quick = 1;
+        else if (strcmp(argv[i], "--tune") == 0) u->tune = 1;
+        else if (strcmp(argv[i], "--sigma") == 0 && i + 1 < argc &&
+                 fit_noise_parse(argv[i + 1], &u->noise) == 0)
+            i++;
+        else if (strcmp(argv[i], "--r-max") == 0 && i + 1 < argc &&
+                 parse_int(argv[i + 1], &u->r_max) == 0 && u->r_max >= 1 && u->r_max <= FID_R_MAX)
+            i++;
+        else if (strcmp(argv[i], "--seeds") == 0 && i + 1 < argc &&
+                 parse_int(argv[i + 1], &u->seeds) == 0 && u->seeds >= 1)
+            i++;
         else {
-            fprintf(stderr, "usage: ipsd-bench-fidelity [--quick] [--r-max 1..%d] [--seeds N]\n",
-                    FID_R_MAX);
+            fprintf(stderr, "usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max 1..%d] "
+                            "[--seeds N] [--sigma paper|shot+read]\n", FID_R_MAX);
             return 2;
         }
     }
-    if (quick) seeds = 1;
+    if (u->quick) u->seeds = 1;
+    u->rules[0] = fit_recommend_opts_default();
+    u->n_rules = 1;
+    if (u->tune) { /* a grid around the default; rules[0], the default, stays first */
+        static const double f[] = {0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.5, 1.0};
+        for (size_t a = 0; a < sizeof f / sizeof f[0]; a++)
+            u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a]};
+    }
+    return 0;
+}
+
+static void print_case(const fid_case_t *c, const char *raster, const fid_result_t *f, int r_max)
+{
+    printf("%-11s %-12s %5.2f %4lu %6zu | %3d %3d %3d %3d %3d | %7.4f %7.4f %7.4f %7.4f | %7.4f |",
+           c->scene, raster, c->flux_scale, c->seed, f->n_points, f->r_aic, f->r_bic, f->r_cv,
+           f->r_rec[0], f->r_best, f->r_aic ? f->rms[f->r_aic] : NAN,
+           f->r_bic ? f->rms[f->r_bic] : NAN, f->r_rec[0] ? f->rms[f->r_rec[0]] : NAN,
+           f->r_best ? f->rms[f->r_best] : NAN, f->rms_wiener);
+    for (int r = 1; r <= r_max; r++) printf(" %.3f", f->rms[r]);
+    printf("\n");
+    fflush(stdout);
+}
+
+static void tally_case(struct tally *k, const fid_result_t *f, int n_rules)
+{
+    k->cases++;
+    score_add(&k->s[RULE_AIC], ratio(f, f->r_aic));
+    score_add(&k->s[RULE_BIC], ratio(f, f->r_bic));
+    score_add(&k->s[RULE_CV], ratio(f, f->r_cv));
+    score_add(&k->s[RULE_REC], ratio(f, f->r_rec[0]));
+    for (int i = 0; i < n_rules; i++) score_add(&k->s[N_FIXED + i], ratio(f, f->r_rec[i]));
+    k->best_sum += f->r_best ? f->rms[f->r_best] : 0;
+    k->wiener_sum += isfinite(f->rms_wiener) ? f->rms_wiener : 0;
+}
+
+static void print_summary(const struct tally *t, const struct run *u)
+{
+    printf("\nsummary per raster: picks within %.1fx of the best r in hindsight (cases ok / all) "
+           "and the worst ratio; mean rms of the best map and of Wiener\n", OK_RATIO);
+    printf("%-12s %5s | %14s | %14s | %14s | %14s | %8s %8s\n", "raster", "cases", "AIC", "BIC",
+           "LOO-CV", "recommended", "best", "Wiener");
+    struct tally all = {0};
+    for (size_t ri = 0; ri <= N_RASTERS; ri++) {
+        const struct tally *k = ri < N_RASTERS ? &t[ri] : &all;
+        if (ri < N_RASTERS) {
+            all.cases += k->cases;
+            all.best_sum += k->best_sum;
+            all.wiener_sum += k->wiener_sum;
+            for (int i = 0; i < N_FIXED + FID_MAX_RULES; i++) {
+                all.s[i].ok += k->s[i].ok;
+                all.s[i].worst = fmax(all.s[i].worst, k->s[i].worst);
+            }
+        }
+        printf("%-12s %5d |", ri < N_RASTERS ? rasters[ri].name : "all", k->cases);
+        for (int i = 0; i < N_FIXED; i++)
+            printf(" %3d/%-3d %6.2f |", k->s[i].ok, k->cases, k->s[i].worst);
+        printf(" %8.4f %8.4f\n", k->cases ? k->best_sum / k->cases : NAN,
+               k->cases ? k->wiener_sum / k->cases : NAN);
+    }
+    if (!u->tune) return;
+    printf("\nrule setting noise_to_contrast: cases within %.1fx of the best, worst ratio, over "
+           "all rasters (the first row is the default)\n", OK_RATIO);
+    for (int i = 0; i < u->n_rules; i++)
+        printf("  %.2f  %3d/%-3d %8.2f\n", u->rules[i].noise_to_contrast, all.s[N_FIXED + i].ok,
+               all.cases, all.s[N_FIXED + i].worst);
+}
+
+int main(int argc, char **argv)
+{
+    struct run u;
+    if (parse(argc, argv, &u)) return 2;
     struct tally t[N_RASTERS];
     memset(t, 0, sizeof t);
     double t0 = clock_mono_s();
-    printf("map rms error against the simulator's truth (mean-1 maps, %d x %d samples)\n", 240, 240);
-    printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s | %7s %7s %7s %7s | %7s | rms by r = 1..%d\n",
-           "scene", "raster", "flux", "seed", "N", "AIC", "BIC", "CV", "bst", "rmsAIC", "rmsBIC",
-           "rmsCV", "rmsBest", "Wiener", r_max);
+    printf("map rms error against the simulator's truth (mean-1 maps, 240 x 240 samples)\n");
+    printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s %3s | %7s %7s %7s %7s | %7s | rms by r = "
+           "1..%d\n", "scene", "raster", "flux", "seed", "N", "AIC", "BIC", "CV", "rec", "bst",
+           "rmsAIC", "rmsBIC", "rmsRec", "rmsBest", "Wiener", u.r_max);
     for (size_t ri = 0; ri < N_RASTERS; ri++)
         for (size_t si = 0; si < N_SCENES; si++)
-            for (size_t fi = 0; fi < (quick ? 1 : N_FLUXES); fi++)
-                for (int seed = 1; seed <= seeds; seed++) {
+            for (size_t fi = 0; fi < (u.quick ? 1 : N_FLUXES); fi++)
+                for (int seed = 1; seed <= u.seeds; seed++) {
                     fid_case_t c = {.scene = scenes[si], .grid = rasters[ri].grid,
                                     .step_um = rasters[ri].step, .area_px = 5,
                                     .flux_scale = fluxes[fi], .seed = (unsigned long)seed,
-                                    .noise = FIT_NOISE_SHOT_READ};
+                                    .noise = u.noise, .rules = u.rules,
+                                    .n_rules = u.n_rules};
                     fid_result_t f;
                     err_t err;
-                    if (fid_run(&c, r_max, &f, &err)) {
+                    if (fid_run(&c, u.r_max, &f, &err)) {
                         printf("%-11s %-12s %5.2f %4d  error: %s\n", c.scene, rasters[ri].name,
                                c.flux_scale, seed, err.msg);
                         continue;
                     }
-                    printf("%-11s %-12s %5.2f %4d %6zu | %3d %3d %3d %3d | %7.4f %7.4f %7.4f %7.4f | "
-                           "%7.4f |",
-                           c.scene, rasters[ri].name, c.flux_scale, seed, f.n_points, f.r_aic,
-                           f.r_bic, f.r_cv, f.r_best, f.r_aic ? f.rms[f.r_aic] : NAN,
-                           f.r_bic ? f.rms[f.r_bic] : NAN, f.r_cv ? f.rms[f.r_cv] : NAN,
-                           f.r_best ? f.rms[f.r_best] : NAN, f.rms_wiener);
-                    for (int r = 1; r <= r_max; r++) printf(" %.3f", f.rms[r]);
-                    printf("\n");
-                    fflush(stdout);
-                    struct tally *k = &t[ri];
-                    double ra = ratio(&f, f.r_aic), rb = ratio(&f, f.r_bic), rc = ratio(&f, f.r_cv);
-                    k->cases++;
-                    k->aic_ok += ra <= 1.1;
-                    k->bic_ok += rb <= 1.1;
-                    k->aic_worst = fmax(k->aic_worst, ra);
-                    k->bic_worst = fmax(k->bic_worst, rb);
-                    k->cv_ok += rc <= 1.1;
-                    k->cv_worst = fmax(k->cv_worst, rc);
-                    k->best_sum += f.r_best ? f.rms[f.r_best] : 0;
-                    k->wiener_sum += isfinite(f.rms_wiener) ? f.rms_wiener : 0;
+                    print_case(&c, rasters[ri].name, &f, u.r_max);
+                    tally_case(&t[ri], &f, u.n_rules);
                 }
-    printf("\nsummary per raster: picks within 1.1x of the best r in hindsight, worst ratio, mean "
-           "rms of the best map and of Wiener\n");
-    printf("%-12s %5s | %9s %9s | %9s %9s | %9s %9s | %8s %8s\n", "raster", "cases", "AIC ok",
-           "AIC worst", "BIC ok", "BIC worst", "CV ok", "CV worst", "best", "Wiener");
-    for (size_t ri = 0; ri < N_RASTERS; ri++) {
-        const struct tally *k = &t[ri];
-        printf("%-12s %5d | %4d/%-4d %9.2f | %4d/%-4d %9.2f | %4d/%-4d %9.2f | %8.4f %8.4f\n",
-               rasters[ri].name, k->cases, k->aic_ok, k->cases, k->aic_worst, k->bic_ok, k->cases,
-               k->bic_worst, k->cv_ok, k->cases, k->cv_worst,
-               k->cases ? k->best_sum / k->cases : NAN, k->cases ? k->wiener_sum / k->cases : NAN);
-    }
+    print_summary(t, &u);
     printf("\ntotal %.1f s\n", clock_mono_s() - t0);
     return 0;
 }

@@ -30,14 +30,19 @@ static void print_map(FILE *f, const double *S, const double *err, int r)
 
 static void print_sweep(FILE *f, const fit_sweep_t *sw)
 {
-    fprintf(f, "   r  params        chi2   chi2/dof         AIC         BIC        cond  status\n");
+    fprintf(f, "   r  params        chi2   chi2/dof         AIC         BIC   LOO chi2/N        cond"
+               "  status\n");
     for (int r = sw->r_min; r <= sw->r_max; r++) {
         const fit_result_t *x = &sw->fits[r - sw->r_min];
-        fprintf(f, "  %2d  %6d  %10.4g  %9.4g  %10.3f%s %10.3f%s  %10.3g  %s\n", r, x->params,
-                x->chi2, x->chi2_red, x->aic, r == sw->best_aic ? "*" : " ", x->bic,
-                r == sw->best_bic ? "*" : " ", x->cond, fit_status_name(x->flags));
+        fprintf(f, "  %2d  %6d  %10.4g  %9.4g  %10.3f%s %10.3f%s  %10.4g%s  %10.3g  %s\n", r,
+                x->params, x->chi2, x->chi2_red, x->aic, r == sw->best_aic ? "*" : " ", x->bic,
+                r == sw->best_bic ? "*" : " ", x->cv_chi2 / (double)x->n_used,
+                r == sw->recommended_r ? "<" : " ", x->cond, fit_status_name(x->flags));
     }
-    fprintf(f, "  (* best by AIC / BIC)\n");
+    fprintf(f, "  (* best by AIC / BIC; < recommended)\n");
+    if (sw->recommended_reason[0]) fprintf(f, "  recommended %s\n", sw->recommended_reason);
+    if (sw->range_edge)
+        fprintf(f, "  note: AIC or BIC picked the largest r the sweep or the points allow\n");
 }
 
 void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fit_sweep_t *sw,
@@ -48,10 +53,10 @@ void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fi
             scan->n, first->n_used, scan->pitch_um, scan->spot_radius_um, scan->frames);
     fprintf(f, "\nModel selection (weighted chi-square, eq. 4; AIC/BIC with p = r*r + 1)\n");
     print_sweep(f, sw);
-    int best = sw->best_bic ? sw->best_bic : sw->best_aic;
+    int best = sw->recommended_r;
     if (best) {
         const fit_result_t *b = &sw->fits[best - sw->r_min];
-        fprintf(f, "\nIPS map, r = %d (best BIC), mean 1; I0 = %.6g +- %.2g DN/um^2\n", best,
+        fprintf(f, "\nIPS map, r = %d (recommended), mean 1; I0 = %.6g +- %.2g DN/um^2\n", best,
                 b->I0, b->I0_err);
         print_map(f, b->S, b->S_err, best);
     } else {

@@ -89,6 +89,10 @@ typedef struct fit_sweep {
     int r_min, r_max;
     fit_result_t *fits;        /* r_max - r_min + 1 results */
     int best_aic, best_bic;    /* r of the smallest AIC / BIC among fits with a map; 0 if none */
+    int recommended_r;         /* the r whose map is expected closest to the truth (recommend.h),
+                                  0 if none; its map is the one a calibration stores */
+    int range_edge;            /* AIC or BIC picked r_max or the largest r the points determine */
+    char recommended_reason[320];
 } fit_sweep_t;
 
 /* Fits r = r_min..r_max and picks the best r by AIC and by BIC: fit_pipeline_run (pipeline.h)

@@ -14,6 +14,7 @@
 #include "base/clock.h"
 #include "fit/interp.h"
 #include "fit/gslerr.h"
+#include "fit/recommend.h"
 
 fit_pipeline_opts_t fit_pipeline_opts_default(void)
 {
@@ -175,6 +176,11 @@ static int run_steps(struct run *rn, err_t *err)
         out->sweep_ms += clock_mono_ms() - t;
         step_end(rn, &step);
     }
+    fit_recommendation_t rec;
+    fit_recommend(sw, NULL, &rec);
+    sw->recommended_r = rec.r;
+    sw->range_edge = rec.range_edge;
+    memcpy(sw->recommended_reason, rec.reason, sizeof sw->recommended_reason);
     int rc = 0;
     if (o->ftest_edges)
         rc = part_step(rn, FIT_STEP_FTEST, o->ftest_r, &out->ftest_part, ftest_step, err);

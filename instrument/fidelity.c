@@ -136,6 +136,12 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     }
     out->r_aic = sw.best_aic;
     out->r_bic = sw.best_bic;
+    int n_rules = c->rules && c->n_rules > 0 ? c->n_rules : 1;
+    for (int k = 0; k < n_rules && k < FID_MAX_RULES; k++) {
+        fit_recommendation_t rec;
+        fit_recommend(&sw, c->rules ? &c->rules[k] : NULL, &rec);
+        out->r_rec[k] = rec.r;
+    }
     fit_wiener_t w;
     err_t we;
     if (fit_wiener_run(&sf.scan, 0, &w, &we) == 0) {

@@ -13,8 +13,10 @@
 
 #include "base/err.h"
 #include "fit/noise.h"
+#include "fit/recommend.h"
 
 #define FID_R_MAX 12
+#define FID_MAX_RULES 16 /* recommend-rule settings measured in one run */
 
 typedef struct fid_case {
     const char *scene;   /* scene spec (scene.h), e.g. "paperlike", "edge" */
@@ -25,6 +27,9 @@ typedef struct fid_case {
     double flux_scale;   /* photo-electrons relative to the bench's default (1: ~2e4 e- per point) */
     unsigned long seed;  /* noise of the frames */
     fit_noise_t noise;   /* noise model of the fit */
+    const fit_recommend_opts_t *rules; /* settings of the recommended-r rule to measure (NULL:
+                                          the default only) */
+    int n_rules;
 } fid_case_t;
 
 typedef struct fid_result {
@@ -35,6 +40,7 @@ typedef struct fid_result {
     double cv_chi2[FID_R_MAX + 1];
     int r_aic, r_bic, r_best;  /* picks (0: none) and the smallest rms in hindsight */
     int r_cv;                  /* smallest leave-one-out prediction chi2 */
+    int r_rec[FID_MAX_RULES];  /* the recommended r (recommend.h) under each rule setting */
     double serr_rms[FID_R_MAX + 1]; /* the map's own noise: rms of S_err over the sub-pixels */
     double rms_wiener;         /* the Wiener baseline's map error (NaN when it failed) */
     double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */

@@ -53,6 +53,7 @@ static void fit_details(json_t *o, const fit_result_t *f, fit_method_t method)
     json_object_set_new(o, "n_saturated", json_integer((json_int_t)f->n_saturated));
     json_object_set_new(o, "n_nonfinite", json_integer((json_int_t)f->n_nonfinite));
     json_object_set_new(o, "n_unconstrained", json_integer((json_int_t)f->n_unconstrained));
+    json_object_set_new(o, "cv_chi2", fitjson_num(f->cv_chi2));
     if (method != FIT_LINEAR) {
         json_object_set_new(o, "lm_chi2", fitjson_num(f->lm_chi2));
         json_object_set_new(o, "lm_iterations", json_integer(f->lm_iterations));
@@ -116,12 +117,14 @@ json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_
     json_t *fits = json_array();
     for (int r = sw->r_min; fits && r <= sw->r_max; r++)
         json_array_append_new(fits, fitjson_fit(&sw->fits[r - sw->r_min], opts->method));
-    return json_pack("{s:I, s:I, s:s, s:s, s:b, s:o, s:o, s:o, s:{s:o, s:o}}", "N",
-                     (json_int_t)sw->fits[0].n_used, "n_points", (json_int_t)n_points, "sigma",
-                     fit_noise_name(opts->noise), "method", methods[opts->method], "nonneg",
-                     opts->nonneg, "design_tol", fitjson_num(opts->design_tol), "full_scale_dn",
-                     fitjson_num(full_scale_dn), "fits", fits, "best_r", "aic",
-                     fitjson_int_or_null(sw->best_aic), "bic", fitjson_int_or_null(sw->best_bic));
+    return json_pack("{s:I, s:I, s:s, s:s, s:b, s:o, s:o, s:o, s:{s:o, s:o}, s:o, s:s, s:b}",
+                     "N", (json_int_t)sw->fits[0].n_used, "n_points", (json_int_t)n_points,
+                     "sigma", fit_noise_name(opts->noise), "method", methods[opts->method],
+                     "nonneg", opts->nonneg, "design_tol", fitjson_num(opts->design_tol),
+                     "full_scale_dn", fitjson_num(full_scale_dn), "fits", fits, "best_r", "aic",
+                     fitjson_int_or_null(sw->best_aic), "bic", fitjson_int_or_null(sw->best_bic),
+                     "recommended_r", fitjson_int_or_null(sw->recommended_r),
+                     "recommended_reason", sw->recommended_reason, "range_edge", sw->range_edge);
 }
 
 int fitjson_print(const json_t *root, FILE *f)

@@ -27,8 +27,8 @@ json_t *fitjson_int_or_null(int v);
 json_t *fitjson_flags(unsigned flags);
 
 /* One fit of the sweep: r, chi2, params, aic, bic, I0, I0_err, S, S_err, cond, chi2_red, status,
- * flags, n_used, n_saturated, n_nonfinite, n_unconstrained, design, timing_ms (and lm_chi2,
- * lm_iterations when method is not linear). */
+ * flags, n_used, n_saturated, n_nonfinite, n_unconstrained, cv_chi2, design, timing_ms (and
+ * lm_chi2, lm_iterations when method is not linear). */
 json_t *fitjson_fit(const fit_result_t *f, fit_method_t method);
 
 /* The F-test: r, edges (names), chi2_H0, params_H0, chi2_H1, params_H1, F, p_value, N, status,
@@ -39,7 +39,8 @@ json_t *fitjson_ftest(const fit_ftest_t *t);
 json_t *fitjson_wiener(const fit_wiener_t *w);
 
 /* The root document of a sweep: N, n_points, sigma, method, nonneg, design_tol, full_scale_dn,
- * fits[], best_r {aic, bic}. The caller adds "ftest", "wiener", "interp" and "timing_ms". */
+ * fits[], best_r {aic, bic}, recommended_r, recommended_reason, range_edge. The caller adds
+ * "ftest", "wiener", "interp" and "timing_ms". */
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,
                       double full_scale_dn);
 

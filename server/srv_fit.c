@@ -1,6 +1,6 @@
 /* srv_fit.c: the fit a fit job runs (see srv_fit.h): the fit pipeline of fit/pipeline.h, the one
  * `ips fit` runs, watched through the job's stop flag and progress, and what is the server's own:
- * the result document (json/fitjson.h, failed parts as {"error": "..."}) and the best-BIC map
+ * the result document (json/fitjson.h, failed parts as {"error": "..."}) and the recommended map
  * that becomes the calibration. */
 #include "server/srv_fit.h"
 
@@ -61,11 +61,12 @@ static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
     return root;
 }
 
-/* Copies the best-BIC map of the sweep into out (nothing when it has none). */
+/* Copies the recommended map of the sweep (fit/recommend.h) into out (nothing when it has
+ * none): the map a calibration stores. */
 static int keep_map(const fit_sweep_t *sw, srv_fit_out_t *out, err_t *err)
 {
-    if (!sw->best_bic) return 0;
-    const fit_result_t *f = &sw->fits[sw->best_bic - sw->r_min];
+    if (!sw->recommended_r) return 0;
+    const fit_result_t *f = &sw->fits[sw->recommended_r - sw->r_min];
     if (!f->S || !f->S_err) return 0;
     size_t n = (size_t)f->r * f->r;
     out->S = malloc(n * sizeof(double));

@@ -2,7 +2,7 @@
  * sweep over r, optionally the F-test of an edge model and the Wiener baseline; the same call
  * `ips fit` makes), encoded as the `ips fit` JSON document (json/fitjson.h) so that the stored
  * fits.result reads like the command-line tool's output, plus the map that becomes the
- * calibration (the best-BIC fit). Pure computation, thread-safe. */
+ * calibration (the recommended map, fit/recommend.h). Pure computation, thread-safe. */
 #ifndef IPSD_SERVER_SRV_FIT_H
 #define IPSD_SERVER_SRV_FIT_H
 
@@ -17,7 +17,7 @@ typedef struct srv_fit_out {
     json_t *result;          /* the `ips fit` document (owned) */
     int best_aic, best_bic;  /* 0: none */
     double f_value, p_value; /* NaN without an F-test */
-    /* the best-BIC map, when there is one (r = 0: none) */
+    /* the recommended map, when there is one (r = 0: none) */
     int r;
     double *S, *S_err; /* r*r each (owned) */
     double I0, chi2_red;

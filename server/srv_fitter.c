@@ -1,7 +1,7 @@
 /* srv_fitter.c: the fit workers. Each takes the oldest queued fit job, builds the scan the fit
  * needs (the pixel's response over a finished scan's stored points, srv_pixel_scan, or the
  * uploaded scan file), runs it (srv_fit_run) and stores the fit with the calibration of that
- * sensor pixel from the best-BIC map, linked to the job, in one transaction (storage_fit_put).
+ * sensor pixel from the recommended map, linked to the job, in one transaction (storage_fit_put).
  * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) when it is
  * cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
  * by a crash is requeued at the next start and simply runs again. */

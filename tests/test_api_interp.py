@@ -201,10 +201,10 @@ def run(d):
     check(len(m['S']) == 3600 and all(abs(v - 1) <= LEAK_TOL for v in m['S']),
           'a uniform pixel\'s interpolated map is flat (S = 1)',
           f'{min(m["S"])}..{max(m["S"])}')
-    best = flat['best_r']['bic']
+    best = flat['result']['recommended_r']
     m = interp(d, f'/api/fits/{fid}/interp', 'uniform, defaults')
     check(m['r'] == best and m['n'] == 100 and len(m['S']) == 10000,
-          'default r is the best-BIC map and default n is 100', f'r {m["r"]}, n {m["n"]}')
+          'default r is the recommended map and default n is 100', f'r {m["r"]}, n {m["n"]}')
     check_geometry(d, flat)
 
     # the calibration stored with it

@@ -30,15 +30,16 @@ def ips_fit(ips, scan_path, out_path, *opts):
 def compare_with_ips(scan, ips, cal, fit, csv_text, db):
     """The stored calibration (JSON, CSV, database) and fit document against `ips fit`'s output on
     the downloaded raster. Returns the list of differences."""
-    bic = ips["best_r"]["bic"]
-    best = [f for f in ips["fits"] if f["r"] == bic][0]
+    # the calibration is the recommended map (fit/recommend.h), the one `ips fit` recommends
+    rec = ips["recommended_r"]
+    best = [f for f in ips["fits"] if f["r"] == rec][0]
     fails = []
 
     def near(a, b, what):
         if len(a) != len(b) or any(abs(x - y) > 1e-9 for x, y in zip(a, b)):
             fails.append(what)
-    if cal["r"] != bic:
-        fails.append("calibration r %d != ips fit best BIC r %d" % (cal["r"], bic))
+    if cal["r"] != rec:
+        fails.append("calibration r %d != ips fit recommended r %d" % (cal["r"], rec))
     near(cal["S"], best["S"], "S vs ips fit")
     near(cal["S_err"], best["S_err"], "S_err vs ips fit")
     if abs(cal["I0"] - best["I0"]) > 1e-9 * abs(best["I0"]):
@@ -53,7 +54,7 @@ def compare_with_ips(scan, ips, cal, fit, csv_text, db):
     if [strip(f) for f in fit["result"]["fits"]] != [strip(f) for f in ips["fits"]]:
         fails.append("stored fits[] differ from ips fit's")
     for k in ("N", "n_points", "sigma", "method", "nonneg", "design_tol", "full_scale_dn",
-              "best_r"):
+              "best_r", "recommended_r", "recommended_reason", "range_edge"):
         if fit["result"][k] != ips[k]:
             fails.append("result." + k)
     if abs(fit["result"]["ftest"]["F"] - ips["ftest"]["F"]) > 1e-9 * ips["ftest"]["F"]:
@@ -61,9 +62,9 @@ def compare_with_ips(scan, ips, cal, fit, csv_text, db):
     near(fit["result"]["wiener"]["S"], ips["wiener"]["S"], "Wiener S")
     # CSV: one line per sub-pixel, row-major j*r + i
     rows = list(csv.DictReader(io.StringIO(csv_text)))
-    if len(rows) != bic * bic:
+    if len(rows) != rec * rec:
         fails.append("CSV lines")
-    near([float(r["S"]) for r in rows], [best["S"][int(r["j"]) * bic + int(r["i"])] for r in rows],
+    near([float(r["S"]) for r in rows], [best["S"][int(r["j"]) * rec + int(r["i"])] for r in rows],
          "CSV S")
     # the database, read by Python's sqlite3 (little-endian float64 BLOBs, docs/schema.md)
     r, s = db.one("SELECT r, s FROM calibrations WHERE pixel_col = 50 AND pixel_row = 60 "
@@ -199,7 +200,7 @@ def test(c, t, argv, daemons):
     cal10 = d.get("/api/sensors/%d/pixels/51/60/calibration" % sensor).json()
     with open(os.path.join(t, "ips10.json")) as f:
         ips10 = json.load(f)
-    best = [f for f in ips10["fits"] if f["r"] == ips10["best_r"]["bic"]][0]
+    best = [f for f in ips10["fits"] if f["r"] == ips10["recommended_r"]][0]
     c.ok(cal10["r"] == best["r"] and cal10["noise_model"] == "shot+read" and
          max(abs(a - b) for a, b in zip(cal10["S"], best["S"])) < 1e-9,
          "pixel (+1, 0) fitted with shot+read, r <= 4, = ips fit")

@@ -85,10 +85,13 @@ export function renderFit(root, id) {
         const pitch = sensor?.pitch_um;
         const best = res.best_r || {};
         const fits = res.fits || [];
+        // the map shown first is the recommended one, the map the calibration stores (fits stored
+        // before the recommendation existed stored the best-BIC map)
+        const rec = res.recommended_r !== undefined ? res.recommended_r : best.bic;
         const rSel = h('select', { id: 'r-select', 'data-testid': 'r-select' },
-            fits.map((f) => h('option', { value: f.r, selected: f.r === best.bic },
-                `r = ${f.r}${f.r === best.bic ? ' (best BIC)' : ''}` +
-                `${f.r === best.aic ? ' (best AIC)' : ''}`)));
+            fits.map((f) => h('option', { value: f.r, selected: f.r === rec },
+                `r = ${f.r}${f.r === rec ? ' (recommended)' : ''}` +
+                `${f.r === best.bic ? ' (best BIC)' : ''}${f.r === best.aic ? ' (best AIC)' : ''}`)));
         const facts = h('dl', { class: 'facts' });
         const maps = h('div', { class: 'maps' });
         const wiener = wienerFigure(res.wiener, pitch);
@@ -99,6 +102,14 @@ export function renderFit(root, id) {
                 return;
             }
             fill(facts,
+                h('dt', {}, 'Recommended r'),
+                h('dd', { 'data-testid': 'recommended-r', title: res.recommended_reason || '' },
+                    rec ?? '–'),
+                res.recommended_reason ? [h('dt', {}, 'Why'), h('dd', { class: 'small',
+                    'data-testid': 'recommended-reason' }, res.recommended_reason)] : null,
+                res.range_edge ? [h('dt', {}, 'Note'), h('dd', { class: 'warn',
+                    'data-testid': 'range-edge' }, 'AIC or BIC picked the largest r the sweep or ' +
+                    'the points allow: their choice sits at the edge of the searched range')] : null,
                 h('dt', {}, 'Best r (AIC)'),
                 h('dd', { 'data-testid': 'best-r-aic' }, best.aic ?? '–'),
                 h('dt', {}, 'Best r (BIC)'),

@@ -296,8 +296,10 @@ async function run(base, page, api) {
         `${await text('best-r-aic')} vs ${res.best_r.aic}`);
     check(await text('best-r-bic') === String(res.best_r.bic), 'best r (BIC) matches the API',
         `${await text('best-r-bic')} vs ${res.best_r.bic}`);
-    const best = res.fits.find((f) => f.r === res.best_r.bic);
-    check(await text('shown-r') === `r = ${best.r}`, 'the map shown is the best-BIC one');
+    check(await text('recommended-r') === String(res.recommended_r),
+        'recommended r matches the API', `${await text('recommended-r')} vs ${res.recommended_r}`);
+    const best = res.fits.find((f) => f.r === res.recommended_r);
+    check(await text('shown-r') === `r = ${best.r}`, 'the map shown is the recommended one');
     check(await text('map-status') === best.status, 'the fit status matches the API',
         `${await text('map-status')} vs ${best.status}`);
     const F = Number(await text('ftest-F')), p = Number(await text('ftest-p'));

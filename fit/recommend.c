@@ -1,0 +1,102 @@
+/* recommend.c: the recommended r of a sweep (see recommend.h). */
+#include "fit/recommend.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+fit_recommend_opts_t fit_recommend_opts_default(void)
+{
+    return (fit_recommend_opts_t){.noise_to_contrast = 0.25};
+}
+
+void fit_map_noise_contrast(const fit_result_t *f, double *noise, double *contrast)
+{
+    *noise = *contrast = NAN;
+    if (!f->S || !f->S_err) return;
+    size_t m = (size_t)f->r * f->r;
+    double v = 0, mean = 0, c = 0;
+    for (size_t j = 0; j < m; j++) v += f->S_err[j] * f->S_err[j], mean += f->S[j];
+    mean /= (double)m;
+    for (size_t j = 0; j < m; j++) c += (f->S[j] - mean) * (f->S[j] - mean);
+    *noise = sqrt(v / (double)m);
+    *contrast = sqrt(c / (double)m);
+}
+
+/* The flags that make a map untrustworthy as it is (model.h). */
+#define UNTRUSTED (FIT_UNDERDETERMINED | FIT_NO_SIGNAL | FIT_ILL_CONDITIONED | FIT_UNCONSTRAINED | \
+                   FIT_NO_POINTS)
+
+static int admissible(const fit_result_t *f, const fit_recommend_opts_t *o, double scale)
+{
+    if (!f->S || (f->flags & UNTRUSTED) || !isfinite(f->cv_chi2)) return 0;
+    if (f->r == 1) return 1;
+    double noise, contrast;
+    fit_map_noise_contrast(f, &noise, &contrast);
+    return noise * scale <= o->noise_to_contrast * contrast;
+}
+
+/* How far the noise model's sigma is from the data's own scatter: sqrt of the smallest reduced
+ * chi2 among the fits with a map and at least a quarter of the points as degrees of freedom (the
+ * most flexible model that still leaves enough residuals to measure the scatter). The paper's
+ * sigma (eq. 5 as printed) is sqrt(G) too large, so its S_err are too; scaled by this they are
+ * the map's real noise under either noise model. 1 when no fit qualifies. */
+static double noise_scale(const fit_sweep_t *sw)
+{
+    double best = INFINITY;
+    for (int r = sw->r_min; r <= sw->r_max; r++) {
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        double dof = (double)f->n_used - f->params;
+        if (f->S && dof >= 0.25 * (double)f->n_used && f->chi2_red < best) best = f->chi2_red;
+    }
+    return isfinite(best) && best > 0 ? sqrt(best) : 1;
+}
+
+/* The largest r of the sweep whose fit has enough points (r*r + 1 <= N). */
+static int largest_determined(const fit_sweep_t *sw)
+{
+    int r_det = 0;
+    for (int r = sw->r_min; r <= sw->r_max; r++) {
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        if (!(f->flags & (FIT_UNDERDETERMINED | FIT_NO_POINTS))) r_det = r;
+    }
+    return r_det;
+}
+
+void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
+                   fit_recommendation_t *out)
+{
+    fit_recommend_opts_t o = opts ? *opts : fit_recommend_opts_default();
+    memset(out, 0, sizeof *out);
+    int r_det = largest_determined(sw);
+    out->range_edge = r_det > 0 && (sw->best_aic == r_det || sw->best_bic == r_det);
+    double cv_min = INFINITY, scale = noise_scale(sw);
+    int r_cv = 0, first_bad = 0;
+    for (int r = sw->r_min; r <= sw->r_max; r++) {
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        if (!admissible(f, &o, scale)) {
+            if (f->S && !first_bad) first_bad = r;
+            continue;
+        }
+        if (f->cv_chi2 < cv_min) cv_min = f->cv_chi2, r_cv = r;
+    }
+    if (!r_cv) {
+        snprintf(out->reason, sizeof out->reason,
+                 "no fit of r = %d..%d has a map that can be trusted (see each fit's status)",
+                 sw->r_min, sw->r_max);
+        return;
+    }
+    out->r = r_cv;
+    const fit_result_t *f = &sw->fits[out->r - sw->r_min];
+    double noise, contrast;
+    fit_map_noise_contrast(f, &noise, &contrast);
+    int n = snprintf(out->reason, sizeof out->reason,
+                     "r = %d predicts left-out spot positions best (leave-one-out chi2/N %.3g) "
+                     "among the maps whose noise is at most %g of their contrast (here %.2g "
+                     "against %.2g)",
+                     out->r, f->cv_chi2 / (double)f->n_used, o.noise_to_contrast, noise * scale,
+                     contrast);
+    if (first_bad && n > 0 && (size_t)n < sizeof out->reason)
+        snprintf(out->reason + n, sizeof out->reason - (size_t)n,
+                 "; r = %d is the first whose map is noise-dominated or flagged", first_bad);
+}

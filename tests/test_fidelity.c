@@ -1,0 +1,40 @@
+/* test_fidelity.c: the short form of the fidelity harness (instrument/fidelity.h): a few scenes
+ * and rasters with fixed seeds, where the simulator's own map is the truth. On each, the
+ * recommended map (fit/recommend.h) must be within 1.2x of the rms error of the best r in
+ * hindsight (rms below 0.1 % counts as 0.1 %: a flat pixel's r = 1 map is exact), and never the
+ * checkerboard that AIC and BIC pick on the denser rasters. The full table is a benchmark
+ * (build/bench/ipsd-bench-fidelity, README). */
+#include <math.h>
+
+#include "check.h"
+#include "instrument/fidelity.h"
+
+static const struct {
+    const char *scene;
+    int grid;
+    double step;
+} cases[] = {
+    {"paperlike", 9, 0.6},   /* the paper's raster: AIC and BIC pick r = 8 here */
+    {"paperlike", 13, 0.42}, /* a finer raster: BIC picks the r = 9 checkerboard */
+    {"uniform", 9, 0.6},     {"deadcorner", 9, 0.6}, {"edge", 19, 0.3}, {"dip", 13, 0.42},
+};
+
+int main(void)
+{
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        fid_case_t c = {.scene = cases[i].scene, .grid = cases[i].grid, .step_um = cases[i].step,
+                        .flux_scale = 1, .seed = 1, .noise = FIT_NOISE_PAPER};
+        fid_result_t f;
+        err_t err;
+        CHECK(fid_run(&c, 10, &f, &err) == 0);
+        int rec = f.r_rec[0];
+        CHECK(rec >= 1 && f.r_best >= 1);
+        if (rec < 1 || f.r_best < 1) continue;
+        double floor = fmax(f.rms[f.r_best], 1e-3);
+        if (!(f.rms[rec] <= 1.2 * floor))
+            fprintf(stderr, "%s %dx%d: recommended r = %d (rms %.4f), best r = %d (rms %.4f)\n",
+                    c.scene, c.grid, c.grid, rec, f.rms[rec], f.r_best, f.rms[f.r_best]);
+        CHECK(f.rms[rec] <= 1.2 * floor);
+    }
+    CHECK_DONE();
+}

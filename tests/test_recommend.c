@@ -1,0 +1,163 @@
+/* test_recommend.c: the recommended r (fit/recommend.h) and the leave-one-out prediction chi2 it
+ * rests on, against independent values: cv_chi2 of the reference scan recomputed by brute force
+ * (the fit refitted without each point in turn, the left-out point predicted from box integrals
+ * of fit/box.c, not the design matrix, and sigma from eq. 5 written out here); range_edge against
+ * the argmin of the published AIC / BIC of tests/data/paperlike_scan.json; the admissibility rule
+ * on maps built by hand (a map whose noise exceeds a quarter of its contrast is never recommended,
+ * r = 1 always may be, flagged fits never). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "fit/airy.h"
+#include "fit/box.h"
+#include "fit/pipeline.h"
+#include "fit/recommend.h"
+#include "refdata.h"
+
+/* sigma of eq. 5 as the paper prints it, over sqrt(frames) (eq. 4): the "paper" noise model */
+static double paper_sigma(const fit_scan_t *s, double signal)
+{
+    double d = signal - s->bias_dn, rg = s->read_noise_e / s->gain_e_per_dn;
+    return sqrt((d > 0 ? d : 0) + rg * rg) / sqrt((double)s->frames);
+}
+
+/* The model at (x, y) of an r x r fit: I0 sum S_ij box_ij, boxes by fit_box_integral. */
+static double predict(const fit_scan_t *s, const fit_result_t *f, double x, double y)
+{
+    int r = f->r;
+    double h = s->pitch_um / r, sum = 0;
+    for (int j = 0; j < r; j++)
+        for (int i = 0; i < r; i++) {
+            fit_rect_t b = {i * h, (i + 1) * h, j * h, (j + 1) * h};
+            double v, eb;
+            CHECK(fit_box_integral(s->spot_radius_um, &b, x, y, 1e-12, &v, &eb, NULL) == 0);
+            sum += f->S[j * r + i] * v;
+        }
+    return f->I0 * sum;
+}
+
+/* PRESS by its definition: each point predicted by the fit to all the others. */
+static double brute_force_loo(const fit_scan_t *s, int r)
+{
+    size_t n = s->n;
+    double *x = malloc(sizeof(double) * 3 * n), *y = x + n, *d = y + n, press = 0;
+    fit_options_t o = fit_options_default(); /* paper noise, linear */
+    for (size_t k = 0; k < n; k++) {
+        size_t q = 0;
+        for (size_t i = 0; i < n; i++)
+            if (i != k) x[q] = s->x_um[i], y[q] = s->y_um[i], d[q] = s->signal_dn[i], q++;
+        fit_scan_t less = *s;
+        less.n = n - 1, less.x_um = x, less.y_um = y, less.signal_dn = d;
+        fit_result_t f;
+        CHECK(fit_map(&less, r, &o, &f, NULL) == 0 && f.S);
+        if (f.S) {
+            double e = s->signal_dn[k] - s->bias_dn - predict(s, &f, s->x_um[k], s->y_um[k]);
+            double sg = paper_sigma(s, s->signal_dn[k]);
+            press += e * e / (sg * sg);
+        }
+        fit_result_free(&f);
+    }
+    free(x);
+    return press;
+}
+
+static void test_loo(const ref_scan_t *ref)
+{
+    fit_options_t o = fit_options_default();
+    for (int r = 2; r <= 4; r += 2) {
+        fit_result_t f;
+        CHECK(fit_map(&ref->scan, r, &o, &f, NULL) == 0);
+        /* design matrix (1e-12) against box integrals (1e-12): agreement to ~1e-9 relative */
+        CHECK_NEAR(f.cv_chi2, brute_force_loo(&ref->scan, r), 1e-7, 0);
+        CHECK(f.cv_chi2 >= f.chi2); /* a point predicted from the others fits no better */
+        fit_result_free(&f);
+    }
+}
+
+/* range_edge: AIC or BIC at the largest r the sweep determines, read from the published fits. */
+static void test_range_edge(const ref_scan_t *ref)
+{
+    int aic_r = 0, bic_r = 0;
+    double aic = INFINITY, bic = INFINITY;
+    size_t i;
+    json_t *o;
+    json_array_foreach(json_object_get(ref->root, "fits"), i, o)
+    {
+        const char *noise = json_string_value(json_object_get(o, "noise"));
+        if (!noise || strcmp(noise, "paper")) continue;
+        int r = (int)json_integer_value(json_object_get(o, "r"));
+        if (ref_num(o, "aic") < aic) aic = ref_num(o, "aic"), aic_r = r;
+        if (ref_num(o, "bic") < bic) bic = ref_num(o, "bic"), bic_r = r;
+    }
+    CHECK(aic_r > 0 && bic_r > 0);
+    for (int r_max = 6; r_max <= 8; r_max++) {
+        fit_pipeline_opts_t po = fit_pipeline_opts_default();
+        po.r_max = r_max;
+        fit_pipeline_t pl;
+        CHECK(fit_pipeline_run(&ref->scan, &po, NULL, &pl, NULL) == 0);
+        /* published argmins restricted to 1..r_max: at r_max whenever the global one is beyond */
+        int edge = (aic_r >= r_max) || (bic_r >= r_max);
+        CHECK(pl.sweep.range_edge == edge);
+        /* the recommendation is one of the swept maps, and says why in a sentence */
+        CHECK(pl.sweep.recommended_r >= 1 && pl.sweep.recommended_r <= r_max);
+        CHECK(strlen(pl.sweep.recommended_reason) > 20);
+        fit_pipeline_free(&pl);
+    }
+}
+
+/* Admissibility on a sweep built by hand: fits at r = 1, 2, 3 with chosen S, S_err, cv_chi2. */
+static void test_rule(void)
+{
+    fit_result_t f[3];
+    double S2[4] = {0.9, 1.1, 1.1, 0.9}, E2[4], S3[9], E3[9];
+    memset(f, 0, sizeof f);
+    for (int j = 0; j < 9; j++) S3[j] = j % 2 ? 1.2 : 0.8, E3[j] = 0.01;
+    double S1 = 1, E1 = 0;
+    for (int k = 0; k < 3; k++) {
+        f[k].r = k + 1;
+        f[k].params = (k + 1) * (k + 1) + 1;
+        f[k].n_used = 100;
+        f[k].chi2_red = 1;
+    }
+    f[0].S = &S1, f[0].S_err = &E1, f[0].cv_chi2 = 500;
+    f[1].S = S2, f[1].S_err = E2, f[1].cv_chi2 = 200;
+    f[2].S = S3, f[2].S_err = E3, f[2].cv_chi2 = 300;
+    fit_sweep_t sw = {.r_min = 1, .r_max = 3, .fits = f};
+    fit_recommendation_t rec;
+    /* r = 2: contrast 0.1; noise 0.02 is a fifth of it: admissible, and best CV */
+    for (int j = 0; j < 4; j++) E2[j] = 0.02;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 2);
+    /* noise 0.03 is above a quarter of the contrast: r = 2 is out, r = 3 (contrast 0.2, noise
+     * 0.01) has the next best CV */
+    for (int j = 0; j < 4; j++) E2[j] = 0.03;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 3);
+    /* a flag that makes r = 3 untrustworthy leaves r = 1, always admissible */
+    f[2].flags = FIT_ILL_CONDITIONED;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 1);
+    /* the paper's sigma is sqrt(G) too large: S_err scale with it, but so does sqrt(chi2_red),
+     * which rescales them; with chi2_red = 1/4 the noise counts half: r = 2 is back */
+    f[2].flags = 0;
+    for (int k = 0; k < 3; k++) f[k].chi2_red = 0.25;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 2);
+    /* nothing with a map: no recommendation, and a reason */
+    f[0].S = f[1].S = f[2].S = NULL;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 0 && strstr(rec.reason, "no fit"));
+}
+
+int main(void)
+{
+    ref_scan_t ref;
+    if (ref_scan_load("paperlike_scan.json", &ref)) return 1;
+    test_loo(&ref);
+    test_range_edge(&ref);
+    test_rule();
+    ref_scan_free(&ref);
+    CHECK_DONE();
+}
