@@ -5,6 +5,7 @@
 
 #include <errno.h>
 #include <float.h>
+#include <gsl/gsl_cdf.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,6 +36,7 @@ const char *fit_status_name(unsigned flags)
     if (flags & FIT_NO_SIGNAL) return "no_signal";
     if (flags & FIT_ILL_CONDITIONED) return "ill_conditioned";
     if (flags & FIT_UNCONSTRAINED) return "unconstrained";
+    if (flags & FIT_POOR_FIT) return "poor_fit";
     if (flags & FIT_LM_NOT_GLOBAL) return "lm_not_global";
     if (flags & FIT_LM_NOT_CONVERGED) return "lm_not_converged";
     if (flags & FIT_NONFINITE) return "nonfinite_input"; /* map fine, points left out */
@@ -214,6 +216,10 @@ static int solve(const double *A, const struct points *p, int r, const fit_optio
     if (opts->method != FIT_LINEAR && !opts->nonneg && (rc = run_lm(A, p, m, opts, T, res)))
         goto out;
     res->chi2_red = n > (size_t)res->params ? res->chi2 / (double)(n - (size_t)res->params) : NAN;
+    if (n > (size_t)res->params) { /* upper tail of the chi-square distribution of the residuals */
+        res->chi2_p = gsl_cdf_chisq_Q(res->chi2, (double)(n - (size_t)res->params));
+        if (res->chi2_p < FIT_POOR_FIT_P) res->flags |= FIT_POOR_FIT;
+    }
     double N = (double)n, l = log(res->chi2 / N);
     res->aic = N * l + 2 * res->params; /* AIC = N ln(chi2/N) + 2p */
     res->bic = N * l + res->params * log(N); /* BIC = N ln(chi2/N) + p ln N */
@@ -249,19 +255,23 @@ out:
     return rc;
 }
 
-/* model_dn: M_k + bias for every input point that was used, NaN for the others. */
+/* model_dn: M_k + bias for every input point that was used, NaN for the others; resid: the
+ * normalised residuals (signal - M_k - bias) / sigma_k of the same points. */
 static int fill_model(const fit_scan_t *scan, const double *A, const struct points *p, int r,
                       fit_result_t *res)
 {
-    size_t m = (size_t)r * r;
-    res->model_dn = malloc(sizeof(double) * (scan->n ? scan->n : 1));
-    if (!res->model_dn) return -ENOMEM;
-    for (size_t k = 0; k < scan->n; k++) res->model_dn[k] = NAN;
+    size_t m = (size_t)r * r, nn = scan->n ? scan->n : 1;
+    res->model_dn = malloc(sizeof(double) * nn);
+    res->resid = malloc(sizeof(double) * nn);
+    if (!res->model_dn || !res->resid) return -ENOMEM;
+    for (size_t k = 0; k < scan->n; k++) res->model_dn[k] = res->resid[k] = NAN;
     if (!res->S) return 0;
     for (size_t q = 0; q < p->n; q++) {
         double as = 0;
         for (size_t j = 0; j < m; j++) as += A[q * m + j] * res->S[j];
-        res->model_dn[p->idx[q]] = res->I0 * as + scan->bias_dn;
+        size_t k = p->idx[q];
+        res->model_dn[k] = res->I0 * as + scan->bias_dn;
+        res->resid[k] = (p->d[q] - res->I0 * as) / p->sigma[q];
     }
     return 0;
 }
@@ -274,6 +284,7 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
     out->r = r;
     out->params = r * r + 1;
     out->lm_chi2 = out->chi2 = out->chi2_red = out->aic = out->bic = out->cv_chi2 = NAN;
+    out->chi2_p = NAN;
     out->I0 = out->I0_err = out->cond = NAN;
     fit_options_t o = opts ? *opts : fit_options_default();
     if (r < 1 || r > 32) return err_set(err, -EINVAL, "r must be between 1 and 32 (got %d)", r);
@@ -316,5 +327,6 @@ void fit_result_free(fit_result_t *res)
     free(res->S);
     free(res->S_err);
     free(res->model_dn);
-    res->S = res->S_err = res->model_dn = NULL;
+    free(res->resid);
+    res->S = res->S_err = res->model_dn = res->resid = NULL;
 }

@@ -34,7 +34,12 @@ enum fit_flag {
     FIT_LM_NOT_GLOBAL = 1 << 6,   /* LM stopped with chi2 above the linear global minimum */
     FIT_LM_NOT_CONVERGED = 1 << 7,/* LM hit its iteration limit */
     FIT_NO_POINTS = 1 << 8,       /* no usable point at all */
+    FIT_POOR_FIT = 1 << 9,        /* the model does not describe the data: the chi-square p-value
+                                     (noise model's sigma) is below FIT_POOR_FIT_P */
 };
+
+/* A fit whose chi2 would be exceeded by chance less often than this is a poor fit. */
+#define FIT_POOR_FIT_P 1e-3
 
 typedef enum fit_method { FIT_LINEAR = 0, FIT_LM = 1, FIT_BOTH = 2 } fit_method_t;
 
@@ -54,11 +59,16 @@ typedef struct fit_result {
     size_t n_saturated, n_nonfinite, n_unconstrained;
     unsigned flags;            /* enum fit_flag */
     double chi2, chi2_red;     /* chi2_red = chi2 / (n_used - params) */
+    double chi2_p;             /* P(chi2_dof >= chi2), dof = n_used - params: the goodness of fit
+                                  under the noise model (NaN without degrees of freedom) */
     double aic, bic;           /* N ln(chi2/N) + 2p, N ln(chi2/N) + p ln N */
     double I0, I0_err;         /* DN per unit-peak-Airy flux (um^-2) */
     double *S, *S_err;         /* r*r, row-major y then x (index j*r + i); NULL without a map */
     double *model_dn;          /* n: fitted model M_k + bias for every input point (NaN if
                                   left out or no map) */
+    double *resid;             /* n: normalised residuals (signal - model) / sigma_k of every
+                                  input point (NaN if left out or no map); their squares sum to
+                                  chi2 */
     double cond;               /* 2-norm condition number of the weighted design matrix */
     double lm_chi2;            /* LM's chi2 (method lm/both), else NaN */
     int lm_iterations;
@@ -70,7 +80,7 @@ typedef struct fit_result {
 /* The primary status word of flags: "ok", or the most severe condition, in this order:
  * "saturated" / "nonfinite_input" / "no_points" (no usable point; the first two when all were
  * left out for that reason), "underdetermined", "no_signal", "ill_conditioned", "unconstrained",
- * "lm_not_global", "lm_not_converged", then "nonfinite_input" and "saturated" again for a good
+ * "poor_fit", "lm_not_global", "lm_not_converged", then "nonfinite_input" and "saturated" again for a good
  * map from which such points were left out (counted in the result). Static string. */
 const char *fit_status_name(unsigned flags);
 

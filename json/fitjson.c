@@ -32,6 +32,7 @@ static const struct {
     {FIT_NO_SIGNAL, "no_signal"},
     {FIT_ILL_CONDITIONED, "ill_conditioned"},
     {FIT_UNCONSTRAINED, "unconstrained"},
+    {FIT_POOR_FIT, "poor_fit"},
     {FIT_LM_NOT_GLOBAL, "lm_not_global"},
     {FIT_LM_NOT_CONVERGED, "lm_not_converged"},
     {FIT_NONFINITE, "nonfinite_input"},
@@ -54,6 +55,10 @@ static void fit_details(json_t *o, const fit_result_t *f, fit_method_t method)
     json_object_set_new(o, "n_nonfinite", json_integer((json_int_t)f->n_nonfinite));
     json_object_set_new(o, "n_unconstrained", json_integer((json_int_t)f->n_unconstrained));
     json_object_set_new(o, "cv_chi2", fitjson_num(f->cv_chi2));
+    json_object_set_new(o, "chi2_p", fitjson_num(f->chi2_p));
+    /* one per input point, in input order (the used ones, the saturated and the non-finite) */
+    json_object_set_new(o, "residuals",
+                        fitjson_array(f->resid, f->n_used + f->n_saturated + f->n_nonfinite));
     if (method != FIT_LINEAR) {
         json_object_set_new(o, "lm_chi2", fitjson_num(f->lm_chi2));
         json_object_set_new(o, "lm_iterations", json_integer(f->lm_iterations));

@@ -27,8 +27,9 @@ json_t *fitjson_int_or_null(int v);
 json_t *fitjson_flags(unsigned flags);
 
 /* One fit of the sweep: r, chi2, params, aic, bic, I0, I0_err, S, S_err, cond, chi2_red, status,
- * flags, n_used, n_saturated, n_nonfinite, n_unconstrained, cv_chi2, design, timing_ms (and
- * lm_chi2, lm_iterations when method is not linear). */
+ * flags, n_used, n_saturated, n_nonfinite, n_unconstrained, cv_chi2, chi2_p, residuals (one per
+ * input point, null where left out), design, timing_ms (and lm_chi2, lm_iterations when method is
+ * not linear). */
 json_t *fitjson_fit(const fit_result_t *f, fit_method_t method);
 
 /* The F-test: r, edges (names), chi2_H0, params_H0, chi2_H1, params_H1, F, p_value, N, status,

@@ -32,7 +32,17 @@ static void test_reference_fits(ref_scan_t *rs)
             CHECK_NEAR(res->bic, ref_num(f, "bic"), 0, 1e-6);
             CHECK(res->params == (int)json_integer_value(json_object_get(f, "params")));
             CHECK(res->n_used == 81);
-            CHECK(strcmp(fit_status_name(res->flags), "ok") == 0);
+            /* goodness of fit from the published chi2 alone: far above its degrees of freedom
+             * (5 standard deviations, sqrt(2 dof) each) is a poor fit, within 2 is not */
+            double chi2 = ref_num(f, "chi2"), dof = 81.0 - res->params, sd = sqrt(2 * dof);
+            const char *st = fit_status_name(res->flags);
+            if (chi2 > dof + 5 * sd) CHECK(strcmp(st, "poor_fit") == 0 && res->chi2_p < 1e-3);
+            else if (chi2 < dof + 2 * sd) CHECK(strcmp(st, "ok") == 0 && res->chi2_p > 1e-3);
+            else CHECK(strcmp(st, "ok") == 0 || strcmp(st, "poor_fit") == 0);
+            /* the normalised residuals' squares add up to chi2 */
+            double rss = 0;
+            for (size_t k = 0; k < rs->scan.n; k++) rss += res->resid[k] * res->resid[k];
+            CHECK_NEAR(rss, chi2, 1e-6, 0);
             json_t *S = json_object_get(f, "S_normalised_mean1_rowmajor_y_then_x");
             for (size_t j = 0; S && j < json_array_size(S); j++)
                 CHECK_NEAR(res->S[j], json_number_value(json_array_get(S, j)), 0, 1e-6);
@@ -228,6 +238,26 @@ static void test_nonneg(ref_scan_t *rs)
     fit_result_free(&nn);
 }
 
+/* The chi-square p-value with 2 degrees of freedom is exp(-chi2 / 2) exactly: an r = 1 fit
+ * (2 parameters) of 4 points. A clearly inconsistent scan is a poor fit, a consistent one not. */
+static void test_goodness_of_fit(void)
+{
+    double x[4] = {2.5, 3.5, 2.5, 3.5}, y[4] = {2.5, 2.5, 3.5, 3.5};
+    double close[4] = {1100, 1104, 1097, 1101}, far[4] = {1100, 1600, 700, 1100};
+    fit_scan_t s = {.n = 4, .x_um = x, .y_um = y, .pitch_um = 6, .spot_radius_um = 1.34,
+                    .bias_dn = 100, .gain_e_per_dn = 3.153, .read_noise_e = 5.67, .frames = 12,
+                    .full_scale_dn = 16383};
+    fit_options_t o = fit_options_default();
+    for (int pass = 0; pass < 2; pass++) {
+        s.signal_dn = pass ? far : close;
+        fit_result_t f;
+        CHECK(fit_map(&s, 1, &o, &f, NULL) == 0 && f.params == 2);
+        CHECK_NEAR(f.chi2_p, exp(-f.chi2 / 2), 1e-10, 1e-300);
+        CHECK(strcmp(fit_status_name(f.flags), pass ? "poor_fit" : "ok") == 0);
+        fit_result_free(&f);
+    }
+}
+
 int main(void)
 {
     ref_scan_t rs;
@@ -238,6 +268,7 @@ int main(void)
     test_extremes(&rs);
     test_tiny_spot_unconstrained();
     test_nonneg(&rs);
+    test_goodness_of_fit();
     ref_scan_free(&rs);
     CHECK_DONE();
 }
