@@ -35,6 +35,37 @@ static int token_ok(const char *want, const char *header)
     return diff == 0;
 }
 
+/* libmicrohttpd's unescape of the URL path and of query arguments, except that %00 stays as
+ * the three characters "%00": decoded, it would end the C string that handlers see, so that
+ * "/api/scans/1%00junk" would be scan 1 and "/index.html%00.png" index.html. Kept literal, such
+ * a path or value is simply not a valid one (404 / 400). Hand-written because MHD's own
+ * MHD_http_unescape decodes every %XX. */
+static int hex_digit(char c)
+{
+    return c >= '0' && c <= '9' ? c - '0'
+           : c >= 'a' && c <= 'f' ? c - 'a' + 10
+           : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                  : -1;
+}
+
+static size_t unescape_keep_nul(void *cls, struct MHD_Connection *c, char *s)
+{
+    (void)cls;
+    (void)c;
+    char *w = s;
+    for (const char *r = s; *r;) {
+        int hi = r[0] == '%' ? hex_digit(r[1]) : -1, lo = hi >= 0 ? hex_digit(r[2]) : -1;
+        if (lo >= 0 && (hi | lo) != 0) {
+            *w++ = (char)(hi << 4 | lo);
+            r += 3;
+        } else {
+            *w++ = *r++;
+        }
+    }
+    *w = 0;
+    return (size_t)(w - s);
+}
+
 /* The media type of Content-Type (before any ';'), compared with application/json. */
 static int is_json_type(const char *ct)
 {
@@ -217,7 +248,8 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
         MHD_start_daemon(flags, (uint16_t)cfg->port, NULL, NULL, on_request, srv,
                          MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE,
                          (unsigned)cfg->http_threads, MHD_OPTION_NOTIFY_COMPLETED, on_completed,
-                         srv, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60, MHD_OPTION_END);
+                         srv, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
+                         MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL, MHD_OPTION_END);
     if (!h->d) {
         free(h);
         return err_set(err, -EADDRINUSE,

@@ -3,6 +3,7 @@
  * and the CSV choice. Each helper replies itself and returns -1 on bad input, so a handler just
  * returns. */
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -129,6 +130,11 @@ int api_get_num(api_req_t *q, json_t *o, const char *key, const char *path, int 
         return -1;
     }
     double y = json_number_value(x);
+    if (y != 0 && fabs(y) < DBL_MIN) { /* subnormal: no physical constant, and 1/y overflows */
+        api_error(q, 422, "out_of_range", path, "%s must be 0 or at least %g in size (got %g)",
+                  path, DBL_MIN, y);
+        return -1;
+    }
     if (!isfinite(y) || (open_lo ? !(y > lo) : !(y >= lo)) || !(y <= hi)) {
         api_error(q, 422, "out_of_range", path, "%s must be %s %g and <= %g (got %g)", path,
                   open_lo ? ">" : ">=", lo, hi, y);

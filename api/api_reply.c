@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "api_int.h"
+#include "base/utf8.h"
 
 void api_reply_text(api_req_t *q, unsigned status, const char *ctype, char *buf, size_t len)
 {
@@ -47,8 +48,16 @@ void api_error(api_req_t *q, unsigned status, const char *code, const char *fiel
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
+    /* messages quote the request (a URL, a query value, a cut-off key): make them valid UTF-8, or
+     * jansson refuses them and the body would lose its message and field */
+    utf8_sanitize(msg);
+    char fld[256];
+    if (field) {
+        snprintf(fld, sizeof fld, "%s", field);
+        utf8_sanitize(fld);
+    }
     json_t *e = json_pack("{s:s, s:s}", "code", code, "message", msg);
-    if (e && field) json_object_set_new(e, "field", json_string(field));
+    if (e && field) json_object_set_new(e, "field", json_string(fld));
     json_t *body = e ? json_pack("{s:o}", "error", e) : NULL;
     char *text = body ? json_dumps(body, JSON_COMPACT) : NULL;
     json_decref(body);

@@ -5,13 +5,18 @@
 
 #include "api_int.h"
 
+/* The smallest pitch accepted: no sensor has pixels below 0.5 um, and a pitch near zero (5e-324
+ * was accepted once) only fails later, in the scan, as a NaN map. */
+#define SENSOR_PITCH_MIN_UM 0.1
+
 void api_h_sensors_list(api_req_t *q)
 {
-    storage_t *st = api_db(q);
+    storage_t *st;
     storage_sensor_list_t l;
+    long long limit, offset;
     err_t err = {{0}};
-    if (!st) return;
-    int ret = storage_sensor_list(st, &l, &err);
+    if (api_query_page(q, &limit, &offset) || !(st = api_db(q))) return;
+    int ret = storage_sensor_list(st, (int)limit, (int)offset, &l, &err);
     if (ret) {
         api_error_rc(q, ret, NULL, err.msg);
         return;
@@ -19,7 +24,7 @@ void api_h_sensors_list(api_req_t *q)
     json_t *items = json_array();
     for (size_t i = 0; items && i < l.n; i++)
         json_array_append_new(items, api_enc_sensor(&l.items[i]));
-    api_reply_json(q, 200, api_enc_page(items, l.total, (long long)l.n, 0));
+    api_reply_json(q, 200, api_enc_page(items, l.total, limit, offset));
     storage_sensor_list_free(&l);
 }
 
@@ -37,7 +42,7 @@ static int read_sensor(api_req_t *q, json_t *o, storage_sensor_t *s)
         api_get_str(q, o, "serial", "serial", 1, 128, &serial) ||
         api_get_int(q, o, "n_cols", "n_cols", 0, 1, 1000000, &cols) ||
         api_get_int(q, o, "n_rows", "n_rows", 0, 1, 1000000, &rows) ||
-        api_get_num(q, o, "pitch_um", "pitch_um", 0, 0, 1000, 1, &pitch) ||
+        api_get_num(q, o, "pitch_um", "pitch_um", 0, SENSOR_PITCH_MIN_UM, 1000, 0, &pitch) ||
         api_get_num(q, o, "gain_e_per_dn", "gain_e_per_dn", 0, 0, 1e6, 1, &gain) ||
         api_get_num(q, o, "read_noise_e", "read_noise_e", 0, 0, 1e6, 0, &noise) ||
         api_get_num(q, o, "bias_dn", "bias_dn", 0, -1e9, 1e9, 0, &bias) ||

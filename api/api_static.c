@@ -60,7 +60,9 @@ void api_h_static(api_req_t *q, const char *url)
         api_error(q, 403, "forbidden", NULL, "%s is outside the web directory", url);
         return;
     }
-    int fd = open(real, O_RDONLY | O_CLOEXEC);
+    /* O_NONBLOCK: a FIFO (or device) in the directory must not block the HTTP thread in open();
+     * the fstat below then refuses anything but a regular file (for which O_NONBLOCK is moot) */
+    int fd = open(real, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
     struct stat sb;
     if (fd < 0 || fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
         if (fd >= 0) close(fd);

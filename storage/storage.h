@@ -101,8 +101,10 @@ int storage_sensor_get(storage_t *st, int64_t id, storage_sensor_t *out, err_t *
 /* Looks a sensor up by model and serial; -ENOENT when there is none. */
 int storage_sensor_find(storage_t *st, const char *model, const char *serial,
                         storage_sensor_t *out, err_t *err);
-/* All sensors, by id. Caller frees with storage_sensor_list_free. */
-int storage_sensor_list(storage_t *st, storage_sensor_list_t *out, err_t *err);
+/* A page of the sensors, by id (oldest first): at most limit (<= 0: all) from offset (>= 0);
+ * out->total counts all sensors. Caller frees with storage_sensor_list_free. */
+int storage_sensor_list(storage_t *st, int limit, int offset, storage_sensor_list_t *out,
+                        err_t *err);
 void storage_sensor_free(storage_sensor_t *s);
 void storage_sensor_list_free(storage_sensor_list_t *l);
 

@@ -132,16 +132,32 @@ int storage_sensor_find(storage_t *st, const char *model, const char *serial,
     return ret;
 }
 
-int storage_sensor_list(storage_t *st, storage_sensor_list_t *out, err_t *err)
+int storage_sensor_list(storage_t *st, int limit, int offset, storage_sensor_list_t *out,
+                        err_t *err)
 {
     sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
     if (!st || !out) return err_set(err, -EINVAL, "sensor list: NULL argument");
     memset(out, 0, sizeof *out);
-    int ret = stg_stmt(st, STG_SENSOR_LIST, &q, err);
-    if (ret) return ret;
+    if (offset < 0) return err_set(err, -EINVAL, "sensor list offset: %d, need >= 0", offset);
+    if ((ret = stg_begin_read(st, err))) return ret;
+    if ((ret = stg_stmt(st, STG_SENSOR_COUNT, &q, err))) goto out;
+    if ((ret = stg_count(st, q, rc, &out->total, err, "counting sensors"))) goto out;
+    if ((ret = stg_stmt(st, STG_SENSOR_LIST, &q, err))) goto out;
+    stg_bind_int(q, 1, limit > 0 ? limit : -1, &rc);
+    stg_bind_int(q, 2, offset, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "listing sensors");
+        goto out;
+    }
     ret = stg_collect(st, q, sizeof *out->items, read_sensor, (void **)&out->items, &out->n, err,
                       "listing sensors");
-    if (ret) storage_sensor_list_free(out);
-    else out->total = (int64_t)out->n;
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        storage_sensor_list_free(out);
+    }
     return ret;
 }

@@ -177,7 +177,8 @@ const char *const stg_sql[STG_N] = {
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
     [STG_SENSOR_GET] = "SELECT " STG_SENSOR_COLS " FROM sensors WHERE id = ?1",
     [STG_SENSOR_FIND] = "SELECT " STG_SENSOR_COLS " FROM sensors WHERE model = ?1 AND serial = ?2",
-    [STG_SENSOR_LIST] = "SELECT " STG_SENSOR_COLS " FROM sensors ORDER BY id",
+    [STG_SENSOR_LIST] = "SELECT " STG_SENSOR_COLS " FROM sensors ORDER BY id LIMIT ?1 OFFSET ?2",
+    [STG_SENSOR_COUNT] = "SELECT count(*) FROM sensors",
 
     [STG_SCAN_INSERT] =
         "INSERT INTO scans (sensor_id, poi_col, poi_row, wavelength_um, na, spot_radius_um, "

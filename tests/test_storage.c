@@ -795,8 +795,13 @@ static void test_pagination(void)
     CHECK(storage_scan_list(st, a, 17, 10, 0, &l, NULL) == -EINVAL);
 
     storage_sensor_list_t sl;
-    CHECK(storage_sensor_list(st, &sl, NULL) == 0 && sl.n == 2 && sl.items[0].id == a);
+    CHECK(storage_sensor_list(st, 0, 0, &sl, NULL) == 0 && sl.n == 2 && sl.items[0].id == a);
     storage_sensor_list_free(&sl);
+    /* a page: the second sensor alone, total still counting both */
+    CHECK(storage_sensor_list(st, 1, 1, &sl, NULL) == 0 && sl.n == 1 && sl.total == 2 &&
+          sl.items[0].id == b);
+    storage_sensor_list_free(&sl);
+    CHECK(storage_sensor_list(st, 5, -1, &sl, NULL) == -EINVAL);
     for (int k = 0; k < 4; k++)
         CHECK(storage_job_enqueue(st, k % 2 ? STORAGE_JOB_FIT : STORAGE_JOB_SCAN, "[]",
                                   k < 2 ? ids[0] : 0, &id, NULL) == 0);

@@ -1,0 +1,127 @@
+#!/usr/bin/env python3
+"""test_server_hostile.py IPSD: requests an attacker (or a broken client) sends to a real ipsd on
+loopback, each a defect found by attacking it (issue 10), each answered with the JSON error body
+of docs/contracts.md and nothing stored changed:
+  - text that is not valid UTF-8 in a query value, a path, or a member name cut off by the
+    message buffer keeps the error body whole (message and field);
+  - a FIFO in the web directory is refused (404) without blocking an HTTP thread;
+  - %00 in a path or a query value does not cut it short (scan 1%00junk is not scan 1);
+  - GET /api/sensors pages like every list (?limit=, ?offset=, 422 out of range);
+  - a subnormal or sub-0.1 um pitch is refused;
+  - a request line of HTTP/2.0 gets 505 (libmicrohttpd's own answer), HTTP/1.0 is served."""
+import os
+import socket
+import sys
+
+import ipsd_http
+from ipsd_http import Db, Ipsd
+
+
+def raw(port, data, timeout=ipsd_http.DEADLINE_S):
+    """Sends bytes on a fresh connection and returns (status, body) of the answer."""
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
+        s.sendall(data)
+        buf = b""
+        while True:
+            chunk = s.recv(65536)
+            if not chunk:
+                break
+            buf += chunk
+            head, sep, body = buf.partition(b"\r\n\r\n")
+            if sep:
+                length = [int(h.split(b":")[1]) for h in head.split(b"\r\n")
+                          if h.lower().startswith(b"content-length:")]
+                if length and len(body) >= length[0]:
+                    break
+    head, _, body = buf.partition(b"\r\n\r\n")
+    return int(head.split(b" ")[1]), body
+
+
+def test(c, t, argv, daemons):
+    exe = argv[1]
+    d = Ipsd(exe, t)
+    daemons.append(d)
+    web = os.path.join(t, "web")
+    os.makedirs(web)
+    with open(os.path.join(web, "index.html"), "w") as f:
+        f.write("<h1>ipsd</h1>\n")
+    os.mkfifo(os.path.join(web, "pipe.html"))
+    # one HTTP thread: a request that blocked it would block every later one
+    d.start("--web", web, "--http-threads", "1")
+    db = Db(d.db)
+
+    def counts():
+        return db.one("SELECT (SELECT count(*) FROM sensors), (SELECT count(*) FROM scans), "
+                      "(SELECT count(*) FROM fits), (SELECT count(*) FROM calibrations)")
+
+    sensors = []
+    for k in range(3):
+        r = d.post("/api/sensors", {"model": "IMX-H", "serial": "hostile-%d" % k})
+        c.status(r, 201, "create sensor %d" % k)
+        sensors.append(r.json()["id"])
+    before = counts()
+
+    # ---- UTF-8: the error body stays whole ----
+    r = d.get("/api/scans?limit=%ff")
+    c.error(r, 400, "limit", "limit=%ff: 400 naming limit")
+    c.ok("limit" in r.json()["error"]["message"], "limit=%ff: the message is kept")
+    r = d.get("/api/scans/%ff%fe")
+    c.status(r, 404, "a path of invalid UTF-8: 404")
+    c.ok(r.json()["error"]["code"] == "not_found", "a path of invalid UTF-8: the JSON body")
+    # a member name longer than the message buffer, cut in the middle of a two-byte character
+    key = "\u00e9" * 200
+    r = d.post("/api/sensors", {"model": "IMX-H", "serial": "x", key: 1})
+    c.status(r, 422, "unknown member of 200 x e-acute: 422")
+    e = r.json()["error"]
+    c.ok(e["code"] == "unknown_field" and e["field"].startswith("\u00e9" * 10),
+         "the unknown member is named (valid UTF-8, cut short): %r" % e.get("field", "")[:20])
+
+    # ---- a FIFO in the web directory ----
+    r = d.get("/pipe.html")
+    c.error(r, 404, "", "a FIFO in the web directory: 404")
+    r = d.get("/api/health")
+    c.status(r, 200, "after the FIFO the (single) HTTP thread still answers")
+
+    # ---- %00 does not cut a path or a value short ----
+    r = d.get("/api/sensors/%d" % sensors[0])
+    c.status(r, 200, "sensor %d exists" % sensors[0])
+    r = d.get("/api/sensors/%d%%00junk" % sensors[0])
+    c.status(r, 404, "sensor N%00junk is not sensor N")
+    r = d.get("/index.html")
+    c.status(r, 200, "index.html is served")
+    r = d.get("/index.html%00.png")
+    c.error(r, 404, "", "index.html%00.png is not index.html")
+    r = d.get("/api/scans?limit=5%00")
+    c.error(r, 400, "limit", "limit=5%00 is not 5")
+
+    # ---- sensors are a page ----
+    r = d.get("/api/sensors?limit=1&offset=1")
+    c.status(r, 200, "sensors page")
+    p = r.json()
+    c.eq((p["total"], p["limit"], p["offset"], [s["id"] for s in p["items"]]),
+         (3, 1, 1, [sensors[1]]), "sensors ?limit=1&offset=1: the second sensor, total 3")
+    r = d.get("/api/sensors")
+    c.eq((r.json()["limit"], len(r.json()["items"])), (50, 3), "sensors: default limit 50")
+    c.error(d.get("/api/sensors?limit=0"), 422, "limit", "sensors ?limit=0: 422 like scans")
+    c.error(d.get("/api/sensors?offset=-1"), 422, "offset", "sensors ?offset=-1: 422")
+
+    # ---- a pitch no sensor has ----
+    for pitch in ("5e-324", "1e-310", "0.05", "0"):
+        body = '{"model": "IMX-H", "serial": "pitch-%s", "pitch_um": %s}' % (pitch, pitch)
+        r = d.req("POST", "/api/sensors", body, {"Content-Type": "application/json"})
+        c.error(r, 422, "pitch_um", "pitch_um %s: 422" % pitch)
+
+    # ---- HTTP versions ----
+    # libmicrohttpd answers these itself (its body is HTML: not yet the JSON one, issue 10)
+    st, body = raw(d.port, b"GET /api/health HTTP/2.0\r\nHost: x\r\n\r\n")
+    c.eq(st, 505, "HTTP/2.0 request line: 505, not 200")
+    st, body = raw(d.port, b"GET /api/health HTTP/1.0\r\n\r\n")
+    c.eq(st, 200, "HTTP/1.0 still answered")
+
+    c.eq(counts(), before, "nothing stored changed")
+    c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+    db.close()
+
+
+if __name__ == "__main__":
+    sys.exit(ipsd_http.main(test, sys.argv))
