@@ -95,8 +95,9 @@ static int read_raster(api_req_t *q, json_t *body, storage_scan_t *sc)
     return 0;
 }
 
-/* The POI must be on the sensor with the whole sub-frame, and the raster must be whole steps and
- * at most SCAN_MAX_POINTS points (scan_limits.h). */
+/* The POI must be on the sensor with the whole sub-frame, the raster must be whole steps and at
+ * most SCAN_MAX_POINTS points (scan_limits.h), and what the scan would store at most
+ * --max-scan-bytes. */
 static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storage_scan_t *sc)
 {
     int h = sc->sub_px / 2;
@@ -113,8 +114,19 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
                   sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row, sn->n_cols, sn->n_rows);
         return -1;
     }
-    if (scan_check_raster(sn->pitch_um, sc->area_px, sc->step_um, "raster.step_um", NULL, &err)) {
+    int nx;
+    if (scan_check_raster(sn->pitch_um, sc->area_px, sc->step_um, "raster.step_um", &nx, &err)) {
         api_error(q, 422, "out_of_range", "raster.step_um", "%s", err.msg);
+        return -1;
+    }
+    double per_point = storage_frame_bytes(sc->frames, sc->sub_px), points = (double)nx * nx;
+    double cap = srv_config(q->srv)->max_scan_bytes;
+    if (points * per_point > cap) {
+        api_error(q, 422, "too_large", "raster",
+                  "the scan would store %.4g MiB of frames (%.0f points x %.4g KiB), more "
+                  "than ipsd's limit of %.4g MiB (--max-scan-bytes): take fewer points, "
+                  "frames or a smaller sub-frame",
+                  points * per_point / 1048576, points, per_point / 1024, cap / 1048576);
         return -1;
     }
     return 0;

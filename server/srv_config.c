@@ -29,6 +29,8 @@ static const char usage[] =
     "                       file's content without surrounding whitespace\n"
     "  --web DIR            static files of the dashboard (default the source tree's web/)\n"
     "  --max-body BYTES     largest request body (default 4194304); larger ones get 413\n"
+    "  --max-scan-bytes B   largest scan accepted, in bytes of frames it would store (default\n"
+    "                       1073741824); larger ones get 422\n"
     "  --port-file FILE     write the bound port number to FILE once listening\n"
     "  --heartbeat S        seconds between event-stream heartbeats (default 15)\n"
     "  --max-attempts N     a job interrupted by N crashes fails instead of running again (3)\n"
@@ -45,6 +47,7 @@ srv_config_t srv_config_default(void)
                       .workers = 2,
                       .http_threads = 2,
                       .max_body = 4u << 20,
+                      .max_scan_bytes = (double)(1u << 30),
                       .heartbeat_s = 15,
                       .max_attempts = 3};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
@@ -133,6 +136,7 @@ enum {
     O_TOKEN,
     O_WEB,
     O_MAXBODY,
+    O_MAXSCAN,
     O_PORTFILE,
     O_HEARTBEAT,
     O_ATTEMPTS,
@@ -148,6 +152,7 @@ static const struct option opts[] = {
     {"token", required_argument, NULL, O_TOKEN},
     {"web", required_argument, NULL, O_WEB},
     {"max-body", required_argument, NULL, O_MAXBODY},
+    {"max-scan-bytes", required_argument, NULL, O_MAXSCAN},
     {"port-file", required_argument, NULL, O_PORTFILE},
     {"heartbeat", required_argument, NULL, O_HEARTBEAT},
     {"max-attempts", required_argument, NULL, O_ATTEMPTS},
@@ -188,6 +193,12 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--max-body must be 1024..1073741824 bytes (got '%s')",
                            arg);
         cfg->max_body = (size_t)v;
+        return 0;
+    case O_MAXSCAN:
+        if (parse_long(arg, 1LL << 20, 1LL << 50, &v))
+            return err_set(err, -EINVAL,
+                           "--max-scan-bytes must be 1048576..1125899906842624 (got '%s')", arg);
+        cfg->max_scan_bytes = (double)v;
         return 0;
     case O_HEARTBEAT:
     case O_ATTEMPTS:

@@ -20,6 +20,7 @@ typedef struct srv_config {
     char web_dir[SRV_PATH_MAX];   /* static files of the dashboard */
     char port_file[SRV_PATH_MAX]; /* where to write the bound port, "" for nowhere */
     size_t max_body;              /* request body limit in bytes (4 MiB) */
+    double max_scan_bytes;        /* largest scan accepted, in frame bytes stored (1 GiB) */
     int heartbeat_s;              /* SSE comment heartbeat period (15) */
     int max_attempts;             /* a job claimed this often by crashed runs fails (3) */
 } srv_config_t;

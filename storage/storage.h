@@ -190,6 +190,9 @@ int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_f
  * last + 1 says nothing is missing). -ENOENT for an unknown scan. */
 int storage_frame_last(storage_t *st, int64_t scan_id, int *last, int *count, err_t *err);
 void storage_frame_free(storage_frame_t *f);
+/* Bytes one point of k frames of m x m pixels stores (its raw frames, 16 bit, and its mean
+ * frame, 64 bit; SQLite's row overhead not counted): what a scan's size is estimated from. */
+double storage_frame_bytes(int frames, int sub_px);
 
 /* The response of one sub-frame pixel across all stored points of a scan, in point order: what
  * the fit needs. Arrays of n, owned (storage_raster_free). */

@@ -18,6 +18,12 @@ void storage_frame_free(storage_frame_t *f)
     memset(f, 0, sizeof *f);
 }
 
+double storage_frame_bytes(int frames, int sub_px)
+{
+    double m2 = (double)sub_px * sub_px;
+    return m2 * frames * sizeof(uint16_t) + m2 * sizeof(double); /* raw + mean blobs */
+}
+
 void storage_raster_free(storage_raster_t *r)
 {
     if (!r) return;

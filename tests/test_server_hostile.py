@@ -8,6 +8,7 @@ of docs/contracts.md and nothing stored changed:
   - %00 in a path or a query value does not cut it short (scan 1%00junk is not scan 1);
   - GET /api/sensors pages like every list (?limit=, ?offset=, 422 out of range);
   - a subnormal or sub-0.1 um pitch is refused;
+  - a scan that would store more than --max-scan-bytes is refused (422 naming raster);
   - a request line of HTTP/2.0 gets 505 (libmicrohttpd's own answer), HTTP/1.0 is served."""
 import os
 import socket
@@ -47,7 +48,9 @@ def test(c, t, argv, daemons):
         f.write("<h1>ipsd</h1>\n")
     os.mkfifo(os.path.join(web, "pipe.html"))
     # one HTTP thread: a request that blocked it would block every later one
-    d.start("--web", web, "--http-threads", "1")
+    # --max-scan-bytes 1 MiB; a scan is held at its first point (then cancelled)
+    d.start("--web", web, "--http-threads", "1", "--max-scan-bytes", "1048576",
+            failpoints="scan.point=hold@1")
     db = Db(d.db)
 
     def counts():
@@ -118,7 +121,22 @@ def test(c, t, argv, daemons):
     st, body = raw(d.port, b"GET /api/health HTTP/1.0\r\n\r\n")
     c.eq(st, 200, "HTTP/1.0 still answered")
 
+    # ---- what one scan may store ----
+    def scan(raster):
+        return d.post("/api/scans", {"sensor_id": sensors[0], "poi": {"col": 100, "row": 100},
+                                     "raster": raster})
+    # the attack of issue 10: 101 x 101 pixels at 1 um, 99 x 99 sub-frames of 1000 frames
+    r = scan({"area_px": 101, "step_um": 1, "sub_px": 99, "frames": 1000})
+    c.error(r, 422, "raster", "a 7 TB scan: 422 naming raster")
+    c.ok("max-scan-bytes" in r.json()["error"]["message"], "the message names --max-scan-bytes")
+    # the paper's raster, 51 x 51 points of 5 x 5 pixels x 12 frames: 2601 x (25 x 12 x 2 + 25 x 8)
+    # bytes = 2.08 MB, over the 1 MiB limit
+    r = scan({"area_px": 5, "step_um": 0.6, "sub_px": 5, "frames": 12})
+    c.error(r, 422, "raster", "the paper's 2 MB scan over a 1 MiB limit: 422")
     c.eq(counts(), before, "nothing stored changed")
+    # one pixel at 0.6 um (at most 11 x 11 points) of 3 x 3 pixels x 1 frame: 121 x 90 bytes
+    r = scan({"area_px": 1, "step_um": 0.6, "sub_px": 3, "frames": 1})
+    c.status(r, 202, "an 11 kB scan under the limit is accepted (queued)")
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
     db.close()
 
