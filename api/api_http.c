@@ -12,14 +12,17 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "api_conn.h"
 #include "api_int.h"
 
 typedef struct api_http {
     srv_t *srv;
     struct MHD_Daemon *d;
+    api_conns_t *conns;  /* open connections and their request deadlines */
     MHD_socket quiesced; /* the listening socket after quiesce, closed after the stop */
 } api_http_t;
 
@@ -166,6 +169,7 @@ static enum MHD_Result send_reply(api_req_t *q)
     enum MHD_Result r = MHD_queue_response(q->conn, q->status, q->resp);
     MHD_destroy_response(q->resp);
     q->resp = NULL;
+    api_conn_answering(q->conn, 1); /* read in time: no deadline while it is answered */
     return r;
 }
 
@@ -174,10 +178,12 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
                                   size_t *upload_size, void **con_cls)
 {
     (void)version;
+    api_http_t *h = cls;
     api_req_t *q = *con_cls;
     if (!q) {
         if (!(q = calloc(1, sizeof *q))) return MHD_NO;
-        q->srv = cls;
+        q->srv = h->srv;
+        q->conns = h->conns;
         q->conn = conn;
         *con_cls = q;
         if (check_request(q, method, url)) return send_reply(q);
@@ -202,11 +208,12 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
 static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
                          enum MHD_RequestTerminationCode code)
 {
-    (void)conn;
     (void)code;
+    api_http_t *h = cls;
+    api_conn_answering(conn, 0); /* the next request's deadline starts now */
     api_req_t *q = *con_cls;
     if (!q) return;
-    if (q->st) srv_db_put(cls, q->st);
+    if (q->st) srv_db_put(h->srv, q->st);
     if (q->resp) MHD_destroy_response(q->resp);
     free(q->body);
     free(q);
@@ -232,6 +239,18 @@ static int make_addr(const srv_config_t *cfg, struct sockaddr_storage *ss, err_t
     return err_set(err, -EINVAL, "--listen: '%s' is not a numeric IPv4 or IPv6 address", cfg->host);
 }
 
+/* Each connection is a descriptor: lifts the soft limit toward the hard one so that
+ * --max-connections can be reached (libmicrohttpd's default limit, FD_SETSIZE - 4, was what
+ * let about 1020 connections lock everyone out). */
+static void raise_fd_limit(const srv_config_t *cfg)
+{
+    struct rlimit rl;
+    rlim_t want = (rlim_t)cfg->max_connections + 256; /* + database, log, camera, spare */
+    if (getrlimit(RLIMIT_NOFILE, &rl) != 0 || rl.rlim_cur >= want) return;
+    rl.rlim_cur = rl.rlim_max == RLIM_INFINITY || rl.rlim_max > want ? want : rl.rlim_max;
+    setrlimit(RLIMIT_NOFILE, &rl);
+}
+
 static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
 {
     const srv_config_t *cfg = srv_config(srv);
@@ -242,15 +261,23 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
     if (!h) return err_set(err, -ENOMEM, "out of memory");
     h->srv = srv;
     h->quiesced = MHD_INVALID_SOCKET;
+    if (!(h->conns = api_conns_open(cfg->request_timeout_s))) {
+        free(h);
+        return err_set(err, -ENOMEM, "out of memory starting the connection tracker");
+    }
+    raise_fd_limit(cfg);
     unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_AUTO | MHD_ALLOW_SUSPEND_RESUME |
                      MHD_USE_ERROR_LOG | (ss.ss_family == AF_INET6 ? MHD_USE_IPv6 : 0);
-    h->d =
-        MHD_start_daemon(flags, (uint16_t)cfg->port, NULL, NULL, on_request, srv,
-                         MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE,
-                         (unsigned)cfg->http_threads, MHD_OPTION_NOTIFY_COMPLETED, on_completed,
-                         srv, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
-                         MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL, MHD_OPTION_END);
+    h->d = MHD_start_daemon(
+        flags, (uint16_t)cfg->port, NULL, NULL, on_request, h, MHD_OPTION_SOCK_ADDR,
+        (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->http_threads,
+        MHD_OPTION_NOTIFY_COMPLETED, on_completed, h, MHD_OPTION_NOTIFY_CONNECTION,
+        api_conns_notify, h->conns, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
+        MHD_OPTION_CONNECTION_LIMIT, (unsigned)cfg->max_connections,
+        MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)cfg->max_per_client,
+        MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL, MHD_OPTION_END);
     if (!h->d) {
+        api_conns_close(h->conns);
         free(h);
         return err_set(err, -EADDRINUSE,
                        "cannot listen on %s port %d (in use, or not an "
@@ -275,6 +302,7 @@ static void http_stop(void *handle)
     if (!h) return;
     api_sse_drain(h->srv, 2000);
     MHD_stop_daemon(h->d);
+    api_conns_close(h->conns);
     if (h->quiesced != MHD_INVALID_SOCKET) close(h->quiesced);
     free(h);
 }

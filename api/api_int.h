@@ -26,8 +26,11 @@ typedef struct api_route {
 } api_route_t;
 
 /* One request, from its first callback to its completion. */
+typedef struct api_conns api_conns_t;
+
 struct api_req {
     srv_t *srv;
+    api_conns_t *conns; /* the HTTP server's connection tracker (api_conn.h) */
     struct MHD_Connection *conn;
     const api_route_t *route;
     int64_t arg[API_MAX_ARGS]; /* the route's {name} segments, in order */

@@ -3,7 +3,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "api_conn.h"
 #include "api_int.h"
+#include "server/srv_events.h"
 
 #ifndef IPSD_VERSION
 #define IPSD_VERSION "unknown"
@@ -12,7 +14,13 @@
 void api_h_health(api_req_t *q)
 {
     const srv_config_t *cfg = srv_config(q->srv);
+    size_t open = 0;
+    uint64_t reaped = 0;
+    if (q->conns) api_conns_counts(q->conns, &open, &reaped);
     api_reply_json(q, 200,
-                   json_pack("{s:s, s:s, s:s}", "status", srv_stopping(q->srv) ? "stopping" : "ok",
-                             "version", IPSD_VERSION, "bench", cfg->bench));
+                   json_pack("{s:s, s:s, s:s, s:I, s:I, s:I}", "status",
+                             srv_stopping(q->srv) ? "stopping" : "ok", "version", IPSD_VERSION,
+                             "bench", cfg->bench, "connections", (json_int_t)open,
+                             "connections_timed_out", (json_int_t)reaped, "event_subscribers",
+                             (json_int_t)srv_events_readers(srv_events(q->srv))));
 }

@@ -129,6 +129,15 @@ void api_h_events(api_req_t *q)
 {
     long long job;
     if (api_query_int(q, "job", 0, 0, INT64_MAX, &job)) return;
+    size_t cap = (size_t)srv_config(q->srv)->max_subscribers;
+    if (srv_events_readers(srv_events(q->srv)) >= cap) {
+        api_error(q, 503, "busy", NULL,
+                  "%zu event streams are open, the most ipsd serves (--max-subscribers): "
+                  "try again later",
+                  cap);
+        if (q->resp) MHD_add_response_header(q->resp, MHD_HTTP_HEADER_RETRY_AFTER, "5");
+        return;
+    }
     struct sse *s = calloc(1, sizeof *s);
     if (!s || srv_events_subscribe(srv_events(q->srv), sse_sleep, sse_wake, s, &s->sub)) {
         free(s);

@@ -31,6 +31,11 @@ static const char usage[] =
     "  --max-body BYTES     largest request body (default 4194304); larger ones get 413\n"
     "  --max-scan-bytes B   largest scan accepted, in bytes of frames it would store (default\n"
     "                       1073741824); larger ones get 422\n"
+    "  --max-connections N  open HTTP connections at most (default 4096)\n"
+    "  --max-per-client N   open connections from one address at most (default 128)\n"
+    "  --request-timeout S  a request's headers and body must arrive within S seconds of the\n"
+    "                       connection's start or its previous request's end (default 60)\n"
+    "  --max-subscribers N  open event streams at most (default 256); more get 503\n"
     "  --port-file FILE     write the bound port number to FILE once listening\n"
     "  --heartbeat S        seconds between event-stream heartbeats (default 15)\n"
     "  --max-attempts N     a job interrupted by N crashes fails instead of running again (3)\n"
@@ -48,6 +53,10 @@ srv_config_t srv_config_default(void)
                       .http_threads = 2,
                       .max_body = 4u << 20,
                       .max_scan_bytes = (double)(1u << 30),
+                      .max_connections = 4096,
+                      .max_per_client = 128,
+                      .request_timeout_s = 60,
+                      .max_subscribers = 256,
                       .heartbeat_s = 15,
                       .max_attempts = 3};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
@@ -137,6 +146,10 @@ enum {
     O_WEB,
     O_MAXBODY,
     O_MAXSCAN,
+    O_MAXCONN,
+    O_PERCLIENT,
+    O_REQTIMEOUT,
+    O_MAXSUBS,
     O_PORTFILE,
     O_HEARTBEAT,
     O_ATTEMPTS,
@@ -153,6 +166,10 @@ static const struct option opts[] = {
     {"web", required_argument, NULL, O_WEB},
     {"max-body", required_argument, NULL, O_MAXBODY},
     {"max-scan-bytes", required_argument, NULL, O_MAXSCAN},
+    {"max-connections", required_argument, NULL, O_MAXCONN},
+    {"max-per-client", required_argument, NULL, O_PERCLIENT},
+    {"request-timeout", required_argument, NULL, O_REQTIMEOUT},
+    {"max-subscribers", required_argument, NULL, O_MAXSUBS},
     {"port-file", required_argument, NULL, O_PORTFILE},
     {"heartbeat", required_argument, NULL, O_HEARTBEAT},
     {"max-attempts", required_argument, NULL, O_ATTEMPTS},
@@ -194,6 +211,29 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
                            arg);
         cfg->max_body = (size_t)v;
         return 0;
+    case O_MAXCONN:
+    case O_PERCLIENT:
+    case O_REQTIMEOUT:
+    case O_MAXSUBS: {
+        static const struct {
+            int opt;
+            const char *name;
+            long long lo, hi;
+        } lim[] = {{O_MAXCONN, "max-connections", 16, 1000000},
+                   {O_PERCLIENT, "max-per-client", 1, 1000000},
+                   {O_REQTIMEOUT, "request-timeout", 1, 86400},
+                   {O_MAXSUBS, "max-subscribers", 1, 1000000}};
+        size_t i = 0;
+        while (lim[i].opt != c)
+            i++;
+        if (parse_long(arg, lim[i].lo, lim[i].hi, &v))
+            return err_set(err, -EINVAL, "--%s must be %lld..%lld (got '%s')", lim[i].name,
+                           lim[i].lo, lim[i].hi, arg);
+        int *field[] = {&cfg->max_connections, &cfg->max_per_client, &cfg->request_timeout_s,
+                        &cfg->max_subscribers};
+        *field[i] = (int)v;
+        return 0;
+    }
     case O_MAXSCAN:
         if (parse_long(arg, 1LL << 20, 1LL << 50, &v))
             return err_set(err, -EINVAL,

@@ -21,6 +21,10 @@ typedef struct srv_config {
     char port_file[SRV_PATH_MAX]; /* where to write the bound port, "" for nowhere */
     size_t max_body;              /* request body limit in bytes (4 MiB) */
     double max_scan_bytes;        /* largest scan accepted, in frame bytes stored (1 GiB) */
+    int max_connections;          /* open HTTP connections at most (4096) */
+    int max_per_client;           /* of them from one address at most (128) */
+    int request_timeout_s;        /* a request's headers and body must arrive within (60) */
+    int max_subscribers;          /* open event streams at most (256) */
     int heartbeat_s;              /* SSE comment heartbeat period (15) */
     int max_attempts;             /* a job claimed this often by crashed runs fails (3) */
 } srv_config_t;
