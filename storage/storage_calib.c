@@ -126,9 +126,9 @@ int stg_calib_current_ids(storage_t *st, int64_t sensor_id, int pixel_col, int p
 }
 
 /* Inside the write transaction: finds the current calibration of the pixel (*old, 0: none),
- * reserves the new id, points the old row to it and inserts the new row. superseded_by is a DEFERRED foreign key, so
- * the old row may name the new id before the new row exists; the partial unique index
- * calibrations_current allows one current row per pixel at every step. */
+ * reserves the new id, points the old row to it and inserts the new row. superseded_by is a
+ * DEFERRED foreign key, so the old row may name the new id before the new row exists; the partial
+ * unique index calibrations_current allows one current row per pixel at every step. */
 static int supersede(storage_t *st, const storage_calib_t *c, int64_t *old, int64_t *new_id,
                      err_t *err)
 {

@@ -1,8 +1,8 @@
 /* storage_fit.c: the fits table: the whole result of one fit job (the `ips fit` JSON with the
  * best r, F-test and Wiener baseline) for one sub-frame pixel of a scan or for an uploaded scan
  * file; checked, inserted, read and listed per scan; and its fit_maps row, the map the fit offers
- * as its pixel's calibration (what promoting the fit stores). Storing a fit together with its job link
- * and calibration (storage_fit_put) is in storage_compose.c. */
+ * as its pixel's calibration (what promoting the fit stores). Storing a fit together with its job
+ * link and calibration (storage_fit_put) is in storage_compose.c. */
 #include "storage_int.h"
 
 #include <errno.h>

@@ -299,8 +299,9 @@ const char *const stg_sql[STG_N] = {
     [STG_FIT_MAP_GET] = "SELECT " STG_FIT_MAP_COLS " FROM fits f "
                         "LEFT JOIN fit_maps m ON m.fit_id = f.id WHERE f.id = ?1",
 
-    [STG_CALIB_CURRENT_ID] = "SELECT id, fit_id FROM calibrations WHERE sensor_id = ?1 AND pixel_col = ?2 "
-                             "AND pixel_row = ?3 AND superseded_by IS NULL",
+    [STG_CALIB_CURRENT_ID] =
+        "SELECT id, fit_id FROM calibrations WHERE sensor_id = ?1 AND pixel_col = ?2 "
+        "AND pixel_row = ?3 AND superseded_by IS NULL",
     /* the id the next INSERT would get anyway: known before the INSERT so that the old row can
      * point to it first (superseded_by is a deferred foreign key; see storage_calib.c) */
     [STG_CALIB_NEXT_ID] = "SELECT coalesce(max(id), 0) + 1 FROM calibrations",

@@ -812,7 +812,8 @@ static void test_pagination(void)
 
 /* ---- schema 3: the map each fit offers, promotion, provenance ------------------------------ */
 
-/* Blob of the first calibration's map by a raw connection: hex of s. */
+/* Does the first column of the first row of sql (e.g. hex(s), read by a raw connection) equal
+ * want? Says what it got when not. */
 static int raw_hex_eq(const char *name, const char *sql, const char *want)
 {
     char got[600];
@@ -835,7 +836,8 @@ static void test_promote(void)
     storage_calib_t c = {.sensor_id = sensor, .pixel_col = 7, .pixel_row = 8, .r = 1, .S = S1,
                          .S_err = E, .I0 = 10, .chi2_red = 1, .status = "ok",
                          .noise_model = "paper", .wavelength_um = 0.55, .na = 0.25,
-                         .spot_radius_um = 1.342, .by = "ipsd", .reason = "automatic fit of scan 1"};
+                         .spot_radius_um = 1.342, .by = "ipsd",
+                         .reason = "automatic fit of scan 1"};
     fake_now += 1000;
     CHECK(storage_fit_store(st, &f, &c, 1, 0, &auto_fit, &auto_cal, NULL) == 0 && auto_cal > 0);
     c.S = S2;
@@ -845,8 +847,8 @@ static void test_promote(void)
     CHECK(storage_fit_store(st, &f, &c, 0, 0, &refit, &refit_cal, NULL) == 0 && refit_cal == 0);
     /* the re-fit changed nothing of the calibrations (a raw reader) but kept its map */
     CHECK(raw_int("promote.db", "SELECT count(*) FROM calibrations") == 1);
-    CHECK(raw_int("promote.db", "SELECT fit_id FROM calibrations WHERE superseded_by IS NULL")
-          == auto_fit);
+    CHECK(raw_int("promote.db", "SELECT fit_id FROM calibrations WHERE superseded_by IS NULL") ==
+          auto_fit);
     CHECK(raw_hex_eq("promote.db", "SELECT hex(s) FROM fit_maps WHERE fit_id = 2",
                      "000000000000E83F"));
     CHECK(storage_fit_get(st, refit, &g, NULL) == 0);
