@@ -95,6 +95,18 @@ json_t *api_enc_fit(const storage_fit_t *f, int with_result)
                   "noise_model", f->noise_model, "best_r", "aic", id_or_null(f->best_r_aic), "bic",
                   id_or_null(f->best_r_bic), "f_value", api_num(f->f_value), "p_value",
                   api_num(f->p_value), "created_ms", api_time(f->created_ms));
+    /* the map the fit offers as its pixel's calibration, and whether it is that calibration */
+    json_t *cal = json_null();
+    if (f->map_sensor_id)
+        cal =
+            json_pack("{s:I, s:{s:i, s:i}, s:i, s:b, s:o}", "sensor_id",
+                      (json_int_t)f->map_sensor_id, "pixel", "col", f->map_col, "row", f->map_row,
+                      "r", f->map_r, "current", f->pixel_calib_id && f->pixel_calib_fit_id == f->id,
+                      "current_calibration_id", id_or_null(f->pixel_calib_id));
+    if (o)
+        json_object_set_new(o, "calibration", cal);
+    else
+        json_decref(cal);
     if (o && with_result)
         json_object_set_new(o, "result", result ? result : json_null());
     else
@@ -107,7 +119,7 @@ json_t *api_enc_calib(const storage_calib_t *c)
     size_t n = (size_t)c->r * c->r;
     return json_pack(
         "{s:I, s:I, s:{s:i, s:i}, s:i, s:o, s:o, s:o, s:o, s:s, s:o, s:o, s:s, "
-        "s:{s:o, s:o, s:o}, s:s, s:o, s:o, s:b}",
+        "s:{s:o, s:o, s:o}, s:s, s:o, s:o, s:b, s:o, s:o, s:o}",
         "id", (json_int_t)c->id, "sensor_id", (json_int_t)c->sensor_id, "pixel", "col",
         c->pixel_col, "row", c->pixel_row, "r", c->r, "S", array(c->S, n), "S_err",
         array(c->S_err, n), "I0", api_num(c->I0), "chi2_red", api_num(c->chi2_red), "status",
@@ -115,7 +127,8 @@ json_t *api_enc_calib(const storage_calib_t *c)
         "noise_model", c->noise_model, "optics", "wavelength_nm", api_num(c->wavelength_um * 1e3),
         "na", api_num(c->na), "spot_radius_um", api_num(c->spot_radius_um), "software_version",
         c->software_version ? c->software_version : "", "created_ms", api_time(c->created_ms),
-        "superseded_by", id_or_null(c->superseded_by), "current", !c->superseded_by);
+        "superseded_by", id_or_null(c->superseded_by), "current", !c->superseded_by, "supersedes",
+        id_or_null(c->supersedes), "by", str_or_null(c->by), "reason", str_or_null(c->reason));
 }
 
 json_t *api_enc_page(json_t *items, int64_t total, long long limit, long long offset)

@@ -1,6 +1,7 @@
 /* api_fits.c: fits: request a fit of any pixel of a finished scan, or of an uploaded scan file
  * (data measured on other benches, optionally stored as the calibration of a sensor pixel), both
- * answered 202 with the queued job; get a fit with its whole result (the `ips fit` document). */
+ * answered 202 with the queued job; get a fit with its whole result (the `ips fit` document).
+ * A fit's map becomes the calibration only when asked ("promote"; see api_promote.c). */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -11,6 +12,22 @@
 #include "api_int.h"
 
 #define FIT_OPTION_KEYS "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg"
+#define FIT_PROMOTE_KEYS "promote", "by", "reason"
+
+/* "promote" (def when absent), "by" and "reason": whether the fit's map becomes the pixel's
+ * calibration, and its provenance (docs/api.md); -1 after replying. */
+static int read_promote(api_req_t *q, json_t *o, int def, srv_fit_params_t *p)
+{
+    const char *by = NULL, *reason = NULL;
+    p->promote = def;
+    if (api_get_bool(q, o, "promote", "promote", &p->promote) ||
+        api_get_str(q, o, "by", "by", 0, SRV_BY_MAX, &by) ||
+        api_get_str(q, o, "reason", "reason", 0, SRV_REASON_MAX, &reason))
+        return -1;
+    if (by) snprintf(p->by, sizeof p->by, "%s", by);
+    if (reason) snprintf(p->reason, sizeof p->reason, "%s", reason);
+    return 0;
+}
 
 /* Reads the fit options shared by both requests into p; -1 after replying. */
 static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
@@ -96,7 +113,7 @@ static void submit(api_req_t *q, storage_t *st, srv_fit_params_t *p)
 
 void api_h_scan_fit_create(api_req_t *q)
 {
-    static const char *const keys[] = {"dcol", "drow", FIT_OPTION_KEYS, NULL};
+    static const char *const keys[] = {"dcol", "drow", FIT_OPTION_KEYS, FIT_PROMOTE_KEYS, NULL};
     srv_fit_params_t p = srv_fit_params_default();
     storage_scan_t sc;
     storage_t *st;
@@ -113,7 +130,8 @@ void api_h_scan_fit_create(api_req_t *q)
     int h = sc.sub_px / 2;
     if (api_no_unknown(q, o, "", keys) == 0 &&
         api_get_int(q, o, "dcol", "dcol", 0, -h, h, &dcol) == 0 &&
-        api_get_int(q, o, "drow", "drow", 0, -h, h, &drow) == 0 && read_options(q, o, &p) == 0) {
+        api_get_int(q, o, "drow", "drow", 0, -h, h, &drow) == 0 && read_options(q, o, &p) == 0 &&
+        read_promote(q, o, 0, &p) == 0) {
         if (sc.state != STORAGE_DONE) {
             api_error(q, 409, "conflict", NULL, "scan %lld is %s: only a done scan can be fitted",
                       (long long)id, storage_state_name(sc.state));
@@ -204,18 +222,24 @@ static int read_target(api_req_t *q, json_t *o, storage_t *st, double pitch, srv
 
 void api_h_fit_upload(api_req_t *q)
 {
-    static const char *const keys[] = {"scan",   "sensor_id",     "pixel",
-                                       "optics", FIT_OPTION_KEYS, NULL};
+    static const char *const keys[] = {"scan",          "sensor_id",      "pixel", "optics",
+                                       FIT_OPTION_KEYS, FIT_PROMOTE_KEYS, NULL};
     srv_fit_params_t p = srv_fit_params_default();
     storage_t *st;
     double pitch = 0;
     json_t *o = api_body_object(q);
     if (o && api_no_unknown(q, o, "", keys) == 0 && read_options(q, o, &p) == 0 &&
         read_upload(q, o, &pitch) == 0 && (st = api_db(q)) &&
-        read_target(q, o, st, pitch, &p) == 0) {
+        read_target(q, o, st, pitch, &p) == 0 && read_promote(q, o, p.sensor_id > 0, &p) == 0) {
+        if (p.promote && !p.sensor_id) {
+            api_error(q, 422, "missing", "sensor_id",
+                      "promote needs sensor_id and pixel {col, row} (the calibration's target)");
+            goto out;
+        }
         p.scan_file = json_incref(json_object_get(o, "scan"));
         submit(q, st, &p);
     }
+out:
     srv_fit_params_free(&p);
     json_decref(o);
 }

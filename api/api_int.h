@@ -136,6 +136,7 @@ void api_h_scan_fit_create(api_req_t *q);
 void api_h_fit_upload(api_req_t *q);
 void api_h_fit_get(api_req_t *q);
 void api_h_fit_interp(api_req_t *q);
+void api_h_fit_promote(api_req_t *q);
 void api_h_calibs_search(api_req_t *q);
 void api_h_calib_get(api_req_t *q);
 void api_h_calib_interp(api_req_t *q);

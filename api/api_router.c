@@ -27,6 +27,7 @@ static const api_route_t routes[] = {
     {"POST", "/api/fits", api_h_fit_upload, 1},
     {"GET", "/api/fits/{id}", api_h_fit_get, 0},
     {"GET", "/api/fits/{id}/interp", api_h_fit_interp, 0},
+    {"POST", "/api/fits/{id}/promote", api_h_fit_promote, 1},
     {"GET", "/api/calibrations", api_h_calibs_search, 0},
     {"GET", "/api/calibrations/{id}", api_h_calib_get, 0},
     {"GET", "/api/calibrations/{id}/interp", api_h_calib_interp, 0},

@@ -1,7 +1,9 @@
 /* srv_fitter.c: the fit workers. Each takes the oldest queued fit job, builds the scan the fit
  * needs (the pixel's response over a finished scan's stored points, srv_pixel_scan, or the
- * uploaded scan file), runs it (srv_fit_run) and stores the fit with the calibration of that
- * sensor pixel from the recommended map, linked to the job, in one transaction (storage_fit_put).
+ * uploaded scan file), runs it (srv_fit_run) and stores the fit with the map it offers to that
+ * sensor pixel (the recommended map), linked to the job, in one transaction (storage_fit_store);
+ * the map becomes the pixel's calibration when the job says so (the automatic fit of a scan, a
+ * request with "promote": true, an upload with a target pixel).
  * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) when it is
  * cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
  * by a crash is requeued at the next start and simply runs again. */
@@ -65,7 +67,26 @@ static int load_input(storage_t *st, const srv_fit_params_t *p, struct fit_input
     return ret;
 }
 
-/* Stores the fit (and its calibration when it has a map and a sensor pixel to go to). */
+/* Who made the fit's map the calibration and why, when the request did not say (docs/api.md):
+ * by "api", and a reason naming the fit's data. c->reason is malloc'ed (NULL when out of
+ * memory: storage's default); c->by borrows p's. */
+static void provenance(const srv_fit_params_t *p, storage_calib_t *c)
+{
+    char text[SRV_REASON_MAX + 64];
+    c->by = (char *)(p->by[0] ? p->by : "api");
+    if (p->reason[0])
+        snprintf(text, sizeof text, "%s", p->reason);
+    else if (p->scan_id)
+        snprintf(text, sizeof text,
+                 "fit of scan %lld pixel (%+d, %+d) asked to become the calibration",
+                 (long long)p->scan_id, p->dcol, p->drow);
+    else
+        snprintf(text, sizeof text, "fit of an uploaded scan file");
+    c->reason = strdup(text);
+}
+
+/* Stores the fit, with the map it offers when it has one and a sensor pixel to go to; the map
+ * becomes that pixel's calibration when the job asks (p->promote). */
 static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struct fit_input *in,
                  srv_fit_out_t *out, err_t *err)
 {
@@ -90,8 +111,11 @@ static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struc
         c->chi2_red = out->chi2_red;
         c->status = (char *)out->status;
         c->noise_model = f.noise_model;
+        provenance(p, c);
     }
-    int ret = storage_fit_put(st, &f, with_calib ? c : NULL, job_id, NULL, NULL, err);
+    int ret = storage_fit_store(st, &f, with_calib ? c : NULL, p->promote, job_id, NULL, NULL, err);
+    free(c->reason);
+    c->reason = NULL;
     free(result);
     return ret;
 }

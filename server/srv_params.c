@@ -59,6 +59,9 @@ srv_fit_params_t srv_fit_params_auto(int64_t scan_id)
     p.scan_id = scan_id;
     p.ftest_edges = FIT_EDGE_TOP | FIT_EDGE_LEFT | FIT_EDGE_BOTTOM;
     p.wiener = 1;
+    p.promote = 1;
+    snprintf(p.by, sizeof p.by, "ipsd");
+    snprintf(p.reason, sizeof p.reason, "automatic fit of scan %lld", (long long)scan_id);
     return p;
 }
 
@@ -104,6 +107,9 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
     if (isfinite(p->wavelength_um))
         json_object_set_new(o, "wavelength_um", json_real(p->wavelength_um));
     if (isfinite(p->na)) json_object_set_new(o, "na", json_real(p->na));
+    json_object_set_new(o, "promote", json_boolean(p->promote));
+    if (p->by[0]) json_object_set_new(o, "by", json_string(p->by));
+    if (p->reason[0]) json_object_set_new(o, "reason", json_string(p->reason));
     char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
     json_decref(o);
     return text;
@@ -153,6 +159,11 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     if ((x = json_object_get(o, "wavelength_um")) && json_is_number(x))
         p->wavelength_um = json_number_value(x);
     if ((x = json_object_get(o, "na")) && json_is_number(x)) p->na = json_number_value(x);
+    p->promote = (x = json_object_get(o, "promote")) ? json_is_true(x) : 1;
+    if ((x = json_object_get(o, "by")) && json_is_string(x))
+        snprintf(p->by, sizeof p->by, "%s", json_string_value(x));
+    if ((x = json_object_get(o, "reason")) && json_is_string(x))
+        snprintf(p->reason, sizeof p->reason, "%s", json_string_value(x));
     if ((ret = parse_words(o, p, err))) goto out;
     if ((x = json_object_get(o, "scan"))) p->scan_file = json_incref(x);
     if (!p->scan_id && !p->scan_file)

@@ -25,6 +25,10 @@ char *srv_scan_params_dump(const srv_scan_params_t *p);
 /* Reads text made by srv_scan_params_dump; missing members keep their defaults. */
 int srv_scan_params_parse(const char *text, srv_scan_params_t *p, err_t *err);
 
+/* Longest "by" (a declared operator name) and "reason" of a calibration change, in bytes. */
+#define SRV_BY_MAX 64
+#define SRV_REASON_MAX 500
+
 typedef struct srv_fit_params {
     int64_t scan_id;      /* the scan whose pixel is fitted; 0: an uploaded scan file */
     int dcol, drow;       /* the sub-frame pixel, offset from the POI (0, 0 for uploads) */
@@ -37,16 +41,24 @@ typedef struct srv_fit_params {
     int64_t sensor_id;    /* uploads: the sensor the calibration is of, 0: store none */
     int pixel_col, pixel_row; /* uploads: that sensor pixel */
     double wavelength_um, na; /* uploads: optics for the calibration's provenance; NaN unknown */
+    /* whether the fit's map becomes its pixel's current calibration, and who asked and why (the
+     * calibration's provenance, docs/api.md); "": the defaults of srv_fitter.c */
+    int promote;
+    char by[SRV_BY_MAX + 1];
+    char reason[SRV_REASON_MAX + 1];
 } srv_fit_params_t;
 
-/* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload. */
+/* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload, not
+ * promoted. */
 srv_fit_params_t srv_fit_params_default(void);
 /* What the server queues when a scan finishes: its POI, r 1..8, paper noise, the F-test of the
- * paper's edge model (top, left, bottom at r = 7) and the Wiener baseline. */
+ * paper's edge model (top, left, bottom at r = 7) and the Wiener baseline; promoted, by "ipsd",
+ * for the reason "automatic fit of scan N". */
 srv_fit_params_t srv_fit_params_auto(int64_t scan_id);
 /* JSON object text of p (caller frees), NULL when out of memory. */
 char *srv_fit_params_dump(const srv_fit_params_t *p);
-/* Reads text made by srv_fit_params_dump into *p (release with srv_fit_params_free). */
+/* Reads text made by srv_fit_params_dump into *p (release with srv_fit_params_free). Without a
+ * "promote" member (a job queued before it existed) promote is 1, as such jobs were. */
 int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err);
 void srv_fit_params_free(srv_fit_params_t *p);
 

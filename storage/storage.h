@@ -283,6 +283,12 @@ typedef struct storage_fit {
     double f_value, p_value; /* F-test; NaN when there was none */
     char *result;            /* the whole fit result, JSON text */
     int64_t created_ms;
+    /* read by get and list, ignored on input: the map the fit offers as its pixel's calibration
+     * (kept with the fit, promotable) and that pixel's current calibration */
+    int64_t map_sensor_id;   /* 0: the fit offers no map (none admissible, or no sensor pixel) */
+    int map_col, map_row, map_r;
+    int64_t pixel_calib_id;  /* the current calibration of that pixel, 0: none */
+    int64_t pixel_calib_fit_id; /* the fit it came from (== id: this fit is the calibration) */
 } storage_fit_t;
 
 typedef struct storage_fit_list {
@@ -305,6 +311,12 @@ typedef struct storage_calib {
     char *software_version;  /* NULL on input: this build's IPSD_VERSION */
     int64_t created_ms;      /* set by storage */
     int64_t superseded_by;   /* 0: current; else the id of the newer calibration */
+    /* provenance of the change (schema 3): set by storage on input */
+    int64_t supersedes;      /* the calibration this one replaced as current, 0: none */
+    /* who made it current and why, declared names (there is no authentication); NULL on input:
+     * "ipsd" and "no reason given"; an empty string is -EINVAL */
+    char *by;
+    char *reason;
 } storage_calib_t;
 
 typedef struct storage_calib_list {
@@ -313,12 +325,24 @@ typedef struct storage_calib_list {
     int64_t total;
 } storage_calib_list_t;
 
-/* Stores a fit (id/created_ms ignored). If calib is not NULL, stores it too as the new current
- * calibration of its pixel, with fit_id set to the new fit (and scan_id to the fit's when 0).
- * If job_id > 0, links that job to the fit. All in one transaction. *fit_id / *calib_id (either
- * may be NULL) get the new ids. */
+/* Stores a fit (id/created_ms ignored). If calib is not NULL, keeps its map and pixel as the map
+ * the fit offers (promotable later, storage_calib_promote) and, when promote is 1, stores it as
+ * the new current calibration of its pixel too, with fit_id set to the new fit (and scan_id to
+ * the fit's when 0) and calib's by / reason. If job_id > 0, links that job to the fit. All in one
+ * transaction. *fit_id / *calib_id (either may be NULL) get the new ids (calib_id 0: none). */
+int storage_fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                      int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id,
+                      err_t *err);
+/* storage_fit_store with promote = 1 (the fit's map becomes the calibration). */
 int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
                     int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err);
+/* Makes the map fit_id offers the current calibration of its pixel: a new calibration row (the
+ * fit's map, optics and software version) superseding the current one, recorded as done by `by`
+ * for `reason` (NULL: the defaults of storage_calib_t). One transaction. -ENOENT for an unknown
+ * fit, -ENODATA when the fit offers no map, -EALREADY when the pixel's current calibration is
+ * already this fit's (*calib_id then gets its id and nothing is written). */
+int storage_calib_promote(storage_t *st, int64_t fit_id, const char *by, const char *reason,
+                          int64_t *calib_id, err_t *err);
 int storage_fit_get(storage_t *st, int64_t id, storage_fit_t *out, err_t *err);
 /* Fits of one scan, newest first. */
 int storage_fit_list(storage_t *st, int64_t scan_id, int limit, int offset, storage_fit_list_t *out,

@@ -19,6 +19,8 @@ void storage_calib_free(storage_calib_t *c)
     free(c->status);
     free(c->noise_model);
     free(c->software_version);
+    free(c->by);
+    free(c->reason);
     memset(c, 0, sizeof *c);
 }
 
@@ -63,14 +65,22 @@ static int read_calib(sqlite3_stmt *s, void *item)
     o->software_version = stg_col_text(s, 16, &oom);
     o->created_ms = stg_col_id(s, 17);
     o->superseded_by = stg_col_id(s, 18);
+    o->supersedes = stg_col_id(s, 19);
+    o->by = stg_col_text(s, 20, &oom);
+    o->reason = stg_col_text(s, 21, &oom);
     int ret = bad_s || bad_e ? -EIO : (oom || !o->S || !o->S_err) ? -ENOMEM : 0;
     if (ret) storage_calib_free(o);
     return ret;
 }
 
-static int check_calib(storage_t *st, const storage_calib_t *c, err_t *err)
+#define DEFAULT_BY "ipsd"
+#define DEFAULT_REASON "no reason given"
+
+int stg_calib_check(storage_t *st, const storage_calib_t *c, err_t *err)
 {
     storage_sensor_t sn;
+    if (c->by && !*c->by) return err_set(err, -EINVAL, "calibration by: empty");
+    if (c->reason && !*c->reason) return err_set(err, -EINVAL, "calibration reason: empty");
     if (c->r < 1 || c->r > 64) return err_set(err, -EINVAL, "calibration r: %d, need 1..64", c->r);
     if (!c->S || !c->S_err) return err_set(err, -EINVAL, "calibration S / S_err: NULL");
     if (!c->status || !*c->status) return err_set(err, -EINVAL, "calibration status: empty");
@@ -95,26 +105,45 @@ static int one_id(storage_t *st, sqlite3_stmt *q, int rc, int64_t *v, err_t *err
     return ret == -ENOENT ? 0 : ret;
 }
 
-/* Inside the write transaction: finds the current calibration of the pixel, reserves the new id,
- * points the old row to it and inserts the new row. superseded_by is a DEFERRED foreign key, so
- * the old row may name the new id before the new row exists; the partial unique index
- * calibrations_current allows one current row per pixel at every step. */
-static int supersede(storage_t *st, const storage_calib_t *c, int64_t *new_id, err_t *err)
+int stg_calib_current_ids(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
+                          int64_t *id, int64_t *fit_id, err_t *err)
 {
     sqlite3_stmt *q;
-    int64_t old = 0;
     int ret, rc = SQLITE_OK;
+    *id = *fit_id = 0;
     if ((ret = stg_stmt(st, STG_CALIB_CURRENT_ID, &q, err))) return ret;
-    stg_bind_int(q, 1, c->sensor_id, &rc);
-    stg_bind_int(q, 2, c->pixel_col, &rc);
-    stg_bind_int(q, 3, c->pixel_row, &rc);
-    if ((ret = one_id(st, q, rc, &old, err, "finding the current calibration"))) return ret;
+    stg_bind_int(q, 1, sensor_id, &rc);
+    stg_bind_int(q, 2, pixel_col, &rc);
+    stg_bind_int(q, 3, pixel_row, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "finding the current calibration")
+                          : stg_error(st, rc, err, "finding the current calibration");
+    if (ret == 0) {
+        *id = sqlite3_column_int64(q, 0);
+        *fit_id = stg_col_id(q, 1);
+    }
+    stg_reset(q);
+    return ret == -ENOENT ? 0 : ret;
+}
+
+/* Inside the write transaction: finds the current calibration of the pixel (*old, 0: none),
+ * reserves the new id, points the old row to it and inserts the new row. superseded_by is a
+ * DEFERRED foreign key, so the old row may name the new id before the new row exists; the partial
+ * unique index calibrations_current allows one current row per pixel at every step. */
+static int supersede(storage_t *st, const storage_calib_t *c, int64_t *old, int64_t *new_id,
+                     err_t *err)
+{
+    sqlite3_stmt *q;
+    int64_t old_fit;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_calib_current_ids(st, c->sensor_id, c->pixel_col, c->pixel_row, old, &old_fit,
+                                     err)))
+        return ret;
     if ((ret = stg_stmt(st, STG_CALIB_NEXT_ID, &q, err)) ||
         (ret = one_id(st, q, SQLITE_OK, new_id, err, "reserving a calibration id")))
         return ret;
-    if (!old) return 0;
+    if (!*old) return 0;
     if ((ret = stg_stmt(st, STG_CALIB_SUPERSEDE, &q, err))) return ret;
-    stg_bind_int(q, 1, old, &rc);
+    stg_bind_int(q, 1, *old, &rc);
     stg_bind_int(q, 2, *new_id, &rc);
     if (rc != SQLITE_OK) {
         stg_reset(q);
@@ -126,9 +155,9 @@ static int supersede(storage_t *st, const storage_calib_t *c, int64_t *new_id, e
 int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err)
 {
     sqlite3_stmt *q;
-    int64_t new_id = 0;
-    int ret = check_calib(st, c, err), rc = SQLITE_OK;
-    if (ret || (ret = supersede(st, c, &new_id, err))) return ret;
+    int64_t new_id = 0, old = 0;
+    int ret = stg_calib_check(st, c, err), rc = SQLITE_OK;
+    if (ret || (ret = supersede(st, c, &old, &new_id, err))) return ret;
     size_t n = (size_t)c->r * (size_t)c->r;
     unsigned char *s = stg_blob_from_f64(c->S, n), *e = stg_blob_from_f64(c->S_err, n);
     if (!s || !e) {
@@ -154,6 +183,9 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
     stg_bind_double(q, 16, c->spot_radius_um, &rc);
     stg_bind_text(q, 17, c->software_version ? c->software_version : IPSD_VERSION, &rc);
     stg_bind_int(q, 18, storage_now_ms(st), &rc);
+    stg_bind_id(q, 19, old, &rc);
+    stg_bind_text(q, 20, c->by ? c->by : DEFAULT_BY, &rc);
+    stg_bind_text(q, 21, c->reason ? c->reason : DEFAULT_REASON, &rc);
     if (rc != SQLITE_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a calibration");

@@ -1,7 +1,8 @@
 /* storage_compose.c: the writes that span tables, each one transaction composed of the per-table
- * steps of the other files (stg_*_insert, stg_job_set_fit): a scan with the job that runs it, and
- * a fit with its job link and calibration. Nothing calls into this file from storage/, so the
- * table files never call each other both ways (docs/schema.md, "The code"). */
+ * steps of the other files (stg_*_insert, stg_job_set_fit, ...): a scan with the job that runs it,
+ * a fit with its job link, the map it offers and (when asked) its calibration, and the promotion
+ * of a stored fit's map to its pixel's calibration. Nothing calls into this file from storage/,
+ * so the table files never call each other both ways (docs/schema.md, "The code"). */
 #include "storage_int.h"
 
 #include <errno.h>
@@ -21,8 +22,8 @@ int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *par
     return stg_commit(st, err);
 }
 
-int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
-                    int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err)
+int storage_fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                      int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err)
 {
     int64_t fid = 0, cid = 0;
     if (!st || !fit) return err_set(err, -EINVAL, "fit put: NULL argument");
@@ -34,7 +35,9 @@ int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib
         storage_calib_t c = *calib; /* shallow: only the two ids change */
         c.fit_id = fid;
         if (!c.scan_id) c.scan_id = fit->scan_id;
-        ret = stg_calib_insert(st, &c, &cid, err);
+        if ((ret = stg_calib_check(st, &c, err)) || (ret = stg_fit_map_insert(st, fid, &c, err)))
+            goto out;
+        if (promote) ret = stg_calib_insert(st, &c, &cid, err);
     }
 out:
     if (ret == 0) ret = stg_commit(st, err);
@@ -45,4 +48,44 @@ out:
     if (fit_id) *fit_id = fid;
     if (calib_id) *calib_id = cid;
     return 0;
+}
+
+int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                    int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err)
+{
+    return storage_fit_store(st, fit, calib, 1, job_id, fit_id, calib_id, err);
+}
+
+int storage_calib_promote(storage_t *st, int64_t fit_id, const char *by, const char *reason,
+                          int64_t *calib_id, err_t *err)
+{
+    storage_calib_t c;
+    int64_t cur = 0, cur_fit = 0, id = 0;
+    if (!st || !calib_id) return err_set(err, -EINVAL, "calibration promote: NULL argument");
+    *calib_id = 0;
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    if ((ret = stg_fit_map_load(st, fit_id, &c, err))) {
+        stg_rollback(st);
+        return ret;
+    }
+    /* the check and the write in one transaction: two promotes of one fit store one row */
+    ret = stg_calib_current_ids(st, c.sensor_id, c.pixel_col, c.pixel_row, &cur, &cur_fit, err);
+    if (ret == 0 && cur && cur_fit == fit_id) {
+        id = cur;
+        ret = err_set(err, -EALREADY,
+                      "fit %lld is already the current calibration (#%lld) of sensor %lld pixel "
+                      "(%d, %d)",
+                      (long long)fit_id, (long long)cur, (long long)c.sensor_id, c.pixel_col,
+                      c.pixel_row);
+    }
+    c.by = (char *)by; /* borrowed: cleared before the free below */
+    c.reason = (char *)reason;
+    if (ret == 0) ret = stg_calib_insert(st, &c, &id, err);
+    c.by = c.reason = NULL;
+    storage_calib_free(&c);
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) stg_rollback(st);
+    if (ret == 0 || ret == -EALREADY) *calib_id = id;
+    return ret;
 }

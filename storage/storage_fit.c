@@ -1,12 +1,17 @@
 /* storage_fit.c: the fits table: the whole result of one fit job (the `ips fit` JSON with the
  * best r, F-test and Wiener baseline) for one sub-frame pixel of a scan or for an uploaded scan
- * file; checked, inserted, read and listed per scan. Storing a fit together with its job link
- * and calibration (storage_fit_put) is in storage_compose.c. */
+ * file; checked, inserted, read and listed per scan; and its fit_maps row, the map the fit offers
+ * as its pixel's calibration (what promoting the fit stores). Storing a fit together with its job
+ * link and calibration (storage_fit_put) is in storage_compose.c. */
 #include "storage_int.h"
 
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+
+#ifndef IPSD_VERSION
+#define IPSD_VERSION "unknown"
+#endif
 
 void storage_fit_free(storage_fit_t *f)
 {
@@ -40,6 +45,12 @@ static int read_fit(sqlite3_stmt *s, void *item)
     o->p_value = stg_col_double(s, 8);
     o->result = stg_col_text(s, 9, &oom);
     o->created_ms = stg_col_id(s, 10);
+    o->map_sensor_id = stg_col_id(s, 11);
+    o->map_col = sqlite3_column_int(s, 12);
+    o->map_row = sqlite3_column_int(s, 13);
+    o->map_r = sqlite3_column_int(s, 14);
+    o->pixel_calib_id = stg_col_id(s, 15);
+    o->pixel_calib_fit_id = stg_col_id(s, 16);
     if (oom) storage_fit_free(o);
     return oom ? -ENOMEM : 0;
 }
@@ -127,5 +138,101 @@ out:
         stg_rollback(st);
         storage_fit_list_free(out);
     }
+    return ret;
+}
+
+/* ---- the map a fit offers (fit_maps) ------------------------------------------------------ */
+
+int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    size_t n = (size_t)c->r * (size_t)c->r;
+    unsigned char *s = stg_blob_from_f64(c->S, n), *e = stg_blob_from_f64(c->S_err, n);
+    if (!s || !e) {
+        ret = err_set(err, -ENOMEM, "fit map: out of memory");
+        goto out;
+    }
+    if ((ret = stg_stmt(st, STG_FIT_MAP_INSERT, &q, err))) goto out;
+    stg_bind_int(q, 1, fit_id, &rc);
+    stg_bind_int(q, 2, c->sensor_id, &rc);
+    stg_bind_int(q, 3, c->pixel_col, &rc);
+    stg_bind_int(q, 4, c->pixel_row, &rc);
+    stg_bind_int(q, 5, c->r, &rc);
+    stg_bind_blob(q, 6, s, n * 8, &rc);
+    stg_bind_blob(q, 7, e, n * 8, &rc);
+    stg_bind_double(q, 8, c->I0, &rc);
+    stg_bind_double(q, 9, c->chi2_red, &rc);
+    stg_bind_text(q, 10, c->status, &rc);
+    stg_bind_double(q, 11, c->wavelength_um, &rc);
+    stg_bind_double(q, 12, c->na, &rc);
+    stg_bind_double(q, 13, c->spot_radius_um, &rc);
+    stg_bind_text(q, 14, c->software_version ? c->software_version : IPSD_VERSION, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "storing a fit's map");
+        goto out;
+    }
+    ret = stg_run(st, q, err, "storing a fit's map");
+out:
+    free(s);
+    free(e);
+    return ret;
+}
+
+/* storage_calib_free's work on what stg_fit_map_load fills (storage_fit.c does not call into
+ * storage_calib.c: docs/schema.md, "The code") */
+static void map_free(storage_calib_t *c)
+{
+    free(c->S);
+    free(c->S_err);
+    free(c->status);
+    free(c->noise_model);
+    free(c->software_version);
+    memset(c, 0, sizeof *c);
+}
+
+int stg_fit_map_load(storage_t *st, int64_t fit_id, storage_calib_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK, oom = 0, bad_s = 0, bad_e = 0;
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_FIT_MAP_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, fit_id, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a fit's map")
+                          : stg_error(st, rc, err, "reading a fit's map");
+    if (ret == -ENOENT) ret = err_set(err, ret, "fit %lld does not exist", (long long)fit_id);
+    if (ret == 0 && sqlite3_column_type(q, 0) == SQLITE_NULL)
+        ret = err_set(err, -ENODATA,
+                      "fit %lld has no map to store as a calibration (no admissible map, or a "
+                      "fit of an uploaded scan file without a sensor pixel)",
+                      (long long)fit_id);
+    if (ret == 0) {
+        out->fit_id = sqlite3_column_int64(q, 0);
+        out->sensor_id = sqlite3_column_int64(q, 1);
+        out->pixel_col = sqlite3_column_int(q, 2);
+        out->pixel_row = sqlite3_column_int(q, 3);
+        out->r = sqlite3_column_int(q, 4);
+        size_t n = (size_t)out->r * (size_t)out->r;
+        out->S = stg_f64_from_blob(sqlite3_column_blob(q, 5), (size_t)sqlite3_column_bytes(q, 5),
+                                   n, &bad_s);
+        out->S_err = stg_f64_from_blob(sqlite3_column_blob(q, 6),
+                                       (size_t)sqlite3_column_bytes(q, 6), n, &bad_e);
+        out->I0 = stg_col_double(q, 7);
+        out->chi2_red = stg_col_double(q, 8);
+        out->status = stg_col_text(q, 9, &oom);
+        out->scan_id = stg_col_id(q, 10);
+        out->noise_model = stg_col_text(q, 11, &oom);
+        out->wavelength_um = stg_col_double(q, 12);
+        out->na = stg_col_double(q, 13);
+        out->spot_radius_um = stg_col_double(q, 14);
+        out->software_version = stg_col_text(q, 15, &oom);
+        if (bad_s || bad_e)
+            ret = err_set(err, -EIO, "fit %lld's map: BLOB of the wrong size", (long long)fit_id);
+        else if (oom || !out->S || !out->S_err)
+            ret = err_set(err, -ENOMEM, "fit %lld's map: out of memory", (long long)fit_id);
+    }
+    stg_reset(q);
+    if (ret) map_free(out);
     return ret;
 }

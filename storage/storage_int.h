@@ -52,6 +52,8 @@ enum stg_id {
     STG_FIT_GET,
     STG_FIT_COUNT,
     STG_FIT_LIST,
+    STG_FIT_MAP_INSERT,
+    STG_FIT_MAP_GET,
     STG_CALIB_CURRENT_ID,
     STG_CALIB_NEXT_ID,
     STG_CALIB_SUPERSEDE,
@@ -76,12 +78,18 @@ enum stg_id {
     "id, kind, params, state, progress, points_done, error, attempts, heartbeat_ms, created_ms, " \
     "started_ms, finished_ms, scan_id, fit_id"
 #define STG_FIT_COLS                                                                              \
-    "id, scan_id, dcol, drow, noise_model, best_r_aic, best_r_bic, f_value, p_value, result, "    \
-    "created_ms"
+    "f.id, f.scan_id, f.dcol, f.drow, f.noise_model, f.best_r_aic, f.best_r_bic, f.f_value, "     \
+    "f.p_value, f.result, f.created_ms, m.sensor_id, m.pixel_col, m.pixel_row, m.r, c.id, "       \
+    "c.fit_id"
+/* the map a fit offers, read as a calibration (storage_fit.c, stg_fit_map_load) */
+#define STG_FIT_MAP_COLS                                                                          \
+    "m.fit_id, m.sensor_id, m.pixel_col, m.pixel_row, m.r, m.s, m.s_err, m.i0, m.chi2_red, "      \
+    "m.status, f.scan_id, f.noise_model, m.wavelength_um, m.na, m.spot_radius_um, "               \
+    "m.software_version"
 #define STG_CALIB_COLS                                                                            \
     "c.id, c.sensor_id, c.pixel_col, c.pixel_row, c.r, c.s, c.s_err, c.i0, c.chi2_red, "          \
     "c.status, c.scan_id, c.fit_id, c.noise_model, c.wavelength_um, c.na, c.spot_radius_um, "     \
-    "c.software_version, c.created_ms, c.superseded_by"
+    "c.software_version, c.created_ms, c.superseded_by, c.supersedes, c.changed_by, c.reason"
 
 extern const char *const stg_sql[STG_N];
 /* stg_migrations[i] brings user_version i to i + 1 and ends by setting it. */
@@ -171,9 +179,19 @@ int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
 /* storage_fit.c: checks a fit (its pixel inside the scan's sub-frame) and inserts it, inside the
  * caller's write transaction. */
 int stg_fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *err);
+/* Keeps c (its pixel, map and optics; checked by the caller) as the map fit_id offers. */
+int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, err_t *err);
+/* The map fit_id offers, as a calibration (fit_id, scan_id and noise_model from the fit; the
+ * provenance fields left zero): -ENOENT for an unknown fit, -ENODATA when it offers none. */
+int stg_fit_map_load(storage_t *st, int64_t fit_id, storage_calib_t *out, err_t *err);
 
 /* storage_calib.c: checks a calibration, supersedes the pixel's current one and inserts it,
  * inside the caller's write transaction. */
 int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err);
+/* Checks a calibration before it is stored (sensor, pixel, map, by and reason). */
+int stg_calib_check(storage_t *st, const storage_calib_t *c, err_t *err);
+/* The current calibration of a pixel and the fit it came from (0, 0: none). */
+int stg_calib_current_ids(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
+                          int64_t *id, int64_t *fit_id, err_t *err);
 
 #endif

@@ -148,6 +148,43 @@ const char *const stg_migrations[] = {
     "ALTER TABLE fits_v2 RENAME TO fits;\n"
     "CREATE INDEX fits_scan_pixel ON fits (scan_id, drow, dcol);\n"
     "PRAGMA user_version = 2;\n",
+
+    /* 3: the lab database changes only on purpose. fit_maps keeps the map each fit offers as its
+     * pixel's calibration (the recommended map and its target pixel), so that a fit stored
+     * without becoming the calibration can be promoted later, and any earlier fit promoted again;
+     * it is filled from the calibrations the fits made so far. calibrations gets its provenance:
+     * the calibration it superseded (from superseded_by, the reverse link), who made it current
+     * and why (a declared name; earlier rows were all stored automatically by ipsd when their fit
+     * finished). Existing rows are kept as they are; ALTER TABLE ADD COLUMN keeps every row. */
+    "CREATE TABLE fit_maps (\n"
+    "    fit_id           INTEGER PRIMARY KEY REFERENCES fits (id),\n"
+    "    sensor_id        INTEGER NOT NULL REFERENCES sensors (id),\n"
+    "    pixel_col        INTEGER NOT NULL CHECK (pixel_col >= 0),\n"
+    "    pixel_row        INTEGER NOT NULL CHECK (pixel_row >= 0),\n"
+    "    r                INTEGER NOT NULL CHECK (r BETWEEN 1 AND 64),\n"
+    "    s                BLOB    NOT NULL CHECK (length(s) = 8 * r * r),\n"
+    "    s_err            BLOB    NOT NULL CHECK (length(s_err) = 8 * r * r),\n"
+    "    i0               REAL,\n"
+    "    chi2_red         REAL,\n"
+    "    status           TEXT    NOT NULL CHECK (length(status) > 0),\n"
+    "    wavelength_um    REAL,\n"
+    "    na               REAL,\n"
+    "    spot_radius_um   REAL,\n"
+    "    software_version TEXT    NOT NULL\n"
+    ");\n"
+    "INSERT INTO fit_maps (fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, chi2_red,\n"
+    "    status, wavelength_um, na, spot_radius_um, software_version)\n"
+    "    SELECT fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, chi2_red, status,\n"
+    "    wavelength_um, na, spot_radius_um, software_version FROM calibrations\n"
+    "    WHERE id IN (SELECT min(id) FROM calibrations WHERE fit_id IS NOT NULL GROUP BY fit_id);\n"
+    "ALTER TABLE calibrations ADD COLUMN supersedes INTEGER REFERENCES calibrations (id);\n"
+    "ALTER TABLE calibrations ADD COLUMN changed_by TEXT NOT NULL DEFAULT 'ipsd';\n"
+    "ALTER TABLE calibrations ADD COLUMN reason TEXT NOT NULL DEFAULT '';\n"
+    "UPDATE calibrations SET supersedes =\n"
+    "    (SELECT o.id FROM calibrations o WHERE o.superseded_by = calibrations.id),\n"
+    "    reason = 'stored when its fit finished (before schema 3 recorded reasons)';\n"
+    "CREATE INDEX calibrations_fit ON calibrations (fit_id);\n"
+    "PRAGMA user_version = 3;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -162,6 +199,11 @@ const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations
     "AND (?5 IS NULL OR c.pixel_row >= ?5) AND (?6 IS NULL OR c.pixel_row <= ?6) "                \
     "AND (?7 IS NULL OR c.created_ms >= ?7) AND (?8 IS NULL OR c.status = ?8) "                   \
     "AND (?9 = 0 OR c.superseded_by IS NULL)"
+/* a fit, the map it offers (fit_maps) and the current calibration of that map's pixel */
+#define FIT_FROM                                                                                  \
+    "FROM fits f LEFT JOIN fit_maps m ON m.fit_id = f.id "                                        \
+    "LEFT JOIN calibrations c ON c.sensor_id = m.sensor_id AND c.pixel_col = m.pixel_col "        \
+    "AND c.pixel_row = m.pixel_row AND c.superseded_by IS NULL"
 #define FINAL_STATES "('done', 'failed', 'cancelled')"
 
 const char *const stg_sql[STG_N] = {
@@ -246,13 +288,21 @@ const char *const stg_sql[STG_N] = {
     [STG_FIT_INSERT] = "INSERT INTO fits (scan_id, dcol, drow, noise_model, best_r_aic, "
                        "best_r_bic, f_value, p_value, result, created_ms) "
                        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
-    [STG_FIT_GET] = "SELECT " STG_FIT_COLS " FROM fits WHERE id = ?1",
+    [STG_FIT_GET] = "SELECT " STG_FIT_COLS " " FIT_FROM " WHERE f.id = ?1",
     [STG_FIT_COUNT] = "SELECT count(*) FROM fits WHERE scan_id = ?1",
-    [STG_FIT_LIST] = "SELECT " STG_FIT_COLS " FROM fits WHERE scan_id = ?1 "
-                     "ORDER BY id DESC LIMIT ?2 OFFSET ?3",
+    [STG_FIT_LIST] = "SELECT " STG_FIT_COLS " " FIT_FROM " WHERE f.scan_id = ?1 "
+                     "ORDER BY f.id DESC LIMIT ?2 OFFSET ?3",
+    [STG_FIT_MAP_INSERT] =
+        "INSERT INTO fit_maps (fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
+        "chi2_red, status, wavelength_um, na, spot_radius_um, software_version) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+    /* one row for a known fit, its map columns NULL when it offers none */
+    [STG_FIT_MAP_GET] = "SELECT " STG_FIT_MAP_COLS " FROM fits f "
+                        "LEFT JOIN fit_maps m ON m.fit_id = f.id WHERE f.id = ?1",
 
-    [STG_CALIB_CURRENT_ID] = "SELECT id FROM calibrations WHERE sensor_id = ?1 AND pixel_col = ?2 "
-                             "AND pixel_row = ?3 AND superseded_by IS NULL",
+    [STG_CALIB_CURRENT_ID] =
+        "SELECT id, fit_id FROM calibrations WHERE sensor_id = ?1 AND pixel_col = ?2 "
+        "AND pixel_row = ?3 AND superseded_by IS NULL",
     /* the id the next INSERT would get anyway: known before the INSERT so that the old row can
      * point to it first (superseded_by is a deferred foreign key; see storage_calib.c) */
     [STG_CALIB_NEXT_ID] = "SELECT coalesce(max(id), 0) + 1 FROM calibrations",
@@ -260,8 +310,9 @@ const char *const stg_sql[STG_N] = {
     [STG_CALIB_INSERT] =
         "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
         "chi2_red, status, scan_id, fit_id, noise_model, wavelength_um, na, spot_radius_um, "
-        "software_version, created_ms) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
+        "software_version, created_ms, supersedes, changed_by, reason) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
+        "?19, ?20, ?21)",
     [STG_CALIB_GET] = "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.id = ?1",
     [STG_CALIB_CURRENT] =
         "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.sensor_id = ?1 "

@@ -423,6 +423,22 @@ static void test_params(void)
     srv_fit_params_free(&back);
     CHECK(srv_fit_params_parse("{\"r_max\": 3}", &back, NULL) == -EINVAL); /* no scan at all */
     srv_fit_params_free(&back);
+    /* promotion and provenance: the automatic fit's, a re-fit's (not promoted), and a job queued
+     * before "promote" existed, whose map became the calibration (it still does) */
+    CHECK(p.promote && strcmp(p.by, "ipsd") == 0);
+    CHECK(strcmp(p.reason, "automatic fit of scan 42") == 0);
+    p = srv_fit_params_default();
+    p.scan_id = 5;
+    snprintf(p.reason, sizeof p.reason, "why \"not\"");
+    CHECK(!p.promote && !p.by[0]);
+    text = srv_fit_params_dump(&p);
+    CHECK(text && strstr(text, "\"promote\":false") && !strstr(text, "\"by\""));
+    CHECK(text && srv_fit_params_parse(text, &back, NULL) == 0 && !back.promote);
+    CHECK(strcmp(back.reason, "why \"not\"") == 0 && !back.by[0]);
+    free(text);
+    srv_fit_params_free(&back);
+    CHECK(srv_fit_params_parse("{\"scan_id\": 3}", &back, NULL) == 0 && back.promote == 1);
+    srv_fit_params_free(&back);
 }
 
 static int parse(srv_config_t *c, err_t *err, int argc, ...)

@@ -186,9 +186,10 @@ def test(c, t, argv, daemons):
     c.ok(one.has("retry: 3000"), "SSE retry hint")
     one.close()
 
-    # a fit of another pixel with other options
+    # a fit of another pixel with other options, asked to become that pixel's calibration (a
+    # re-fit is only stored as a fit unless promoted: tests/test_server_promote.py)
     r = d.post("/api/scans/%d/fits" % scan, {"dcol": 1, "drow": 0, "r_min": 1, "r_max": 4,
-                                              "sigma": "shot+read"})
+                                              "sigma": "shot+read", "promote": True})
     c.status(r, 202, "fit another pixel")
     j2 = r.json()["job"]["id"]
     c.ok(d.wait_job(j2, "done"), "second fit done")

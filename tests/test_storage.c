@@ -145,7 +145,7 @@ static void test_open_migrate(void)
     struct stat sb;
     char mode[32];
     CHECK(stat(db_path("open.db"), &sb) == 0);
-    CHECK(storage_schema_version() == 2); /* docs/schema.md: "currently 2" (keep in step) */
+    CHECK(storage_schema_version() == 3); /* docs/schema.md: "currently 3" (keep in step) */
     CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
     raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
     CHECK(strcmp(mode, "wal") == 0);
@@ -815,6 +815,161 @@ static void test_pagination(void)
     storage_close(st);
 }
 
+/* ---- schema 3: the map each fit offers, promotion, provenance ------------------------------ */
+
+/* Does the first column of the first row of sql (e.g. hex(s), read by a raw connection) equal
+ * want? Says what it got when not. */
+static int raw_hex_eq(const char *name, const char *sql, const char *want)
+{
+    char got[600];
+    raw_text(name, sql, got, sizeof got);
+    if (strcmp(got, want) != 0) fprintf(stderr, "%s: got %s, want %s\n", sql, got, want);
+    return strcmp(got, want) == 0;
+}
+
+/* A fit stored without promote keeps its map (fit_maps) and leaves the pixel's current
+ * calibration alone; promoting it supersedes that one with its map and the provenance given;
+ * promoting it again, a fit without a map or an unknown fit are refused and write nothing. */
+static void test_promote(void)
+{
+    storage_t *st = open_db("promote.db");
+    int64_t sensor = make_sensor(st, "IMX-PR", "1"), scan = make_running_scan(st, sensor);
+    int64_t auto_fit, auto_cal, refit, refit_cal = -1, cal, bare;
+    storage_fit_t f = {.scan_id = scan, .noise_model = "paper", .result = "{}"}, g;
+    /* S[0] = 1.25 = 0x3FF4000000000000 and 0.75 = 0x3FE8000000000000, little-endian in the BLOB */
+    double S1[1] = {1.25}, S2[1] = {0.75}, E[1] = {0.5};
+    storage_calib_t c = {.sensor_id = sensor, .pixel_col = 7, .pixel_row = 8, .r = 1, .S = S1,
+                         .S_err = E, .I0 = 10, .chi2_red = 1, .status = "ok",
+                         .noise_model = "paper", .wavelength_um = 0.55, .na = 0.25,
+                         .spot_radius_um = 1.342, .by = "ipsd",
+                         .reason = "automatic fit of scan 1"};
+    fake_now += 1000;
+    CHECK(storage_fit_store(st, &f, &c, 1, 0, &auto_fit, &auto_cal, NULL) == 0 && auto_cal > 0);
+    c.S = S2;
+    c.by = NULL; /* storage's defaults */
+    c.reason = NULL;
+    fake_now += 1000;
+    CHECK(storage_fit_store(st, &f, &c, 0, 0, &refit, &refit_cal, NULL) == 0 && refit_cal == 0);
+    /* the re-fit changed nothing of the calibrations (a raw reader) but kept its map */
+    CHECK(raw_int("promote.db", "SELECT count(*) FROM calibrations") == 1);
+    CHECK(raw_int("promote.db", "SELECT fit_id FROM calibrations WHERE superseded_by IS NULL") ==
+          auto_fit);
+    CHECK(raw_hex_eq("promote.db", "SELECT hex(s) FROM fit_maps WHERE fit_id = 2",
+                     "000000000000E83F"));
+    CHECK(storage_fit_get(st, refit, &g, NULL) == 0);
+    CHECK(g.map_sensor_id == sensor && g.map_col == 7 && g.map_row == 8 && g.map_r == 1);
+    CHECK(g.pixel_calib_id == auto_cal && g.pixel_calib_fit_id == auto_fit);
+    storage_fit_free(&g);
+    CHECK(storage_fit_get(st, auto_fit, &g, NULL) == 0 && g.pixel_calib_fit_id == auto_fit);
+    storage_fit_free(&g);
+
+    /* promoted: a new row with the re-fit's map, superseding the automatic one */
+    fake_now += 1000;
+    err_t err = {{0}};
+    CHECK(storage_calib_promote(st, refit, "alice", "r 1..4 is enough", &cal, &err) == 0);
+    storage_calib_t got;
+    CHECK(storage_calib_current(st, sensor, 7, 8, &got, NULL) == 0 && got.id == cal);
+    CHECK(got.fit_id == refit && got.scan_id == scan && got.supersedes == auto_cal);
+    CHECK(got.S && got.S[0] == 0.75 && got.I0 == 10 && got.spot_radius_um == 1.342);
+    CHECK(got.by && strcmp(got.by, "alice") == 0 && strcmp(got.reason, "r 1..4 is enough") == 0);
+    CHECK(got.created_ms == fake_now && strcmp(got.noise_model, "paper") == 0);
+    storage_calib_free(&got);
+    CHECK(storage_calib_get(st, auto_cal, &got, NULL) == 0 && got.superseded_by == cal);
+    CHECK(got.supersedes == 0 && strcmp(got.by, "ipsd") == 0);
+    CHECK(strcmp(got.reason, "automatic fit of scan 1") == 0);
+    storage_calib_free(&got);
+    CHECK(raw_hex_eq("promote.db", "SELECT hex(s) FROM calibrations WHERE superseded_by IS NULL",
+                     "000000000000E83F"));
+
+    /* refused, writing nothing: already current, no map, unknown fit, empty by */
+    int64_t id = -1;
+    CHECK(storage_calib_promote(st, refit, NULL, NULL, &id, &err) == -EALREADY && id == cal);
+    CHECK(strstr(err.msg, "already") != NULL);
+    CHECK(storage_fit_put(st, &f, NULL, 0, &bare, NULL, NULL) == 0);
+    CHECK(storage_calib_promote(st, bare, NULL, NULL, &id, &err) == -ENODATA && id == 0);
+    CHECK(storage_calib_promote(st, 999, NULL, NULL, &id, &err) == -ENOENT);
+    CHECK(strstr(err.msg, "999") != NULL);
+    CHECK(storage_calib_promote(st, auto_fit, "", NULL, &id, &err) == -EINVAL);
+    CHECK(raw_int("promote.db", "SELECT count(*) FROM calibrations") == 2);
+
+    /* back to the automatic fit's map: promoted again, with storage's default by and reason */
+    fake_now += 1000;
+    CHECK(storage_calib_promote(st, auto_fit, NULL, NULL, &id, &err) == 0 && id > cal);
+    CHECK(storage_calib_get(st, id, &got, NULL) == 0 && got.supersedes == cal);
+    CHECK(got.S[0] == 1.25 && strcmp(got.by, "ipsd") == 0);
+    CHECK(strcmp(got.reason, "no reason given") == 0);
+    storage_calib_free(&got);
+    storage_calib_list_t l;
+    CHECK(storage_calib_history(st, sensor, 7, 8, &l, NULL) == 0 && l.n == 3);
+    CHECK(l.n == 3 && l.items[0].fit_id == auto_fit && l.items[1].fit_id == refit &&
+          l.items[2].fit_id == auto_fit && l.items[0].supersedes == l.items[1].id &&
+          l.items[1].supersedes == l.items[2].id && l.items[2].supersedes == 0);
+    storage_calib_list_free(&l);
+    /* a refused map (pixel outside the sensor) stores neither the fit nor its map */
+    c.pixel_col = 640;
+    CHECK(storage_fit_store(st, &f, &c, 0, 0, NULL, NULL, &err) == -EINVAL);
+    CHECK(raw_int("promote.db", "SELECT count(*) FROM fits") == 3);
+    CHECK(raw_int("promote.db", "SELECT count(*) FROM fit_maps") == 2);
+    storage_close(st);
+}
+
+/* A schema-2 database (migrations 1 and 2 run by hand) with a pixel's history of two maps from
+ * two fits and a map without a fit migrates to schema 3 keeping every row: the superseded link
+ * read backwards as supersedes, "ipsd" and a reason for every earlier row, and each fit's map
+ * kept in fit_maps, so the older fit can be promoted again. */
+static void test_migrate_v2(void)
+{
+    CHECK(raw_exec("v2m.db", stg_migrations[0]) == SQLITE_OK);
+    CHECK(raw_exec("v2m.db", "PRAGMA foreign_keys = OFF;") == SQLITE_OK);
+    CHECK(raw_exec("v2m.db", stg_migrations[1]) == SQLITE_OK);
+    CHECK(raw_int("v2m.db", "PRAGMA user_version") == 2);
+    CHECK(raw_exec("v2m.db",
+                   "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"
+                   "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, "
+                   "spot_radius_um, area_px, step_um, sub_px, frames, exposure_us, points_total, "
+                   "created_ms) VALUES (1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 1);"
+                   "INSERT INTO fits (id, scan_id, dcol, drow, noise_model, result, created_ms) "
+                   "VALUES (7, 1, 0, 0, 'paper', '{}', 2), (8, 1, 0, 0, 'shot+read', '{}', 3);"
+                   "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, "
+                   "status, scan_id, fit_id, noise_model, software_version, created_ms, "
+                   "superseded_by) VALUES "
+                   "(4, 1, 5, 5, 1, x'000000000000F43F', zeroblob(8), 'ok', 1, 7, 'paper', "
+                   "'0.1', 3, 5), "
+                   "(5, 1, 5, 5, 1, x'000000000000E83F', zeroblob(8), 'ok', 1, 8, 'shot+read', "
+                   "'0.1', 4, NULL), "
+                   "(6, 1, 6, 5, 1, zeroblob(8), zeroblob(8), 'ok', NULL, NULL, 'paper', "
+                   "'0.1', 5, NULL);") == SQLITE_OK);
+    storage_t *st = open_db("v2m.db");
+    CHECK(raw_int("v2m.db", "PRAGMA user_version") == 3);
+    CHECK(raw_int("v2m.db", "SELECT count(*) FROM calibrations") == 3);
+    CHECK(raw_int("v2m.db", "SELECT count(*) FROM fits") == 2);
+    CHECK(raw_int("v2m.db", "SELECT supersedes FROM calibrations WHERE id = 5") == 4);
+    CHECK(raw_int("v2m.db", "SELECT count(*) FROM calibrations WHERE supersedes IS NULL") == 2);
+    CHECK(raw_int("v2m.db", "SELECT superseded_by FROM calibrations WHERE id = 4") == 5);
+    CHECK(raw_int("v2m.db", "SELECT count(*) FROM calibrations WHERE changed_by = 'ipsd' AND "
+                            "reason LIKE 'stored when its fit finished%'") == 3);
+    CHECK(raw_int("v2m.db", "SELECT count(*) FROM fit_maps") == 2);
+    CHECK(raw_hex_eq("v2m.db", "SELECT hex(s) FROM fit_maps WHERE fit_id = 7",
+                     "000000000000F43F"));
+    CHECK(raw_int("v2m.db", "SELECT count(*) FROM pragma_foreign_key_check") == 0);
+    storage_calib_t c;
+    CHECK(st && storage_calib_get(st, 5, &c, NULL) == 0 && c.supersedes == 4);
+    CHECK(c.by && strcmp(c.by, "ipsd") == 0 && c.S && c.S[0] == 0.75);
+    storage_calib_free(&c);
+    storage_fit_t f;
+    CHECK(storage_fit_get(st, 7, &f, NULL) == 0 && f.map_sensor_id == 1 && f.map_col == 5);
+    CHECK(f.pixel_calib_id == 5 && f.pixel_calib_fit_id == 8);
+    storage_fit_free(&f);
+    /* the older fit promoted again: its map (1.25) from the migrated fit_maps */
+    int64_t id = 0;
+    CHECK(storage_calib_promote(st, 7, "bob", "the paper noise model", &id, NULL) == 0);
+    CHECK(storage_calib_current(st, 1, 5, 5, &c, NULL) == 0 && c.id == id && c.S[0] == 1.25);
+    CHECK(c.supersedes == 5 && strcmp(c.noise_model, "paper") == 0);
+    CHECK(strcmp(c.software_version, "0.1") == 0); /* the version that made the map */
+    storage_calib_free(&c);
+    storage_close(st);
+}
+
 /* ---- driver --------------------------------------------------------------------------------- */
 
 /* ---- schema 2 (ipsd server): scan setup, job release, fits of uploaded scans --------------- */
@@ -945,6 +1100,8 @@ int main(void)
     test_calibrations();
     test_pagination();
     test_migrate_v1();
+    test_promote();
+    test_migrate_v2();
     test_setup_release_upload();
     remove_tmpdir();
     CHECK_DONE();

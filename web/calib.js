@@ -1,6 +1,7 @@
 // calib.js: the lab's calibration database: a search across sensors (GET /api/calibrations with
 // its filters; each row links to its CSV and to its pixel), and the Pixel view: the current IPS
-// map of one sensor pixel and its history (GET .../calibration and .../history).
+// map of one sensor pixel and its history (GET .../calibration and .../history), each map with
+// who made it current, when and why, and the map it superseded.
 import { get } from './api.js';
 import {
     clearError, errorBox, failure, field, fill, fmt, fmtTime, formBody, h, showError,
@@ -161,6 +162,9 @@ export function renderPixel(root, sensorId, col, row) {
                     `λ = ${fmt(cur.optics.wavelength_nm)} nm, NA = ${fmt(cur.optics.na)}, ` +
                     `ipsd ${cur.software_version} · ${fmtTime(cur.created_ms)} · from `,
                 provenance(cur), ' · ', csvLink(cur)),
+                h('p', { class: 'sub', 'data-testid': 'current-why' }, `Made current by ` +
+                    `${cur.by ?? '–'}: ${cur.reason ?? '–'}`, cur.supersedes
+                    ? ` (replaced #${cur.supersedes})` : ''),
                 h('div', { class: 'maps' }, mapFigures(cur.S, cur.S_err, cur.r,
                     sensor.pitch_um, `/api/calibrations/${cur.id}/interp`))),
             h('section', { class: 'panel', 'aria-labelledby': 'hist-h' },
@@ -168,15 +172,18 @@ export function renderPixel(root, sensorId, col, row) {
                 h('p', {}, h('a', { href: `${base}/history?format=csv`,
                     download: `pixel-${sensorId}-${col}-${row}-history.csv` }, 'history as CSV')),
                 h('table', { class: 'list', 'data-testid': 'history-table' },
-                    h('thead', {}, h('tr', {}, ['#', 'Map', 'r', 'Status', 'χ²/dof', 'Created',
-                        'State', 'From', ''].map((t) => h('th', { scope: 'col' }, t)))),
+                    h('thead', {}, h('tr', {}, ['#', 'Map', 'r', 'Status', 'χ²/dof',
+                        'Made current', 'By', 'Why', 'Replaced', 'State', 'From', '']
+                        .map((t) => h('th', { scope: 'col' }, t)))),
                     h('tbody', {}, hist.items.map((c) => h('tr',
                         { class: c.current ? 'current' : null },
                         h('td', {}, c.id),
                         h('td', { class: 'thumb' }, heatmap({ values: c.S, nx: c.r, ny: c.r,
                             size: 48, title: `Calibration #${c.id}`, thumb: true })),
                         h('td', {}, c.r), h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
-                        h('td', {}, fmtTime(c.created_ms)),
+                        h('td', {}, fmtTime(c.created_ms)), h('td', {}, c.by ?? '–'),
+                        h('td', { class: 'small' }, c.reason ?? '–'),
+                        h('td', {}, c.supersedes ? `#${c.supersedes}` : '–'),
                         h('td', {}, c.current ? 'current' : `superseded by #${c.superseded_by}`),
                         h('td', {}, provenance(c)), h('td', {}, csvLink(c))))))));
     })().catch((err) => fill(root, failure(err)));

@@ -1,12 +1,14 @@
 // fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document): the chosen map S
 // (best BIC r by default, any r selectable) as a heatmap with its colour bar, the interpolated
 // map (from the server, maps.js), the uncertainties S_err, the Wiener-deconvolution baseline next
-// to them, the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, and
-// the F-test verdict (paper: reject H0 when p < 0.05).
-import { get } from './api.js';
-import { failure, fill, fmt, fmtTime, h } from './dom.js';
+// to them, the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, the
+// F-test verdict (paper: reject H0 when p < 0.05), and whether the fit's map is its pixel's current
+// calibration, with the action that makes it so (POST /api/fits/{id}/promote, with a reason).
+import { get, post } from './api.js';
+import { errorBox, failure, field, fill, fmt, fmtTime, h, onSubmit } from './dom.js';
 import { mapFigures } from './maps.js';
 import { heatmap, linePlot } from './plots.js';
+import { requestRules, ruleAttrs } from './rules.js';
 
 const ALPHA = 0.05; // the paper's significance level for the F-test
 
@@ -73,6 +75,51 @@ function ftestPanel(t) {
                 `parameters, χ² = ${fmt(t.chi2_H1, 6)}`),
             h('dt', {}, 'Data points'), h('dd', {}, t.N),
             h('dt', {}, 'Status'), h('dd', {}, t.status)));
+}
+
+// The fit's place in the lab database (fit.calibration, docs/api.md): whether its map is the
+// pixel's current calibration and, when it is not, a form with a reason that makes it so. After a
+// promotion the panel is read again and the focus goes to its new state.
+function calibrationPanel(fit) {
+    const box = h('div', { 'data-testid': 'fit-calibration' });
+    const show = async (f, focus) => {
+        const c = f.calibration;
+        const state = (cls, current, ...text) => h('p', { class: cls, tabindex: -1,
+            'data-testid': 'calibration-state', dataset: { current } }, ...text);
+        if (!c) {
+            fill(box, state('muted', 'none', 'This fit offers no map to store as a calibration ' +
+                '(no admissible map, or an uploaded scan file without a sensor pixel).'));
+            return;
+        }
+        const pixel = h('a', { href: `#/sensors/${c.sensor_id}/pixels/${c.pixel.col}/` +
+            `${c.pixel.row}` }, `pixel (${c.pixel.col}, ${c.pixel.row})`);
+        const st = c.current
+            ? state('ok', 'true', `Its r = ${c.r} map is the current calibration of `, pixel,
+                ` (calibration #${c.current_calibration_id}).`)
+            : state(null, 'false', 'Stored as a fit, not the calibration of ', pixel,
+                c.current_calibration_id ? ` (the current one is calibration ` +
+                    `#${c.current_calibration_id}).` : ' (which has none).');
+        let form = null;
+        if (!c.current) {
+            const rule = await requestRules('post', '/api/fits/{id}/promote')
+                .catch(() => () => ({}));
+            form = h('form', { class: 'inline-form', novalidate: true,
+                'aria-label': 'Make this fit the calibration', 'data-testid': 'promote-form' },
+            h('div', { class: 'row-many' },
+                field('Reason', { 'data-field': 'reason', ...ruleAttrs(rule('reason')),
+                    placeholder: `fit ${f.id} promoted` }),
+                h('input', { type: 'hidden', 'data-field': 'by', value: 'dashboard' })),
+            errorBox(), h('button', { type: 'submit' }, 'Make this the calibration'));
+            onSubmit(form, async (body) => {
+                await post(`/api/fits/${f.id}/promote`, body);
+                await show(await get(`/api/fits/${f.id}`), true);
+            });
+        }
+        fill(box, st, form);
+        if (focus) st.focus();
+    };
+    show(fit, false).catch((err) => fill(box, failure(err)));
+    return box;
 }
 
 export function renderFit(root, id) {
@@ -148,9 +195,12 @@ export function renderFit(root, id) {
                     h('h3', { id: 'sum-h' }, 'Result'),
                     h('label', { class: 'fld inline', for: 'r-select' },
                         h('span', { class: 'lbl' }, 'Map resolution '), rSel), facts),
-                h('section', { class: 'panel', 'aria-labelledby': 'ft-h' },
-                    h('h3', { id: 'ft-h' }, 'F-test: is the centre of the pixel flat?'),
-                    ftestPanel(res.ftest))),
+                h('div', {},
+                    h('section', { class: 'panel', 'aria-labelledby': 'ft-h' },
+                        h('h3', { id: 'ft-h' }, 'F-test: is the centre of the pixel flat?'),
+                        ftestPanel(res.ftest)),
+                    h('section', { class: 'panel', 'aria-labelledby': 'cal-h' },
+                        h('h3', { id: 'cal-h' }, 'Calibration'), calibrationPanel(fit)))),
             h('section', { class: 'panel', 'aria-labelledby': 'maps-h' },
                 h('h3', { id: 'maps-h' }, 'IPS maps'),
                 h('p', { class: 'muted small' }, 'Row 0 is the top edge of the pixel (y grows ' +

@@ -1,6 +1,8 @@
 // fit_form.js: the Scan view's form to fit a pixel of a done scan's sub-frame with other options
 // (POST /api/scans/ID/fits). The bounds and defaults of r and the noise models come from the
-// server's rules (rules.js); the pixel offsets are bounded by the scan's own sub-frame.
+// server's rules (rules.js); the pixel offsets are bounded by the scan's own sub-frame. The fit
+// becomes the pixel's calibration only when "becomes the calibration" is ticked (default off: a
+// re-fit is stored as a fit, and can be promoted later from its Fit view).
 import { post } from './api.js';
 import { errorBox, field, h, onSubmit } from './dom.js';
 import { choices, ruleAttrs } from './rules.js';
@@ -27,6 +29,13 @@ export function buildFitForm(rule, scan, onQueued) {
         int('F-test r', 'ftest_r'),
         h('label', { class: 'fld check' }, h('input', { type: 'checkbox', checked: true,
             'data-field': 'wiener', 'data-type': 'bool' }), ' Wiener baseline')),
+    h('div', { class: 'row-many' },
+        h('label', { class: 'fld check', title: rule('promote').description },
+            h('input', { type: 'checkbox', 'data-field': 'promote', 'data-type': 'bool',
+                'data-testid': 'fit-promote' }), ' becomes the calibration'),
+        field('Reason (kept with the calibration)', { 'data-field': 'reason',
+            ...ruleAttrs(rule('reason')), placeholder: 'e.g. r ≤ 4 is what we use' }),
+        h('input', { type: 'hidden', 'data-field': 'by', value: 'dashboard' })),
     err, h('button', { type: 'submit' }, 'Queue fit'));
     onSubmit(form, async (body) => onQueued(await post(`/api/scans/${scan.id}/fits`, body)));
     return form;

@@ -99,13 +99,15 @@ export function renderScan(root, id, ctx) {
                     : '–'),
                 h('td', { class: 'num' }, f ? fmt(f.f_value) : '–'),
                 h('td', { class: 'num' }, f ? fmt(f.p_value, 3) : '–'),
+                h('td', {}, !f?.calibration ? '–' : f.calibration.current ? 'current'
+                    : 'stored only'),
                 h('td', {}, fmtTime(j.created_ms)));
         });
         fill(fitTable, h('table', { class: 'list', 'data-testid': 'fit-jobs' },
             h('thead', {}, h('tr', {}, ['Job', 'Pixel (dcol, drow)', 'State', 'Result',
-                'Best r (AIC / BIC)', 'F', 'p', 'Queued']
+                'Best r (AIC / BIC)', 'F', 'p', 'Calibration', 'Queued']
                 .map((t) => h('th', { scope: 'col' }, t)))),
-            h('tbody', {}, rows.length ? rows : h('tr', {}, h('td', { colspan: 8, class: 'empty' },
+            h('tbody', {}, rows.length ? rows : h('tr', {}, h('td', { colspan: 9, class: 'empty' },
                 'No fit yet: the automatic fit starts when the scan is done.')))));
     }
 

@@ -285,6 +285,8 @@ async function run(base, page, api) {
     await fitForm.waitFor({ timeout: WAIT });
     await checkFormRules(fitForm, doc, 'post', '/api/scans/{id}/fits', [['r_min', 'value'],
         ['r_max', 'value'], ['ftest_r', 'value']], 'fit form');
+    check(!(await fitForm.locator('[data-testid="fit-promote"]').isChecked()),
+        'fit form: "becomes the calibration" is off by default');
     await fitLink.click();
     await page.locator('[data-testid="best-r-bic"]').waitFor({ timeout: WAIT });
     const fitId = Number(page.url().match(/#\/fits\/(\d+)/)[1]);
@@ -388,6 +390,37 @@ async function run(base, page, api) {
     check(cal.calibration_id === calId && sameColour(calHeat.at[0], VIRIDIS_TOP),
         'the pixel view draws the calibration\'s interpolated map from the API',
         JSON.stringify(calHeat.at));
+
+    check((await page.locator('[data-testid="current-why"]').textContent())
+        .includes(`automatic fit of scan ${scan.id}`), 'the pixel view says why its map is current');
+
+    // a re-fit is stored as a fit only; its Fit view says so, and promotes it with a reason typed
+    // and sent from the keyboard (POST /api/fits/{id}/promote)
+    const refitJob = (await api('POST', `/api/scans/${scan.id}/fits`, { r_max: 2 })).body.job;
+    const refit = (await until(async () => {
+        const j = (await api('GET', `/api/jobs/${refitJob.id}`)).body;
+        return j.state === 'done' && j;
+    }, 'the re-fit to be done', LONG_WAIT)).fit_id;
+    await page.goto(`${base}/#/fits/${refit}`);
+    const calState = page.locator('[data-testid="calibration-state"]');
+    await page.locator('[data-testid="calibration-state"][data-current="false"]')
+        .waitFor({ timeout: WAIT });
+    check((await calState.textContent()).includes(`calibration #${calId}`),
+        'the re-fit\'s view: stored as a fit, the current calibration is the automatic fit\'s',
+        await calState.textContent());
+    const reason = page.locator('[data-testid="promote-form"]').getByLabel('Reason');
+    await reason.focus();
+    await page.keyboard.type('checked by the dashboard test');
+    await page.keyboard.press('Enter');
+    await page.locator('[data-testid="calibration-state"][data-current="true"]')
+        .waitFor({ timeout: WAIT });
+    check(await calState.evaluate((el) => el === document.activeElement),
+        'after promoting, the focus is on the new state');
+    const now = (await api('GET', `/api/sensors/${sensor.id}/pixels/${scan.poi.col}/` +
+        `${scan.poi.row}/calibration`)).body;
+    check(now.fit_id === refit && now.by === 'dashboard' && now.supersedes === calId &&
+        now.reason === 'checked by the dashboard test', 'the promoted re-fit is the calibration, ' +
+        'with the reason typed', JSON.stringify([now.fit_id, now.by, now.supersedes, now.reason]));
 
     await page.goto(`${base}/#/scans`);
     await page.locator(`tr[data-scan-id="${scan.id}"]`).waitFor({ timeout: WAIT });
