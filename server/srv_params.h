@@ -10,6 +10,7 @@
 
 #include "base/err.h"
 #include "fit/model.h"
+#include "fit/region.h"
 
 /* Scenes the simulated bench offers to scans. */
 #define SRV_SCENES "uniform, paperlike"
@@ -37,6 +38,7 @@ typedef struct srv_fit_params {
     int64_t sensor_id;    /* uploads: the sensor the calibration is of, 0: store none */
     int pixel_col, pixel_row; /* uploads: that sensor pixel */
     double wavelength_um, na; /* uploads: optics for the calibration's provenance; NaN unknown */
+    fit_region_t region;  /* the points fitted (fit/region.h): inside (the paper's) */
 } srv_fit_params_t;
 
 /* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload. */
