@@ -47,8 +47,9 @@
  *                frequency where the blur left only noise is essentially never passed; without
  *                that guard a chance excess at a frequency where |K| ~ 1e-3 would come back
  *                multiplied by 1000;
- *   P_S(f)     = Q / |K|^2, the field's power, capped by the larger of its values at the next
- *                lower frequency along x and along y (a monotone envelope from the DC down):
+ *   P_S(f)     = Q / |K|^2, the field's power, capped by its values at the next lower
+ *                frequency along x and along y (nonincreasing from the DC outward; the cap by
+ *                the larger of the two instead measured worse, docs/numerics.md):
  *                where the blur has all but erased a frequency (|K| ~ 1e-4 beyond the Airy's
  *                cutoff 2 NA / lambda on fine rasters), data power there cannot be the field's
  *                (it would need a field far stronger at high than at low frequencies); it is
@@ -382,7 +383,7 @@ static int spectral_filter(double *z, int nx, int ny, double sig2, double *nsr, 
             pn[(size_t)j * px + i] = sig2 * mirror_noise_factor(i < nx ? i : px - i, nx) *
                                      mirror_noise_factor(j < ny ? j : py - j, ny);
     /* the signal power estimate on the quadrant of distinct frequencies (k, l), k = 0..nx,
-     * l = 0..ny, capped by the envelope of the lower frequencies (see top) */
+     * l = 0..ny, capped by its values at the lower frequencies (see top) */
     int wq = nx + 1;
     double *E = malloc(sizeof(double) * (size_t)wq * (ny + 1));
     double *N = malloc(sizeof(double) * (size_t)wq * (ny + 1));
@@ -397,7 +398,7 @@ static int spectral_filter(double *z, int nx, int ny, double sig2, double *nsr, 
             double PN = box_mean(pn, px, py, k, l, SPECTRAL_HALF);
             double Q = PD > SPECTRAL_TAU * PN ? PD - PN : 0, k2 = kr[a] * kr[a] + ki[a] * ki[a];
             double Ps = Q > 0 && k2 > 0 ? Q / k2 : 0, cap = INFINITY;
-            if (k || l) cap = fmax(k ? E[q - 1] : 0, l ? E[q - wq] : 0);
+            if (k || l) cap = fmin(k ? E[q - 1] : INFINITY, l ? E[q - wq] : INFINITY);
             E[q] = fmin(Ps, cap);
             N[q] = PN;
         }
