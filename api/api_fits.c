@@ -11,7 +11,10 @@
 
 #include "api_int.h"
 
-#define FIT_OPTION_KEYS "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg"
+#define FIT_OPTION_KEYS                                                                            \
+    "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg", "region",       \
+        "margin_um"
+
 #define FIT_PROMOTE_KEYS "promote", "by", "reason"
 
 /* "promote" (def when absent), "by" and "reason": whether the fit's map becomes the pixel's
@@ -29,6 +32,32 @@ static int read_promote(api_req_t *q, json_t *o, int def, srv_fit_params_t *p)
     return 0;
 }
 
+/* region (inside, all, margin) and margin_um (margin only) into p; -1 after replying. */
+static int read_region(api_req_t *q, json_t *o, srv_fit_params_t *p)
+{
+    const char *region = NULL;
+    double margin = NAN;
+    if (api_get_str(q, o, "region", "region", 0, 16, &region) ||
+        api_get_num(q, o, "margin_um", "margin_um", 0, 0, FIT_REGION_MARGIN_MAX, 0, &margin))
+        return -1;
+    int is_margin = region && strcmp(region, "margin") == 0;
+    if (is_margin && !isfinite(margin)) {
+        api_error(q, 422, "out_of_range", "margin_um",
+                  "region margin needs margin_um, the distance in um from the pixel");
+        return -1;
+    }
+    if (!is_margin && isfinite(margin)) {
+        api_error(q, 422, "out_of_range", "margin_um", "margin_um goes with region \"margin\"");
+        return -1;
+    }
+    err_t err = {{0}};
+    if (region && fit_region_parse(region, margin, &p->region, &err)) {
+        api_error(q, 422, "out_of_range", "region", "%s", err.msg);
+        return -1;
+    }
+    return 0;
+}
+
 /* Reads the fit options shared by both requests into p; -1 after replying. */
 static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
 {
@@ -41,7 +70,7 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         api_get_int(q, o, "ftest_r", "ftest_r", 0, 1, 32, &ftest_r) ||
         api_get_bool(q, o, "wiener", "wiener", &p->wiener) ||
         api_get_str(q, o, "method", "method", 0, 16, &method) ||
-        api_get_bool(q, o, "nonneg", "nonneg", &p->opts.nonneg))
+        api_get_bool(q, o, "nonneg", "nonneg", &p->opts.nonneg) || read_region(q, o, p))
         return -1;
     if (r_min > r_max) {
         api_error(q, 422, "out_of_range", "r_min", "r_min (%lld) must not exceed r_max (%lld)",

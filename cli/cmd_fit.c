@@ -28,7 +28,13 @@ static const char usage[] =
     "  --sigma paper|shot+read    noise model (default paper: eq. 5 as printed)\n"
     "  --ftest EDGES       F-test of the edge model, EDGES a comma list of top,left,bottom,right\n"
     "  --ftest-r N         r of the F-test (default 7)\n"
-    "  --wiener            add the Wiener deconvolution baseline (needs a regular grid)\n"
+    "  --wiener            add the Wiener deconvolution baseline (needs a regular grid; it\n"
+    "                      deconvolves every point of FILE and crops its map to the pixel)\n"
+    "  --wiener-nsr spectral|white|X  how Wiener picks its noise-to-signal ratio: per\n"
+    "                      frequency from the noise model and the data (default), one ratio\n"
+    "                      mean sigma^2 / mean signal^2, or the number X > 0\n"
+    "  --region inside|all|margin UM   the points fitted: spot centre inside the pixel\n"
+    "                      (default, the paper's), every point, or within UM um of the pixel\n"
     "  --method linear|lm|both    linear least squares (default), the paper's LM, or both\n"
     "  --nonneg            constrain the map to S >= 0\n"
     "  --interp N          add the best-AIC map interpolated on an N x N grid\n"
@@ -46,10 +52,14 @@ struct fit_args {
     int ftest_r, wiener, interp_n;
     int have_full_scale, table;
     double full_scale;
+    fit_region_t region;
+    fit_wiener_nsr_t wiener_method;
+    double wiener_nsr; /* --wiener-nsr X */
 };
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
-       OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_HELP };
+       OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
+       OPT_WIENER_NSR, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -65,6 +75,8 @@ static const struct option long_opts[] = {
     {"full-scale", required_argument, NULL, OPT_FULL_SCALE},
     {"design-tol", required_argument, NULL, OPT_DESIGN_TOL},
     {"table", no_argument, NULL, OPT_TABLE},
+    {"region", required_argument, NULL, OPT_REGION},
+    {"wiener-nsr", required_argument, NULL, OPT_WIENER_NSR},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -95,7 +107,29 @@ static int unit_opt(const char *name, const char *text, double *v, err_t *err)
 struct parse_state {
     struct fit_args *a;
     int seen[OPT_HELP - OPT_R + 1]; /* which options were given */
+    int argc;
+    char **argv;
 };
+
+/* --region inside|all|margin UM: "margin" takes the next word as its distance (getopt_long has
+ * no two-value options; its optind is the next word to scan, and moving it past UM is how
+ * getopt's own callers consume a value, glibc keeps its permutation state in optind). */
+static int region_opt(const char *arg, struct parse_state *ps, err_t *err)
+{
+    err_t e;
+    double um = 0;
+    if (strcmp(arg, "margin") == 0) {
+        const char *v = optind < ps->argc ? ps->argv[optind] : NULL;
+        if (!v || parse_double(v, &um) < 0)
+            return err_set(err, -EINVAL,
+                           "--region margin needs a distance in um after it (got %s%s%s)",
+                           v ? "'" : "", v ? v : "nothing", v ? "'" : "");
+        optind++;
+    }
+    if (fit_region_parse(arg, um, &ps->a->region, &e))
+        return err_set(err, -EINVAL, "--region: %s", e.msg);
+    return 0;
+}
 
 /* One option with its argument (opts_fn). */
 static int one_opt(int val, const char *arg, void *user, err_t *err)
@@ -130,6 +164,15 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--full-scale must be a finite number (got '%s')", arg);
         return 0;
     case OPT_DESIGN_TOL: return unit_opt("design-tol", arg, &a->opts.design_tol, err);
+    case OPT_REGION: return region_opt(arg, ps, err);
+    case OPT_WIENER_NSR:
+        if (strcmp(arg, "spectral") == 0) a->wiener_method = FIT_WIENER_NSR_SPECTRAL;
+        else if (strcmp(arg, "white") == 0) a->wiener_method = FIT_WIENER_NSR_WHITE;
+        else if (parse_double(arg, &a->wiener_nsr) < 0 || !(a->wiener_nsr > 0))
+            return err_set(err, -EINVAL,
+                           "--wiener-nsr must be spectral, white or a number > 0 (got '%s')", arg);
+        else a->wiener_method = FIT_WIENER_NSR_FIXED;
+        return 0;
     default: return err_set(err, -EINVAL, "unhandled option");
     }
 }
@@ -144,6 +187,8 @@ static int check_args(int argc, char **argv, int first, struct fit_args *a, cons
         return err_set(err, -EINVAL, "r-min (%d) must not exceed r-max (%d)", a->r_min, a->r_max);
     if (seen[OPT_FTEST_R - OPT_R] && !a->edges_text)
         return err_set(err, -EINVAL, "--ftest-r needs --ftest EDGES");
+    if (seen[OPT_WIENER_NSR - OPT_R] && !a->wiener)
+        return err_set(err, -EINVAL, "--wiener-nsr needs --wiener");
     if (first >= argc) return err_set(err, -EINVAL, "missing FILE (usage: ips fit FILE [options])");
     if (first + 1 < argc)
         return err_set(err, -EINVAL, "unexpected argument '%s' after FILE", argv[first + 1]);
@@ -155,7 +200,7 @@ static int check_args(int argc, char **argv, int first, struct fit_args *a, cons
 static int parse_args(int argc, char **argv, struct fit_args *a)
 {
     *a = (struct fit_args){.r_min = 1, .r_max = 8, .opts = fit_options_default(), .ftest_r = 7};
-    struct parse_state ps = {.a = a};
+    struct parse_state ps = {.a = a, .argc = argc, .argv = argv};
     err_t err;
     int first, rc = opts_parse(argc, argv, "", long_opts, OPT_HELP, "ips fit --help", one_opt, &ps,
                                &first, &err);
@@ -195,7 +240,9 @@ static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
     run->ms_read = clock_mono_ms() - t;
     fit_pipeline_opts_t po = {.r_min = a->r_min, .r_max = a->r_max, .fit = a->opts,
                               .ftest_edges = a->edges_text ? a->edges : 0, .ftest_r = a->ftest_r,
-                              .wiener = a->wiener, .interp_n = a->interp_n};
+                              .wiener = a->wiener, .interp_n = a->interp_n,
+                              .region = a->region, .wiener_method = a->wiener_method,
+                              .wiener_nsr = a->wiener_nsr};
     if ((rc = fit_pipeline_run(&run->sf.scan, &po, NULL, &run->pl, err))) return rc;
     const fit_part_t *parts[] = {&run->pl.ftest_part, &run->pl.wiener_part, &run->pl.interp_part};
     for (size_t i = 0; i < sizeof parts / sizeof parts[0]; i++)
@@ -215,8 +262,12 @@ static json_t *interp_json(const fit_pipeline_t *pl)
 static json_t *result_json(const struct fit_args *a, const struct fit_run *run, double t0)
 {
     const fit_pipeline_t *pl = &run->pl;
-    json_t *root = fitjson_sweep(&pl->sweep, run->sf.scan.n, &a->opts, run->sf.scan.full_scale_dn);
+    json_t *root = fitjson_sweep(&pl->sweep, pl->n_region, &a->opts, run->sf.scan.full_scale_dn);
     if (!root) return NULL;
+    if (fitjson_add_region(root, &pl->region, run->sf.scan.n)) {
+        json_decref(root);
+        return NULL;
+    }
     if (pl->ftest_part.asked) json_object_set_new(root, "ftest", fitjson_ftest(&pl->ftest));
     if (pl->wiener_part.asked) json_object_set_new(root, "wiener", fitjson_wiener(&pl->wiener));
     if (pl->interp_part.asked) json_object_set_new(root, "interp", interp_json(pl));

@@ -69,6 +69,9 @@ static void print_usage(void)
         "  --peak-e E          photo-electrons of the whole spot per frame at the reference\n"
         "                      exposure on a uniform sensor (default 21500)\n"
         "  --noiseless         no photon or read noise, no ADC rounding\n"
+        "  --all-points        write every point of the raster, not only those inside the\n"
+        "                      pixel (positions still relative to its corner; for --region\n"
+        "                      and the whole-raster Wiener baseline of ips fit)\n"
         "  --leave-out TOL     simulator leave-out tolerance, fraction of the spot's flux (1e-4)\n"
         "  --truth FILE        write the scene's true sub-pixel means for r = 1..10\n"
         "  --dry-run           check the options against the bench, print the configuration\n"
@@ -82,6 +85,7 @@ struct sim_args {
     scan_config_t scan;
     const char *out, *truth;
     int grid, dcol, drow, have_wavelength, have_na, have_radius, dry_run;
+    int all_points; /* --all-points: every raster point, not only those inside the pixel */
     double offset_x, offset_y;
 };
 
@@ -103,6 +107,7 @@ enum {
     OPT_LEAVE,
     OPT_TRUTH,
     OPT_DRY_RUN,
+    OPT_ALL_POINTS,
     OPT_HELP
 };
 
@@ -124,6 +129,7 @@ static const struct option long_opts[] = {
     {"leave-out", required_argument, NULL, OPT_LEAVE},
     {"truth", required_argument, NULL, OPT_TRUTH},
     {"dry-run", no_argument, NULL, OPT_DRY_RUN},
+    {"all-points", no_argument, NULL, OPT_ALL_POINTS},
     {"output", required_argument, NULL, 'o'},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
@@ -220,6 +226,7 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
     case OPT_TRUTH:
         a->truth = arg;
         break;
+    case OPT_ALL_POINTS: a->all_points = 1; return 0;
     case OPT_DRY_RUN:
         a->dry_run = 1;
         break;
@@ -254,6 +261,10 @@ static int parse_args(int argc, char **argv, struct sim_args *a)
         return cli_fail(CLI_EXIT_USAGE, "simulate", "give --radius or --wavelength/--na, not both");
     if (a->grid && (a->dcol || a->drow))
         return cli_fail(CLI_EXIT_USAGE, "simulate", "--pixel needs the full procedure, not --grid");
+    if (a->grid && a->all_points)
+        return cli_fail(CLI_EXIT_USAGE, "simulate",
+                        "--all-points needs the full procedure, not --grid (its points are all "
+                        "inside the pixel)");
     int h = a->scan.subframe_px / 2;
     if (abs(a->dcol) > h || abs(a->drow) > h)
         return cli_fail(CLI_EXIT_USAGE, "simulate", "--pixel %d,%d is outside the %dx%d sub-frame",
@@ -388,7 +399,7 @@ static int run_procedure(sim_t *sim, const struct sim_args *a, struct outcome *o
     if (rc == 0) rc = scan_raster_init(&r, &c, &o->su, err);
     if (rc == 0)
         rc = scan_raster_run(sim_camera(sim), sim_stage(sim), &c, &o->su, 0, NULL, &r, err);
-    if (rc == 0) rc = scan_extract_pixel(&r, a->dcol, a->drow, &o->sf, err);
+    if (rc == 0) rc = scan_extract_pixel_region(&r, a->dcol, a->drow, a->all_points, &o->sf, err);
     o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
     scan_raster_free(&r);
     return rc;

@@ -53,12 +53,20 @@ static int check_opts(const fit_scan_t *scan, const fit_pipeline_opts_t *o, err_
     if (o->interp_n < 0 || o->interp_n > FIT_INTERP_MAX)
         return err_set(err, -EINVAL, "interp_n must be between 0 and %d (got %d)",
                        FIT_INTERP_MAX, o->interp_n);
+    if ((unsigned)o->region.kind > FIT_REGION_MARGIN ||
+        (o->region.kind == FIT_REGION_MARGIN &&
+         !(o->region.margin_um >= 0 && o->region.margin_um <= FIT_REGION_MARGIN_MAX)))
+        return err_set(err, -EINVAL, "region must be inside, all or margin 0..%g um",
+                       FIT_REGION_MARGIN_MAX);
+    if ((unsigned)o->wiener_method > FIT_WIENER_NSR_FIXED)
+        return err_set(err, -EINVAL, "unknown Wiener nsr method %d", (int)o->wiener_method);
     return fit_scan_check(scan, err);
 }
 
 /* One run in progress. */
 struct run {
-    const fit_scan_t *scan;
+    const fit_scan_t *scan;  /* the region's points: what the sweep and the F-test fit */
+    const fit_scan_t *whole; /* every point: what Wiener deconvolves */
     const fit_pipeline_opts_t *o;
     const fit_watch_t *watch;
     fit_pipeline_t *out;
@@ -119,7 +127,10 @@ static void ftest_step(struct run *rn)
 static void wiener_step(struct run *rn)
 {
     fit_part_t *p = &rn->out->wiener_part;
-    p->rc = fit_wiener_run(rn->scan, rn->o->wiener_nsr, &rn->out->wiener, &p->err);
+    fit_wiener_opts_t wo = {.method = rn->o->wiener_nsr > 0 ? FIT_WIENER_NSR_FIXED
+                                                            : rn->o->wiener_method,
+                            .nsr = rn->o->wiener_nsr, .crop = 1};
+    p->rc = fit_wiener_run_opts(rn->whole, &wo, &rn->out->wiener, &p->err);
 }
 
 /* The best-AIC map on an n x n grid; none (interp_r 0) when no fit has a map. */
@@ -200,13 +211,19 @@ int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,
     int rc = check_opts(scan, &o, err);
     if (rc) return rc;
     double t0 = clock_mono_ms();
+    fit_scan_sel_t sel;
+    if ((rc = fit_region_select(scan, &o.region, &sel, err))) return rc;
     out->sweep.r_min = o.r_min;
     out->sweep.r_max = o.r_max;
-    struct run rn = {.scan = scan, .o = &o, .watch = watch, .out = out,
+    out->region = o.region;
+    out->n_region = sel.scan.n;
+    struct run rn = {.scan = &sel.scan, .whole = scan, .o = &o, .watch = watch, .out = out,
                      .total = o.r_max - o.r_min + 1 + (o.ftest_edges != 0) + (o.wiener != 0) +
                               (o.interp_n != 0),
                      .best_aic = INFINITY, .best_bic = INFINITY};
-    if ((rc = run_steps(&rn, err))) {
+    rc = run_steps(&rn, err);
+    fit_scan_sel_free(&sel);
+    if (rc) {
         fit_pipeline_free(out); /* stopped or failed: nothing half-built is handed back */
         return rc;
     }

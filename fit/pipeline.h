@@ -8,6 +8,11 @@
  * done and the steps in all and which step it was, and a stop function is consulted before every
  * step (the first one included); a stop returns -ECANCELED and keeps nothing.
  *
+ * The scan given is the whole raster. The sweep and the F-test fit its points in the options'
+ * region (region.h, by default the paper's: inside the pixel); the Wiener baseline deconvolves
+ * every point and crops its map to the pixel (wiener.h). A region without points gives fits with
+ * status no_points, as an empty scan does (n_region says so).
+ *
  * Only the sweep can fail the run. The F-test, the Wiener baseline and the interpolation each
  * report their own outcome (fit_part_t): a scan too small for the F-test or not on a regular grid
  * for Wiener leaves that part with a negative errno and a message, and the caller decides (ipsd
@@ -20,6 +25,7 @@
 
 #include "base/err.h"
 #include "fit/model.h"
+#include "fit/region.h"
 #include "fit/wiener.h"
 
 #define FIT_R_MAX 32         /* largest r fit_map accepts */
@@ -34,6 +40,8 @@ typedef struct fit_pipeline_opts {
     int wiener;            /* run the Wiener baseline (0) */
     double wiener_nsr;     /* its noise-to-signal ratio; <= 0 picks it from the noise (0) */
     int interp_n;          /* interpolate the best-AIC map on an n x n grid; 0: none (0) */
+    fit_region_t region;   /* the points the sweep and the F-test fit (region.h; inside) */
+    fit_wiener_nsr_t wiener_method; /* how Wiener picks nsr when wiener_nsr <= 0 (spectral) */
 } fit_pipeline_opts_t;
 
 /* r 1..8 with fit_options_default(), no F-test (ftest_r 7), no Wiener, no interpolation. */
@@ -85,10 +93,12 @@ typedef struct fit_pipeline {
     int interp_r, interp_n; /* r of the best-AIC map interpolated (0: no fit has a map), n */
     double *interp;         /* interp_n^2 values, row-major y then x; NULL without one */
     double total_ms;        /* the whole run */
+    fit_region_t region;    /* the region fitted */
+    size_t n_region;        /* the scan's points in it: the points the sweep saw */
 } fit_pipeline_t;
 
 /* Runs the steps opts asks for on scan. Returns 0 (check the parts), -EINVAL for a bad scan or
- * bad options (err names them: r_min/r_max, ftest_r, interp_n), -ECANCELED when watch->stop
+ * bad options (err names them: r_min/r_max, ftest_r, interp_n, region), -ECANCELED when watch->stop
  * stopped it, or an error of the sweep's fit_map (-ENOMEM, -EDOM). Except on 0, *out holds
  * nothing (fit_pipeline_free is still allowed); on 0, release it with fit_pipeline_free. */
 int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,

@@ -1,5 +1,6 @@
 /* sweep.c: model selection, the fits for a range of r and the best r by AIC and by BIC: the fit
- * pipeline (pipeline.c, where the one sweep loop is) asked for the sweep only. */
+ * pipeline (pipeline.c, where the one sweep loop is) asked for the sweep only, over every point
+ * given (region all: a caller that wants a region selects it first, fit/region.h). */
 #include <stdlib.h>
 
 #include "fit/model.h"
@@ -11,6 +12,7 @@ int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_option
     fit_pipeline_opts_t po = fit_pipeline_opts_default();
     po.r_min = r_min;
     po.r_max = r_max;
+    po.region.kind = FIT_REGION_ALL; /* the caller chose the points (fit_region_select) */
     if (opts) po.fit = *opts;
     fit_pipeline_t pl;
     int rc = fit_pipeline_run(scan, &po, NULL, &pl, err);

@@ -26,6 +26,48 @@
  * per frequency for white noise and signal: mean sigma^2 / mean d^2 (sigma of eq. 5, the
  * paper's noise model, divided by sqrt(frames) as for eq. 4).
  *
+ * Choosing nsr per frequency (FIT_WIENER_NSR_SPECTRAL, the default of fit_wiener_run_opts). The
+ * Wiener filter minimising the expected squared error is conj(K) / (|K|^2 + N(f) / P_S(f)), with
+ * N the noise power and P_S the field's power at frequency f. One nsr for all frequencies, mean
+ * sigma^2 / mean d^2 (FIT_WIENER_NSR_WHITE, the original choice), takes the signal as white with
+ * the power of the mean level: about 1e-5 for a pixel at 0.7 % noise, so every frequency the
+ * blur has not quite erased is restored at a noise gain up to 1/|K|, and a flat pixel's map
+ * varies by 10 % (9 x 9) to 39 % (13 x 13) (docs/numerics.md). Here both spectra come from what
+ * is known: N(f) from the paper's noise model, P_S(f) |K(f)|^2 from the data's own periodogram:
+ *   N(f)       = mean sigma^2 * c_x(k) c_y(l), the exact noise power of white noise of variance
+ *                mean sigma^2 in bin (k, l) of the mirrored 2n-periodic array: per axis c(0) =
+ *                4n, c(n) = 0, c(k) = 2n otherwise (the mirrored DFT is a DCT-II: X_k =
+ *                2 e^{i pi k / 2n} sum_m x_m cos(pi k (m + 1/2) / n), and sum_m cos^2 = n / 2);
+ *   Pbar_D(f)  = |D|^2 averaged over the 3 x 3 bins around f (a periodogram bin of noise alone
+ *                is exponential with mean N: one bin is too noisy to decide anything), Nbar(f)
+ *                = N averaged the same way;
+ *   Q(f)       = Pbar_D - Nbar where Pbar_D > SPECTRAL_TAU Nbar, else 0: the signal power in the
+ *                data, counted only where it is significant. The mean of 9 exponentials of
+ *                mean N exceeds 5 N with probability P(Gamma(9, 1) > 45) ~ 1e-12 per bin, so a
+ *                frequency where the blur left only noise is essentially never passed; without
+ *                that guard a chance excess at a frequency where |K| ~ 1e-3 would come back
+ *                multiplied by 1000;
+ *   P_S(f)     = Q / |K|^2, the field's power, capped by its values at the next lower
+ *                frequency along x and along y (nonincreasing from the DC outward; the cap by
+ *                the larger of the two instead measured worse, docs/numerics.md):
+ *                where the blur has all but erased a frequency (|K| ~ 1e-4 beyond the Airy's
+ *                cutoff 2 NA / lambda on fine rasters), data power there cannot be the field's
+ *                (it would need a field far stronger at high than at low frequencies); it is
+ *                what no model term explains, e.g. the kink the mirror makes of a raster that
+ *                ends inside the pixel, and uncapped it came back 1e4 times amplified (a 13 x 13
+ *                raster's map at rms 30);
+ *   G(f)       = conj(K) / (|K|^2 + Nbar / P_S), the Wiener filter with nsr(f) = Nbar / P_S(f),
+ *                and 0 where P_S = 0.
+ * A flat pixel then passes only the lowest frequencies (the DC's power leaks into its 3 x 3
+ * neighbours), so its map is flat within the data's own noise (test_wiener.c). The reported nsr
+ * is sum Nbar / sum |K|^2 P_S, the noise-to-signal power of the data over all frequencies.
+ *
+ * Whole raster and crop (fit_wiener_opts_t.crop). A raster inside the pixel holds the pixel's
+ * edges at its border, where the mirror guesses what lies beyond. The paper deconvolves the whole
+ * raster (51 x 51 over 5 x 5 pixels, the spots outside the pixel see its edges through their
+ * wings) and keeps the part in the pixel: the grid nodes inside (0, pitch)^2, by the fit's
+ * region test (region.h), renormalised to mean 1.
+ *
  * Every point enters, saturated ones too (the filter needs a complete grid; the model fit of
  * model.h is the place that leaves points out).
  *
@@ -46,6 +88,7 @@
 #include "fit/box.h"
 #include "fit/design.h"
 #include "fit/noise.h"
+#include "fit/region.h"
 #include "fit/gslerr.h"
 
 #define GRID_REL_TOL 1e-6     /* a point may be this many steps off its grid node */
@@ -53,6 +96,8 @@
 #define KERNEL_ACCURACY 1e-13 /* accuracy of the kernel's cell integrals (relative to the peak) */
 /* design.h takes r <= 256; 255 cells out, the Airy's rho^-3 tail is far below any noise */
 #define KERNEL_MAX_HALF 255
+#define SPECTRAL_HALF 1    /* the periodogram is averaged over (2h+1)^2 bins (see top) */
+#define SPECTRAL_TAU 5.0   /* a bin carries signal where its average exceeds TAU x the noise's */
 
 /* ---- the regular grid of scan positions ---- */
 
@@ -289,17 +334,117 @@ static void wiener_filter(double *z, int px, int py, double nsr)
         }
 }
 
+/* Noise power factor of bin k of a mirrored axis of n points (period 2n): see top. */
+static double mirror_noise_factor(int k, int n)
+{
+    return k == 0 ? 4.0 * n : k == n ? 0.0 : 2.0 * n;
+}
+
+/* Mean of v over the (2h+1)^2 bins around (i, j), periodic in px x py. */
+static double box_mean(const double *v, int px, int py, int i, int j, int h)
+{
+    double acc = 0;
+    for (int b = -h; b <= h; b++)
+        for (int a = -h; a <= h; a++)
+            acc += v[(size_t)((j + b + py) % py) * px + (size_t)((i + a + px) % px)];
+    return acc / ((2.0 * h + 1) * (2.0 * h + 1));
+}
+
+/* The spectral choice (see top) on z = FFT(d + i k) of the 2nx x 2ny mirrored array; sig2 is
+ * the mean noise variance of a point. Writes the estimate's spectrum into z, the summary nsr and
+ * the fraction of bins passed. */
+static int spectral_filter(double *z, int nx, int ny, double sig2, double *nsr, double *frac)
+{
+    int px = 2 * nx, py = 2 * ny;
+    size_t P = (size_t)px * py;
+    double *kr = malloc(sizeof(double) * P), *ki = malloc(sizeof(double) * P);
+    double *pd = malloc(sizeof(double) * P), *pn = malloc(sizeof(double) * P);
+    if (!kr || !ki || !pd || !pn) {
+        free(kr), free(ki), free(pd), free(pn);
+        return -ENOMEM;
+    }
+    /* split into D (left in z) and K, as in wiener_filter */
+    for (int j = 0; j < py; j++)
+        for (int i = 0; i < px; i++) {
+            size_t a = (size_t)j * px + i, b = (size_t)((py - j) % py) * px + (px - i) % px;
+            if (b < a) continue;
+            double zr = z[2 * a], zi = z[2 * a + 1], wr = z[2 * b], wi = z[2 * b + 1];
+            double dr = 0.5 * (zr + wr), di = 0.5 * (zi - wi);
+            kr[a] = kr[b] = 0.5 * (zi + wi);
+            ki[a] = -0.5 * (zr - wr);
+            ki[b] = -ki[a];
+            z[2 * a] = z[2 * b] = dr;
+            z[2 * a + 1] = di;
+            z[2 * b + 1] = -di;
+            pd[a] = pd[b] = dr * dr + di * di;
+        }
+    for (int j = 0; j < py; j++)
+        for (int i = 0; i < px; i++)
+            pn[(size_t)j * px + i] = sig2 * mirror_noise_factor(i < nx ? i : px - i, nx) *
+                                     mirror_noise_factor(j < ny ? j : py - j, ny);
+    /* the signal power estimate on the quadrant of distinct frequencies (k, l), k = 0..nx,
+     * l = 0..ny, capped by its values at the lower frequencies (see top) */
+    int wq = nx + 1;
+    double *E = malloc(sizeof(double) * (size_t)wq * (ny + 1));
+    double *N = malloc(sizeof(double) * (size_t)wq * (ny + 1));
+    if (!E || !N) {
+        free(kr), free(ki), free(pd), free(pn), free(E), free(N);
+        return -ENOMEM;
+    }
+    for (int l = 0; l <= ny; l++)
+        for (int k = 0; k <= nx; k++) {
+            size_t a = (size_t)l * px + k, q = (size_t)l * wq + k;
+            double PD = box_mean(pd, px, py, k, l, SPECTRAL_HALF);
+            double PN = box_mean(pn, px, py, k, l, SPECTRAL_HALF);
+            double Q = PD > SPECTRAL_TAU * PN ? PD - PN : 0, k2 = kr[a] * kr[a] + ki[a] * ki[a];
+            double Ps = Q > 0 && k2 > 0 ? Q / k2 : 0, cap = INFINITY;
+            if (k || l) cap = fmin(k ? E[q - 1] : INFINITY, l ? E[q - wq] : INFINITY);
+            E[q] = fmin(Ps, cap);
+            N[q] = PN;
+        }
+    double sum_n = 0, sum_q = 0;
+    size_t passed = 0;
+    for (int j = 0; j < py; j++)
+        for (int i = 0; i < px; i++) {
+            size_t a = (size_t)j * px + i;
+            size_t q = (size_t)(j <= ny ? j : py - j) * wq + (size_t)(i <= nx ? i : px - i);
+            double k2 = kr[a] * kr[a] + ki[a] * ki[a], Ps = E[q], PN = N[q];
+            sum_n += PN;
+            sum_q += k2 * Ps;
+            if (!(Ps > 0) || !(k2 * Ps + PN > 0)) { /* nothing significant */
+                z[2 * a] = z[2 * a + 1] = 0;
+                continue;
+            }
+            passed++;
+            /* conj(K) / (|K|^2 + PN / Ps): the Wiener filter with nsr(f) = PN / Ps */
+            double g = Ps / (k2 * Ps + PN), dr = z[2 * a], di = z[2 * a + 1];
+            z[2 * a] = (dr * kr[a] + di * ki[a]) * g; /* D conj(K) g */
+            z[2 * a + 1] = (di * kr[a] - dr * ki[a]) * g;
+        }
+    free(E), free(N);
+    *nsr = sum_q > 0 ? sum_n / sum_q : INFINITY;
+    *frac = (double)passed / (double)P;
+    free(kr), free(ki), free(pd), free(pn);
+    return 0;
+}
+
 /* ---- the run ---- */
 
 /* nsr from the paper's noise model (eq. 5 with the 1/sqrt(frames) of eq. 4): the mean noise
  * power over the mean signal power of the data d (the field has the data's scale, see top). */
-static int auto_nsr(const fit_scan_t *sc, const double *d, size_t cells, double *nsr, err_t *err)
+static double mean_sigma2(const fit_scan_t *sc)
 {
-    double ns = 0, ss = 0;
+    double ns = 0;
     for (size_t k = 0; k < sc->n; k++) {
         double s = fit_noise_sigma(FIT_NOISE_PAPER, sc, sc->signal_dn[k]);
         ns += s * s;
     }
+    return ns / (double)sc->n;
+}
+
+static int auto_nsr(const fit_scan_t *sc, const double *d, size_t cells, double *nsr, err_t *err)
+{
+    double ns = mean_sigma2(sc) * (double)sc->n, ss = 0;
     for (size_t c = 0; c < cells; c++) ss += d[c] * d[c];
     if (!(ss > 0))
         return err_set(err, -EINVAL, "wiener: the signal equals the bias everywhere, no data");
@@ -359,9 +504,10 @@ out:
     return rc;
 }
 
-/* Replaces the raster data d (nx*ny, row-major) by the Wiener estimate normalised to mean 1. */
+/* Replaces the raster data d (nx*ny, row-major) by the Wiener estimate normalised to mean 1.
+ * spectral: the per-frequency choice, *nsr and *frac get its summary; else the constant *nsr. */
 static int deconvolve(const fit_scan_t *sc, const struct axis *gx, const struct axis *gy,
-                      double nsr, double *d, err_t *err)
+                      int spectral, double *nsr, double *frac, double *d, err_t *err)
 {
     int hx, hy, rc = kernel_extent(sc, gx, gy, &hx, &hy, err);
     if (rc) return rc;
@@ -377,7 +523,12 @@ static int deconvolve(const fit_scan_t *sc, const struct axis *gx, const struct 
         rc = err_set(err, -EDOM, "wiener: GSL FFT failed");
         goto out;
     }
-    wiener_filter(z, px, py, nsr);
+    if (!spectral)
+        wiener_filter(z, px, py, *nsr);
+    else if (spectral_filter(z, gx->n, gy->n, mean_sigma2(sc), nsr, frac)) {
+        rc = err_set(err, -ENOMEM, "wiener: out of memory for the spectra");
+        goto out;
+    }
     if (fft2_run(&f, z, 1)) {
         rc = err_set(err, -EDOM, "wiener: GSL FFT failed");
         goto out;
@@ -399,13 +550,75 @@ out:
     return rc;
 }
 
-int fit_wiener_run(const fit_scan_t *scan, double nsr, fit_wiener_t *out, err_t *err)
+fit_wiener_opts_t fit_wiener_opts_default(void)
+{
+    return (fit_wiener_opts_t){.method = FIT_WIENER_NSR_SPECTRAL, .crop = 1};
+}
+
+const char *fit_wiener_nsr_name(fit_wiener_nsr_t m)
+{
+    switch (m) {
+    case FIT_WIENER_NSR_WHITE: return "white";
+    case FIT_WIENER_NSR_SPECTRAL: return "spectral";
+    case FIT_WIENER_NSR_FIXED: return "fixed";
+    }
+    return "unknown";
+}
+
+/* Cuts w (the whole grid) to its nodes inside the pixel (0, p)^2, by the test of the fit's
+ * region "inside" (region.h: 1e-6 p from the edges), renormalised to mean 1. A node on a pixel
+ * edge stands for a cell half outside the pixel, so it is not part of the pixel's map. */
+static int crop_to_pixel(fit_wiener_t *w, double p, err_t *err)
+{
+    fit_region_t inside = {FIT_REGION_INSIDE, 0};
+    int i0 = w->nx, i1 = -1, j0 = w->ny, j1 = -1;
+    double mid = 0.5 * p;
+    for (int i = 0; i < w->nx; i++)
+        if (fit_region_contains(&inside, p, w->x0_um + i * w->step_x_um, mid))
+            i0 = i < i0 ? i : i0, i1 = i;
+    for (int j = 0; j < w->ny; j++)
+        if (fit_region_contains(&inside, p, mid, w->y0_um + j * w->step_y_um))
+            j0 = j < j0 ? j : j0, j1 = j;
+    if (i1 < 0 || j1 < 0)
+        return err_set(err, -EINVAL,
+                       "wiener: no node of the %d x %d scan grid (from (%g, %g) um, steps %g x %g "
+                       "um) lies inside the pixel (0, %g)^2",
+                       w->nx, w->ny, w->x0_um, w->y0_um, w->step_x_um, w->step_y_um, p);
+    int cx = i1 - i0 + 1, cy = j1 - j0 + 1;
+    double mean = 0;
+    for (int j = 0; j < cy; j++) /* in place: row j of the crop never overtakes its source */
+        for (int i = 0; i < cx; i++)
+            mean += w->S[(size_t)j * cx + i] = w->S[(size_t)(j + j0) * w->nx + (i + i0)];
+    mean /= (double)cx * cy;
+    if (!(mean > 0) || !isfinite(mean))
+        return err_set(err, -EDOM, "wiener: the map in the pixel has mean %g, cannot normalise",
+                       mean);
+    for (size_t c = 0; c < (size_t)cx * cy; c++) w->S[c] /= mean;
+    w->x0_um += i0 * w->step_x_um;
+    w->y0_um += j0 * w->step_y_um;
+    w->nx = cx;
+    w->ny = cy;
+    w->cropped = 1;
+    return 0;
+}
+
+int fit_wiener_run_opts(const fit_scan_t *scan, const fit_wiener_opts_t *opts, fit_wiener_t *out,
+                        err_t *err)
 {
     fit_gsl_policy();
     if (!out) return err_set(err, -EINVAL, "wiener: no output");
     *out = (fit_wiener_t){0};
+    fit_wiener_opts_t o = opts ? *opts : fit_wiener_opts_default();
+    if ((unsigned)o.method > FIT_WIENER_NSR_FIXED)
+        return err_set(err, -EINVAL, "wiener: unknown nsr method %d", (int)o.method);
+    if (o.method == FIT_WIENER_NSR_FIXED && !(o.nsr > 0))
+        return err_set(err, -EINVAL, "wiener: a fixed nsr must be positive (got %g)", o.nsr);
+    double nsr = o.method == FIT_WIENER_NSR_FIXED ? o.nsr : 0, frac = 1;
     int rc = check_scan(scan, nsr, err);
     if (rc) return rc;
+    if (o.crop && (!(scan->pitch_um > 0) || !isfinite(scan->pitch_um)))
+        return err_set(err, -EINVAL, "wiener: cropping to the pixel needs a positive pitch (got %g)",
+                       scan->pitch_um);
     struct axis gx, gy;
     double *buf = malloc(sizeof(double) * scan->n), *d = NULL;
     long *slot = NULL;
@@ -428,16 +641,31 @@ int fit_wiener_run(const fit_scan_t *scan, double nsr, fit_wiener_t *out, err_t 
         goto out;
     }
     if ((rc = grid_map(scan, &gx, &gy, d, slot, err))) goto out;
-    if (nsr <= 0 && (rc = auto_nsr(scan, d, cells, &nsr, err))) goto out;
-    if ((rc = deconvolve(scan, &gx, &gy, nsr, d, err))) goto out;
+    int spectral = o.method == FIT_WIENER_NSR_SPECTRAL;
+    if (o.method == FIT_WIENER_NSR_WHITE && (rc = auto_nsr(scan, d, cells, &nsr, err))) goto out;
+    if ((rc = deconvolve(scan, &gx, &gy, spectral, &nsr, &frac, d, err))) goto out;
     *out = (fit_wiener_t){.nx = gx.n, .ny = gy.n, .step_x_um = gx.step, .step_y_um = gy.step,
-                          .x0_um = gx.start, .y0_um = gy.start, .nsr = nsr, .S = d};
+                          .x0_um = gx.start, .y0_um = gy.start, .nsr = nsr, .S = d,
+                          .nsr_method = o.method, .signal_fraction = frac, .raster_nx = gx.n,
+                          .raster_ny = gy.n};
     d = NULL; /* handed to out */
+    if (o.crop && (rc = crop_to_pixel(out, scan->pitch_um, err))) fit_wiener_free(out);
 out:
     free(buf);
     free(d);
     free(slot);
     return rc;
+}
+
+int fit_wiener_run(const fit_scan_t *scan, double nsr, fit_wiener_t *out, err_t *err)
+{
+    if (!isfinite(nsr)) { /* check_scan's message, before the options would reject it */
+        if (out) *out = (fit_wiener_t){0};
+        return err_set(err, -EINVAL, "wiener: noise-to-signal ratio is not finite");
+    }
+    fit_wiener_opts_t o = {.method = nsr > 0 ? FIT_WIENER_NSR_FIXED : FIT_WIENER_NSR_WHITE,
+                           .nsr = nsr};
+    return fit_wiener_run_opts(scan, &o, out, err);
 }
 
 void fit_wiener_free(fit_wiener_t *w)

@@ -86,7 +86,7 @@ static int simulate(const fid_case_t *c, sim_t *sim, scanfile_t *sf, err_t *err)
     cfg.subframe_px = 3; /* the POI is all the fit reads */
     scan_raster_t r;
     rc = scan_run(sim_camera(sim), sim_stage(sim), &cfg, NULL, &r, err);
-    if (rc == 0) rc = scan_extract_pixel(&r, 0, 0, sf, err);
+    if (rc == 0) rc = scan_extract_pixel_region(&r, 0, 0, 1, sf, err); /* every point */
     scan_raster_free(&r);
     return rc;
 }
@@ -99,7 +99,8 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     out->r_max = r_max;
     for (int r = 0; r <= FID_R_MAX; r++)
         out->rms[r] = out->chi2_red[r] = out->cv_chi2[r] = out->serr_rms[r] = NAN;
-    out->rms_wiener = NAN;
+    out->rms_wiener = out->rms_wiener_whole = NAN;
+    for (int r = 0; r <= FID_R_MAX; r++) out->serr_edge[r] = out->serr_inner[r] = NAN;
     sim_config_t sc = sim_config_default();
     sc.scene = c->scene;
     sc.seed = c->seed;
@@ -107,18 +108,22 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     sim_t *sim = NULL;
     scanfile_t sf = {0};
     fit_sweep_t sw = {0};
+    fit_scan_sel_t in = {0}, fitted = {0};
     double t0 = clock_mono_ms();
     int rc = sim_open(&sc, &sim, err);
     if (rc == 0) rc = simulate(c, sim, &sf, err);
     out->sim_ms = clock_mono_ms() - t0;
+    if (rc == 0) rc = fit_region_select(&sf.scan, NULL, &in, err); /* inside: the old Wiener's */
+    if (rc == 0) rc = fit_region_select(&sf.scan, &c->region, &fitted, err);
     if (rc) goto done;
-    out->n_points = sf.scan.n;
+    out->n_raster = sf.scan.n;
+    out->n_points = fitted.scan.n;
     int m;
     const double *T = scene_map(sim_scene(sim), &m);
     fit_options_t o = fit_options_default();
     o.noise = c->noise;
     t0 = clock_mono_ms();
-    rc = fit_sweep_run(&sf.scan, 1, r_max, &o, &sw, err);
+    rc = fit_sweep_run(&fitted.scan, 1, r_max, &o, &sw, err);
     out->fit_ms = clock_mono_ms() - t0;
     if (rc) goto done;
     double best = INFINITY;
@@ -131,6 +136,15 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
         double v = 0;
         for (int j = 0; j < r * r; j++) v += f->S_err[j] * f->S_err[j];
         out->serr_rms[r] = sqrt(v / (r * r));
+        double ve = 0, vi = 0;
+        for (int j = 0; j < r; j++)
+            for (int i = 0; i < r; i++) {
+                double e2 = f->S_err[j * r + i] * f->S_err[j * r + i];
+                if (i == 0 || j == 0 || i == r - 1 || j == r - 1) ve += e2;
+                else vi += e2;
+            }
+        out->serr_edge[r] = sqrt(ve / (r > 1 ? 4.0 * (r - 1) : 1));
+        if (r > 2) out->serr_inner[r] = sqrt(vi / ((r - 2.0) * (r - 2)));
         out->rms[r] = fid_map_rms(f->S, r, T, m, SAMPLES);
         if (out->rms[r] < best) best = out->rms[r], out->r_best = r;
     }
@@ -144,11 +158,17 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     }
     fit_wiener_t w;
     err_t we;
-    if (fit_wiener_run(&sf.scan, 0, &w, &we) == 0) {
+    if (fit_wiener_run(&in.scan, 0, &w, &we) == 0) {
         out->rms_wiener = wiener_rms(&w, sf.scan.pitch_um, T, m, SAMPLES);
         fit_wiener_free(&w);
     }
+    if (fit_wiener_run_opts(&sf.scan, NULL, &w, &we) == 0) {
+        out->rms_wiener_whole = wiener_rms(&w, sf.scan.pitch_um, T, m, SAMPLES);
+        fit_wiener_free(&w);
+    }
 done:
+    fit_scan_sel_free(&in);
+    fit_scan_sel_free(&fitted);
     fit_sweep_free(&sw);
     scanfile_free(&sf);
     sim_close(sim);

@@ -14,6 +14,7 @@
 #include "base/err.h"
 #include "fit/noise.h"
 #include "fit/recommend.h"
+#include "fit/region.h"
 
 #define FID_R_MAX 12
 #define FID_MAX_RULES 16 /* recommend-rule settings measured in one run */
@@ -30,6 +31,8 @@ typedef struct fid_case {
     const fit_recommend_opts_t *rules; /* settings of the recommended-r rule to measure (NULL:
                                           the default only) */
     int n_rules;
+    fit_region_t region; /* the points fitted (fit/region.h; inside): the full raster keeps
+                            every point of the raster, the fit takes the region's */
 } fid_case_t;
 
 typedef struct fid_result {
@@ -42,7 +45,13 @@ typedef struct fid_result {
     int r_cv;                  /* smallest leave-one-out prediction chi2 */
     int r_rec[FID_MAX_RULES];  /* the recommended r (recommend.h) under each rule setting */
     double serr_rms[FID_R_MAX + 1]; /* the map's own noise: rms of S_err over the sub-pixels */
-    double rms_wiener;         /* the Wiener baseline's map error (NaN when it failed) */
+    double rms_wiener;         /* the Wiener baseline's map error (NaN when it failed): one nsr
+                                  (white), the points inside the pixel only, mirrored */
+    double rms_wiener_whole;   /* the fair Wiener: nsr per frequency, the whole raster
+                                  deconvolved and cropped to the pixel (wiener.h) */
+    double serr_edge[FID_R_MAX + 1]; /* rms of S_err over the r x r map's outer ring */
+    double serr_inner[FID_R_MAX + 1]; /* and over the sub-pixels inside it (NaN for r <= 2) */
+    size_t n_raster;           /* the points of the whole raster */
     double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */
 } fid_result_t;
 

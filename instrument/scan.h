@@ -189,6 +189,10 @@ int scan_run(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const scan_ho
  * Returns 0, -EINVAL (pixel outside the sub-frame, unknown constants) or -ENOMEM. */
 int scan_extract_pixel(const scan_raster_t *r, int dcol, int drow, struct scanfile *out,
                        err_t *err);
+/* The same with all != 0 keeping every captured position (outside the pixel too, positions
+ * still relative to its corner): the whole raster for the Wiener baseline and fit/region.h. */
+int scan_extract_pixel_region(const scan_raster_t *r, int dcol, int drow, int all,
+                              struct scanfile *out, err_t *err);
 
 /* Building blocks of scan_extract_pixel, for rasters kept elsewhere (the server's database):
  * a scan file of n points with the setup's sensor constants (arrays allocated, not filled; the

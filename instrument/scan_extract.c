@@ -46,6 +46,12 @@ int scan_pixel_coords(const scan_setup_t *su, int dcol, int drow, double sx, dou
 
 int scan_extract_pixel(const scan_raster_t *r, int dcol, int drow, scanfile_t *out, err_t *err)
 {
+    return scan_extract_pixel_region(r, dcol, drow, 0, out, err);
+}
+
+int scan_extract_pixel_region(const scan_raster_t *r, int dcol, int drow, int all,
+                              scanfile_t *out, err_t *err)
+{
     memset(out, 0, sizeof *out);
     int h = r->m / 2;
     if (abs(dcol) > h || abs(drow) > h)
@@ -56,9 +62,9 @@ int scan_extract_pixel(const scan_raster_t *r, int dcol, int drow, scanfile_t *o
         size_t k = 0;
         for (size_t i = 0; i < r->count; i++) {
             double x, y;
-            if (!r->have[i] ||
-                !scan_pixel_coords(&r->setup, dcol, drow, r->pos[i].x_um, r->pos[i].y_um, &x, &y))
-                continue;
+            int inside =
+                scan_pixel_coords(&r->setup, dcol, drow, r->pos[i].x_um, r->pos[i].y_um, &x, &y);
+            if (!r->have[i] || !(all || inside)) continue;
             if (pass == 1) {
                 out->x_um[k] = x;
                 out->y_um[k] = y;

@@ -107,12 +107,31 @@ json_t *fitjson_ftest(const fit_ftest_t *t)
                      "status", fit_status_name(t->flags), "flags", fitjson_flags(t->flags));
 }
 
+int fitjson_add_region(json_t *root, const fit_region_t *rg, size_t n_raster)
+{
+    int margin = rg->kind == FIT_REGION_MARGIN;
+    json_t *add = json_pack("{s:s, s:o, s:I}", "region", fit_region_name(rg->kind), "margin_um",
+                            margin ? fitjson_num(rg->margin_um) : json_null(), "n_raster",
+                            (json_int_t)n_raster);
+    return add && json_object_update_new(root, add) == 0 ? 0 : -ENOMEM;
+}
+
 json_t *fitjson_wiener(const fit_wiener_t *w)
 {
-    return json_pack("{s:i, s:i, s:[o, o], s:o, s:o, s:o, s:o}", "nx", w->nx, "ny", w->ny,
-                     "step_um", fitjson_num(w->step_x_um), fitjson_num(w->step_y_um), "x0_um",
-                     fitjson_num(w->x0_um), "y0_um", fitjson_num(w->y0_um), "nsr",
-                     fitjson_num(w->nsr), "S", fitjson_array(w->S, (size_t)w->nx * w->ny));
+    json_t *o = json_pack("{s:i, s:i, s:[o, o], s:o, s:o, s:o, s:o}", "nx", w->nx, "ny", w->ny,
+                          "step_um", fitjson_num(w->step_x_um), fitjson_num(w->step_y_um),
+                          "x0_um", fitjson_num(w->x0_um), "y0_um", fitjson_num(w->y0_um), "nsr",
+                          fitjson_num(w->nsr), "S", fitjson_array(w->S, (size_t)w->nx * w->ny));
+    /* additions: how nsr was chosen, which points were deconvolved and whether S is cropped */
+    if (o && json_object_update_new(
+                 o, json_pack("{s:s, s:s, s:[i, i], s:b, s:o}", "nsr_method",
+                              fit_wiener_nsr_name(w->nsr_method), "region", "all", "raster",
+                              w->raster_nx, w->raster_ny, "cropped", w->cropped,
+                              "signal_fraction", fitjson_num(w->signal_fraction)))) {
+        json_decref(o);
+        return NULL;
+    }
+    return o;
 }
 
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,

@@ -12,6 +12,7 @@
 #include <jansson.h>
 
 #include "fit/model.h"
+#include "fit/region.h"
 #include "fit/wiener.h"
 
 /* A JSON real, or null when v is not finite. */
@@ -36,7 +37,14 @@ json_t *fitjson_fit(const fit_result_t *f, fit_method_t method);
  * flags. */
 json_t *fitjson_ftest(const fit_ftest_t *t);
 
-/* The Wiener baseline: nx, ny, step_um [x, y], x0_um, y0_um, nsr, S. */
+/* Adds the region of the fit to a root document (additions): "region" (inside, all, margin),
+ * "margin_um" (null unless margin) and "n_raster" (the points of the whole scan; n_points are
+ * those in the region). Returns 0 or -ENOMEM. */
+int fitjson_add_region(json_t *root, const fit_region_t *rg, size_t n_raster);
+
+/* The Wiener baseline: nx, ny, step_um [x, y], x0_um, y0_um, nsr, S; additions nsr_method,
+ * region ("all": every point given was deconvolved), raster [nx, ny] (that grid), cropped (S is
+ * its part in the pixel), signal_fraction. */
 json_t *fitjson_wiener(const fit_wiener_t *w);
 
 /* The root document of a sweep: N, n_points, sigma, method, nonneg, design_tol, full_scale_dn,

@@ -6,6 +6,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -47,8 +48,12 @@ static json_t *part_error(const fit_part_t *part)
 static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
                         const fit_pipeline_t *pl, double t0)
 {
-    json_t *root = fitjson_sweep(&pl->sweep, scan->n, &p->opts, scan->full_scale_dn);
+    json_t *root = fitjson_sweep(&pl->sweep, pl->n_region, &p->opts, scan->full_scale_dn);
     if (!root) return NULL;
+    if (fitjson_add_region(root, &pl->region, scan->n)) {
+        json_decref(root);
+        return NULL;
+    }
     const fit_part_t *ft = &pl->ftest_part, *wi = &pl->wiener_part;
     if (ft->asked)
         json_object_set_new(root, "ftest", ft->rc ? part_error(ft) : fitjson_ftest(&pl->ftest));
@@ -89,12 +94,20 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
     if (scan->n == 0) return err_set(err, -EINVAL, "the scan has no points inside the pixel");
     fit_pipeline_opts_t po = {.r_min = p->r_min, .r_max = p->r_max, .fit = p->opts,
                               .ftest_edges = p->ftest_edges, .ftest_r = p->ftest_r,
-                              .wiener = p->wiener};
+                              .wiener = p->wiener, .region = p->region};
     fit_watch_t watch = {.stop = watch_stop, .progress = watch_progress, .params = (void *)hooks};
     fit_pipeline_t pl;
     double t0 = clock_mono_ms();
     int ret = fit_pipeline_run(scan, &po, hooks ? &watch : NULL, &pl, err);
     if (ret) return ret;
+    if (pl.n_region == 0) {
+        char m[40] = "";
+        if (p->region.kind == FIT_REGION_MARGIN)
+            snprintf(m, sizeof m, " (%g um)", p->region.margin_um);
+        fit_pipeline_free(&pl);
+        return err_set(err, -EINVAL, "the scan has no points in the region %s%s of the pixel",
+                       fit_region_name(p->region.kind), m);
+    }
     out->best_aic = pl.sweep.best_aic;
     out->best_bic = pl.sweep.best_bic;
     if (pl.ftest_part.asked && pl.ftest_part.rc == 0) {

@@ -1,9 +1,10 @@
 /* srv_fitter.c: the fit workers. Each takes the oldest queued fit job, builds the scan the fit
- * needs (the pixel's response over a finished scan's stored points, srv_pixel_scan, or the
- * uploaded scan file), runs it (srv_fit_run) and stores the fit with the map it offers to that
- * sensor pixel (the recommended map), linked to the job, in one transaction (storage_fit_store);
- * the map becomes the pixel's calibration when the job says so (the automatic fit of a scan, a
- * request with "promote": true, an upload with a target pixel).
+ * needs (the pixel's response over all of a finished scan's stored points, srv_pixel_scan, or the
+ * uploaded scan file; the fit selects its region's points, the Wiener baseline takes them all),
+ * runs it (srv_fit_run) and stores the fit with the map it offers to that sensor pixel (the
+ * recommended map), linked to the job, in one transaction (storage_fit_store); the map becomes
+ * the pixel's calibration when the job says so (the automatic fit of a scan, a request with
+ * "promote": true, an upload with a target pixel).
  * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) when it is
  * cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
  * by a crash is requeued at the next start and simply runs again. */
@@ -55,7 +56,8 @@ static int load_input(storage_t *st, const srv_fit_params_t *p, struct fit_input
     if (sc.state != STORAGE_DONE)
         ret = err_set(err, -ESTALE, "scan %lld is %s, not done", (long long)sc.id,
                       storage_state_name(sc.state));
-    if (ret == 0) ret = srv_pixel_scan(st, &sc, p->dcol, p->drow, 0, &in->sf, err);
+    /* every stored point: the fit takes its region (fit/region.h), Wiener the whole raster */
+    if (ret == 0) ret = srv_pixel_scan(st, &sc, p->dcol, p->drow, 1, &in->sf, err);
     c->sensor_id = sc.sensor_id;
     c->pixel_col = sc.poi_col + p->dcol;
     c->pixel_row = sc.poi_row + p->drow;

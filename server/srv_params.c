@@ -110,6 +110,9 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
     json_object_set_new(o, "promote", json_boolean(p->promote));
     if (p->by[0]) json_object_set_new(o, "by", json_string(p->by));
     if (p->reason[0]) json_object_set_new(o, "reason", json_string(p->reason));
+    json_object_set_new(o, "region", json_string(fit_region_name(p->region.kind)));
+    if (p->region.kind == FIT_REGION_MARGIN)
+        json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
     char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
     json_decref(o);
     return text;
@@ -165,6 +168,11 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     if ((x = json_object_get(o, "reason")) && json_is_string(x))
         snprintf(p->reason, sizeof p->reason, "%s", json_string_value(x));
     if ((ret = parse_words(o, p, err))) goto out;
+    const char *region = json_string_value(json_object_get(o, "region"));
+    x = json_object_get(o, "margin_um");
+    if (region && (ret = fit_region_parse(region, json_is_number(x) ? json_number_value(x) : NAN,
+                                          &p->region, err)))
+        goto out;
     if ((x = json_object_get(o, "scan"))) p->scan_file = json_incref(x);
     if (!p->scan_id && !p->scan_file)
         ret = err_set(err, -EINVAL, "fit job params: neither scan_id nor scan");

@@ -10,6 +10,7 @@
 
 #include "base/err.h"
 #include "fit/model.h"
+#include "fit/region.h"
 
 /* Scenes the simulated bench offers to scans. */
 #define SRV_SCENES "uniform, paperlike"
@@ -46,6 +47,7 @@ typedef struct srv_fit_params {
     int promote;
     char by[SRV_BY_MAX + 1];
     char reason[SRV_REASON_MAX + 1];
+    fit_region_t region;  /* the points fitted (fit/region.h): inside (the paper's) */
 } srv_fit_params_t;
 
 /* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload, not

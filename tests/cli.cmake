@@ -11,4 +11,9 @@ if(TARGET ips)
     # busy 2-core machine, ASan build: 134 s and 191 s (optimised: 80 s, 59 s); 4x
     set_tests_properties(test_cli PROPERTIES TIMEOUT 540)
     set_tests_properties(test_cli_bench PROPERTIES TIMEOUT 780)
+    # --region and the whole-raster Wiener: 3 s optimised; ASan on a busy machine well under 60 s
+    add_test(NAME test_fit_region
+             COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_fit_region.sh $<TARGET_FILE:ips>
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+    set_tests_properties(test_fit_region PROPERTIES TIMEOUT 240)
 endif()

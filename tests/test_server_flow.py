@@ -132,14 +132,19 @@ def test(c, t, argv, daemons):
     c.eq((p["ftest"], p["ftest_r"], p["wiener"], p["r_max"]), ("top,left,bottom", 7, True, 8),
          "fit job params: paper's F-test, Wiener")
 
-    # the pixel raster as a scan file, fitted by ips fit with the same options
-    r = d.get("/api/scans/%d/pixels/0/0" % scan)
+    # the pixel raster as a scan file, fitted by ips fit with the same options: every point of
+    # the raster (the fit takes those inside the pixel, the Wiener baseline the whole raster)
+    r = d.get("/api/scans/%d/pixels/0/0?all=1" % scan)
     c.status(r, 200, "pixel raster")
     pixel_path = os.path.join(t, "pixel.json")
     with open(pixel_path, "wb") as f:
         f.write(r.body)
     pixel = r.json()
-    c.eq(len(pixel["x_um"]), 81, "pixel raster: 81 points inside")
+    eps = 1e-6 * pixel["pitch_um"]
+    def inside(v):
+        return eps < v < pixel["pitch_um"] - eps
+    c.eq(sum(inside(x) and inside(y) for x, y in zip(pixel["x_um"], pixel["y_um"])), 81,
+         "pixel raster: 81 points inside")
     c.eq(ips_fit(ips, pixel_path, os.path.join(t, "ips.json"), "--ftest", "top,left,bottom",
                  "--wiener"), 0, "ips fit on the downloaded raster")
 
