@@ -20,6 +20,9 @@
 
 #define R_LIMIT FIT_R_MAX           /* largest r fit_map accepts */
 #define INTERP_LIMIT FIT_INTERP_MAX /* largest --interp grid */
+#define STR_(x) #x
+#define STR(x) STR_(x)
+#define GEOMETRY_R_TEXT STR(FIT_GEOMETRY_R_DEFAULT)
 
 static const char usage[] =
     "usage: ips fit FILE [options]   (FILE - reads standard input)\n"
@@ -40,8 +43,12 @@ static const char usage[] =
     "  --interp N          add the best-AIC map interpolated on an N x N grid\n"
     "  --full-scale DN     saturation level (points at or above are left out; <= 0: none)\n"
     "  --design-tol T      design-matrix accuracy (default 1e-12)\n"
+    "  --fit-geometry      fit the spot radius and the scan-grid offset first (at --geometry-r)\n"
+    "                      and fit the maps with them\n"
+    "  --geometry-r N      r of the geometry fit (1..32, default " GEOMETRY_R_TEXT ")\n"
     "  --table             print a report for people instead of JSON\n"
-    "Prints one JSON document: N, sigma, fits[], best_r, ftest, wiener, interp, timing_ms.\n";
+    "Prints one JSON document: N, sigma, fits[], best_r, ftest, wiener, interp, geometry,\n"
+    "timing_ms.\n";
 
 struct fit_args {
     const char *path;
@@ -51,6 +58,7 @@ struct fit_args {
     unsigned edges;
     int ftest_r, wiener, interp_n;
     int have_full_scale, table;
+    int fit_geometry, geometry_r;
     double full_scale;
     fit_region_t region;
     fit_wiener_nsr_t wiener_method;
@@ -59,7 +67,7 @@ struct fit_args {
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
        OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
-       OPT_WIENER_NSR, OPT_HELP };
+       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -77,6 +85,8 @@ static const struct option long_opts[] = {
     {"table", no_argument, NULL, OPT_TABLE},
     {"region", required_argument, NULL, OPT_REGION},
     {"wiener-nsr", required_argument, NULL, OPT_WIENER_NSR},
+    {"fit-geometry", no_argument, NULL, OPT_FIT_GEOMETRY},
+    {"geometry-r", required_argument, NULL, OPT_GEOMETRY_R},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -158,6 +168,8 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
     case OPT_WIENER: a->wiener = 1; return 0;
     case OPT_NONNEG: a->opts.nonneg = 1; return 0;
     case OPT_TABLE: a->table = 1; return 0;
+    case OPT_FIT_GEOMETRY: a->fit_geometry = 1; return 0;
+    case OPT_GEOMETRY_R: return opts_int32("geometry-r", arg, 1, R_LIMIT, &a->geometry_r, err);
     case OPT_FULL_SCALE:
         a->have_full_scale = 1;
         if (parse_double(arg, &a->full_scale) < 0)
@@ -189,6 +201,8 @@ static int check_args(int argc, char **argv, int first, struct fit_args *a, cons
         return err_set(err, -EINVAL, "--ftest-r needs --ftest EDGES");
     if (seen[OPT_WIENER_NSR - OPT_R] && !a->wiener)
         return err_set(err, -EINVAL, "--wiener-nsr needs --wiener");
+    if (seen[OPT_GEOMETRY_R - OPT_R] && !a->fit_geometry)
+        return err_set(err, -EINVAL, "--geometry-r needs --fit-geometry");
     if (first >= argc) return err_set(err, -EINVAL, "missing FILE (usage: ips fit FILE [options])");
     if (first + 1 < argc)
         return err_set(err, -EINVAL, "unexpected argument '%s' after FILE", argv[first + 1]);
@@ -229,7 +243,7 @@ static void run_free(struct fit_run *run)
 }
 
 /* Reads the scan and runs the pipeline as asked. A part asked for that failed fails the command
- * (the first in the order F-test, Wiener, interpolation). 0 or a negative errno with err. */
+ * (the first in the order geometry, F-test, Wiener, interpolation). 0 or a negative errno with err. */
 static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
 {
     double t = clock_mono_ms();
@@ -242,9 +256,10 @@ static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
                               .ftest_edges = a->edges_text ? a->edges : 0, .ftest_r = a->ftest_r,
                               .wiener = a->wiener, .interp_n = a->interp_n,
                               .region = a->region, .wiener_method = a->wiener_method,
-                              .wiener_nsr = a->wiener_nsr};
+                              .wiener_nsr = a->wiener_nsr, .fit_geometry = a->fit_geometry,
+                              .geometry_r = a->geometry_r};
     if ((rc = fit_pipeline_run(&run->sf.scan, &po, NULL, &run->pl, err))) return rc;
-    const fit_part_t *parts[] = {&run->pl.ftest_part, &run->pl.wiener_part, &run->pl.interp_part};
+    const fit_part_t *parts[] = {&run->pl.geometry_part, &run->pl.ftest_part, &run->pl.wiener_part, &run->pl.interp_part};
     for (size_t i = 0; i < sizeof parts / sizeof parts[0]; i++)
         if (parts[i]->asked && parts[i]->rc)
             return err_set(err, parts[i]->rc, "%s", parts[i]->err.msg);
@@ -271,6 +286,8 @@ static json_t *result_json(const struct fit_args *a, const struct fit_run *run, 
     if (pl->ftest_part.asked) json_object_set_new(root, "ftest", fitjson_ftest(&pl->ftest));
     if (pl->wiener_part.asked) json_object_set_new(root, "wiener", fitjson_wiener(&pl->wiener));
     if (pl->interp_part.asked) json_object_set_new(root, "interp", interp_json(pl));
+    if (pl->geometry_part.asked)
+        json_object_set_new(root, "geometry", fitjson_geometry(&pl->geometry));
     json_object_set_new(root, "timing_ms",
                         json_pack("{s:o, s:o, s:o, s:o, s:o, s:o}", "read",
                                   fitjson_num(run->ms_read), "sweep", fitjson_num(pl->sweep_ms),
@@ -278,6 +295,9 @@ static json_t *result_json(const struct fit_args *a, const struct fit_run *run, 
                                   fitjson_num(pl->wiener_part.ms), "interp",
                                   fitjson_num(pl->interp_part.ms), "total",
                                   fitjson_num(clock_mono_ms() - t0)));
+    if (pl->geometry_part.asked)
+        json_object_set_new(json_object_get(root, "timing_ms"), "geometry",
+                            fitjson_num(pl->geometry_part.ms));
     return root;
 }
 

@@ -66,6 +66,7 @@ static void print_usage(void)
     fputs(
         "  --pixel DC,DR       write sub-frame pixel (DC, DR) instead of the POI (0,0)\n"
         "  --offset DX,DY      true spot position minus written position, um (default 0,0)\n"
+        "  --written-radius UM spot radius written in the scan file (default the true one)\n"
         "  --peak-e E          photo-electrons of the whole spot per frame at the reference\n"
         "                      exposure on a uniform sensor (default 21500)\n"
         "  --noiseless         no photon or read noise, no ADC rounding\n"
@@ -87,6 +88,7 @@ struct sim_args {
     int grid, dcol, drow, have_wavelength, have_na, have_radius, dry_run;
     int all_points; /* --all-points: every raster point, not only those inside the pixel */
     double offset_x, offset_y;
+    double written_radius; /* --written-radius, 0: the bench's true radius */
 };
 
 enum {
@@ -108,6 +110,7 @@ enum {
     OPT_TRUTH,
     OPT_DRY_RUN,
     OPT_ALL_POINTS,
+    OPT_WRITTEN_RADIUS,
     OPT_HELP
 };
 
@@ -130,6 +133,7 @@ static const struct option long_opts[] = {
     {"truth", required_argument, NULL, OPT_TRUTH},
     {"dry-run", no_argument, NULL, OPT_DRY_RUN},
     {"all-points", no_argument, NULL, OPT_ALL_POINTS},
+    {"written-radius", required_argument, NULL, OPT_WRITTEN_RADIUS},
     {"output", required_argument, NULL, 'o'},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
@@ -210,6 +214,11 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
         break;
     case OPT_RADIUS:
         rc = field_opt(SCAN_F_SPOT_RADIUS_UM, arg, &a->sim.radius_um, err), a->have_radius = 1;
+        break;
+    case OPT_WRITTEN_RADIUS: /* what the scan file says, as a real bench's nominal radius */
+        rc = field_opt(SCAN_F_SPOT_RADIUS_UM, arg, &a->written_radius, err);
+        if (rc == 0 && !(a->written_radius > 0))
+            rc = err_set(err, -EINVAL, "--written-radius must be above 0 (got %s)", arg);
         break;
     case OPT_FRAMES:
         if ((rc = field_opt(SCAN_F_FRAMES, arg, &v, err)) == 0) a->scan.frames = (int)v;
@@ -417,6 +426,7 @@ static json_t *summary(sim_t *sim, const struct sim_args *a, const struct outcom
     json_object_set_new(root, "mode", json_string(a->grid ? "grid" : "procedure"));
     json_object_set_new(root, "points", json_integer((json_int_t)o->sf.scan.n));
     json_object_set_new(root, "spot_radius_um", json_real(sim_spot_radius0(sim)));
+    json_object_set_new(root, "written_spot_radius_um", json_real(o->sf.scan.spot_radius_um));
     json_object_set_new(root, "pixel", json_pack("[ii]", a->dcol, a->drow));
     json_array_append_new(cerr, json_real(o->found.x_um - truth.x_um));
     json_array_append_new(cerr, json_real(o->found.y_um - truth.y_um));
@@ -458,7 +468,7 @@ int cmd_simulate(int argc, char **argv)
     const scene_sensor_t *sn = scene_sensor(sim_scene(sim));
     a.scan.poi_col = sn->cols / 2;
     a.scan.poi_row = sn->rows / 2;
-    a.scan.spot_radius_um = sim_spot_radius0(sim);
+    a.scan.spot_radius_um = a.written_radius > 0 ? a.written_radius : sim_spot_radius0(sim);
     if ((rc = check_on_bench(sim, &a, &err)) != 0) {
         sim_close(sim);
         return cli_fail(CLI_EXIT_USAGE, "simulate", "%s", err.msg);

@@ -3,7 +3,9 @@
  * that have a map), then the F-test, the Wiener baseline and the interpolated best-AIC map, with
  * the watch consulted before and told after every step. The F-test reuses the sweep's fit at
  * ftest_r as its H1 when the sweep has it and fitted it by the linear path, which is how H1 must
- * be fitted (model.h); otherwise it fits its own. */
+ * be fitted (model.h); otherwise it fits its own. With fit_geometry, the geometry fit
+ * (geometry.h) runs first and, when it can be used, every later step sees the scan with the
+ * fitted spot radius and positions. */
 #include "fit/pipeline.h"
 
 #include <errno.h>
@@ -29,6 +31,7 @@ const char *fit_step_name(fit_step_kind_t kind)
     case FIT_STEP_FTEST: return "ftest";
     case FIT_STEP_WIENER: return "wiener";
     case FIT_STEP_INTERP: return "interp";
+    case FIT_STEP_GEOMETRY: return "geometry";
     }
     return "unknown";
 }
@@ -50,6 +53,9 @@ static int check_opts(const fit_scan_t *scan, const fit_pipeline_opts_t *o, err_
     if (o->ftest_edges && (o->ftest_r < 1 || o->ftest_r > FIT_R_MAX))
         return err_set(err, -EINVAL, "ftest_r must be between 1 and %d (got %d)", FIT_R_MAX,
                        o->ftest_r);
+    if (o->fit_geometry && (o->geometry_r < 0 || o->geometry_r > FIT_R_MAX))
+        return err_set(err, -EINVAL, "geometry_r must be between 1 and %d (got %d)", FIT_R_MAX,
+                       o->geometry_r);
     if (o->interp_n < 0 || o->interp_n > FIT_INTERP_MAX)
         return err_set(err, -EINVAL, "interp_n must be between 0 and %d (got %d)",
                        FIT_INTERP_MAX, o->interp_n);
@@ -72,6 +78,9 @@ struct run {
     fit_pipeline_t *out;
     int done, total;
     double best_aic, best_bic; /* the smallest AIC / BIC so far among fits with a map */
+    fit_scan_t geo_scan;       /* the region's points as the fitted geometry says */
+    fit_scan_t geo_whole;      /* every point as it says (for Wiener) */
+    double *geo_xy;            /* their positions, owned */
 };
 
 /* Before a step: asks the watch whether to stop. */
@@ -87,6 +96,8 @@ static int step_begin(struct run *rn, fit_step_kind_t kind, int r, fit_step_t *s
         return err_set(err, -ECANCELED, "fit stopped before the Wiener baseline");
     case FIT_STEP_INTERP:
         return err_set(err, -ECANCELED, "fit stopped before the interpolation");
+    case FIT_STEP_GEOMETRY:
+        return err_set(err, -ECANCELED, "fit stopped before the geometry fit");
     }
     return err_set(err, -ECANCELED, "fit stopped");
 }
@@ -131,6 +142,37 @@ static void wiener_step(struct run *rn)
                                                             : rn->o->wiener_method,
                             .nsr = rn->o->wiener_nsr, .crop = 1};
     p->rc = fit_wiener_run_opts(rn->whole, &wo, &rn->out->wiener, &p->err);
+}
+
+/* The geometry fit; when it can be used, every later step runs on the scan it describes. */
+static void geometry_step(struct run *rn)
+{
+    fit_part_t *p = &rn->out->geometry_part;
+    fit_geometry_t *g = &rn->out->geometry;
+    int r = rn->o->geometry_r ? rn->o->geometry_r : FIT_GEOMETRY_R_DEFAULT;
+    const fit_scan_t *scan = rn->scan;
+    if ((p->rc = fit_geometry_run(scan, r, &rn->o->fit, g, &p->err))) return;
+    if (g->flags) {
+        p->rc = err_set(&p->err, -EDOM,
+                        "geometry fit at r = %d: %s (R %.4g um, dx %.4g um, dy %.4g um after %d "
+                        "iterations); the written geometry is used",
+                        r, fit_geometry_status(g->flags), g->R_um, g->dx_um, g->dy_um,
+                        g->iterations);
+        return;
+    }
+    size_t n = scan->n, nw = rn->whole->n;
+    rn->geo_xy = malloc(sizeof(double) * 2 * (n + nw + 1));
+    if (!rn->geo_xy) {
+        p->rc = err_set(&p->err, -ENOMEM, "geometry: out of memory");
+        return;
+    }
+    /* the region was chosen on the written positions; the Wiener baseline, which takes every
+     * point, gets the fitted geometry too (its kernel radius and its grid) */
+    double *x = rn->geo_xy, *y = x + n, *xw = y + n, *yw = xw + nw;
+    fit_geometry_apply(scan, g, x, y, &rn->geo_scan);
+    fit_geometry_apply(rn->whole, g, xw, yw, &rn->geo_whole);
+    rn->scan = &rn->geo_scan;
+    rn->whole = &rn->geo_whole;
 }
 
 /* The best-AIC map on an n x n grid; none (interp_r 0) when no fit has a map. */
@@ -178,6 +220,12 @@ static int run_steps(struct run *rn, err_t *err)
     fit_sweep_t *sw = &out->sweep;
     sw->fits = calloc((size_t)(o->r_max - o->r_min + 1), sizeof *sw->fits);
     if (!sw->fits) return err_set(err, -ENOMEM, "out of memory");
+    if (o->fit_geometry) {
+        int rc = part_step(rn, FIT_STEP_GEOMETRY, o->geometry_r ? o->geometry_r
+                                                                : FIT_GEOMETRY_R_DEFAULT,
+                           &out->geometry_part, geometry_step, err);
+        if (rc) return rc;
+    }
     for (int r = o->r_min; r <= o->r_max; r++) {
         fit_step_t step;
         int rc = step_begin(rn, FIT_STEP_SWEEP, r, &step, err);
@@ -219,10 +267,11 @@ int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,
     out->n_region = sel.scan.n;
     struct run rn = {.scan = &sel.scan, .whole = scan, .o = &o, .watch = watch, .out = out,
                      .total = o.r_max - o.r_min + 1 + (o.ftest_edges != 0) + (o.wiener != 0) +
-                              (o.interp_n != 0),
+                              (o.interp_n != 0) + (o.fit_geometry != 0),
                      .best_aic = INFINITY, .best_bic = INFINITY};
     rc = run_steps(&rn, err);
     fit_scan_sel_free(&sel);
+    free(rn.geo_xy);
     if (rc) {
         fit_pipeline_free(out); /* stopped or failed: nothing half-built is handed back */
         return rc;

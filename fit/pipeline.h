@@ -24,6 +24,7 @@
 #define IPSD_FIT_PIPELINE_H
 
 #include "base/err.h"
+#include "fit/geometry.h"
 #include "fit/model.h"
 #include "fit/region.h"
 #include "fit/wiener.h"
@@ -42,27 +43,35 @@ typedef struct fit_pipeline_opts {
     int interp_n;          /* interpolate the best-AIC map on an n x n grid; 0: none (0) */
     fit_region_t region;   /* the points the sweep and the F-test fit (region.h; inside) */
     fit_wiener_nsr_t wiener_method; /* how Wiener picks nsr when wiener_nsr <= 0 (spectral) */
+    int fit_geometry;      /* fit R, dx, dy first (geometry.h) and run every later step on the
+                              scan as the fitted geometry says it was (0) */
+    int geometry_r;        /* r of the geometry fit, 1..FIT_R_MAX; 0: FIT_GEOMETRY_R_DEFAULT */
 } fit_pipeline_opts_t;
+
+/* The r the geometry is fitted at unless asked (docs/numerics.md, "Geometry fit": measured). */
+#define FIT_GEOMETRY_R_DEFAULT 5
 
 /* r 1..8 with fit_options_default(), no F-test (ftest_r 7), no Wiener, no interpolation. */
 fit_pipeline_opts_t fit_pipeline_opts_default(void);
 
-/* The steps of a run, in the order they run: the sweep's r_min..r_max, then the F-test, the
- * Wiener baseline and the interpolation when asked. */
+/* The steps of a run, in the order they run: the geometry fit when asked, the sweep's
+ * r_min..r_max, then the F-test, the Wiener baseline and the interpolation when asked. */
 typedef enum fit_step_kind {
     FIT_STEP_SWEEP = 0, /* the fit at one r of the sweep */
     FIT_STEP_FTEST = 1,
     FIT_STEP_WIENER = 2,
     FIT_STEP_INTERP = 3,
+    FIT_STEP_GEOMETRY = 4, /* the geometry fit (runs first) */
 } fit_step_kind_t;
 
 typedef struct fit_step {
     fit_step_kind_t kind;
-    int r;            /* the r fitted (sweep), tested (F-test) or interpolated; 0 for Wiener */
+    int r;            /* the r fitted (sweep, geometry), tested (F-test) or interpolated; 0 for
+                         Wiener */
     int index, total; /* 0-based position of the step among the run's total steps */
 } fit_step_t;
 
-/* "sweep", "ftest", "wiener" or "interp" (static string). */
+/* "sweep", "ftest", "wiener", "interp" or "geometry" (static string). */
 const char *fit_step_name(fit_step_kind_t kind);
 
 /* How a run is watched; every member may be NULL. */
@@ -95,6 +104,10 @@ typedef struct fit_pipeline {
     double total_ms;        /* the whole run */
     fit_region_t region;    /* the region fitted */
     size_t n_region;        /* the scan's points in it: the points the sweep saw */
+    fit_part_t geometry_part; /* geometry valid when asked and rc == 0; a geometry fit with
+                                 flags is a failed part (rc -EDOM) and the later steps use the
+                                 written geometry */
+    fit_geometry_t geometry;
 } fit_pipeline_t;
 
 /* Runs the steps opts asks for on scan. Returns 0 (check the parts), -EINVAL for a bad scan or

@@ -134,6 +134,29 @@ json_t *fitjson_wiener(const fit_wiener_t *w)
     return o;
 }
 
+json_t *fitjson_geometry(const fit_geometry_t *g)
+{
+    json_t *o = json_pack("{s:o, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "spot_radius_um",
+                          fitjson_num(g->R_um), "spot_radius_um_err", fitjson_num(g->R_err_um),
+                          "dx_um", fitjson_num(g->dx_um), "dx_um_err", fitjson_num(g->dx_err_um),
+                          "dy_um", fitjson_num(g->dy_um), "dy_um_err", fitjson_num(g->dy_err_um),
+                          "chi2_fixed", fitjson_num(g->chi2_fixed), "chi2_fitted",
+                          fitjson_num(g->chi2_fitted));
+    if (!o) return NULL;
+    json_object_set_new(o, "r", json_integer(g->r));
+    json_object_set_new(o, "status", json_string(fit_geometry_status(g->flags)));
+    json_object_set_new(o, "N", json_integer((json_int_t)g->n_used));
+    json_object_set_new(o, "params", json_integer(g->params));
+    json_object_set_new(o, "chi2_red", fitjson_num(g->chi2_red));
+    json_object_set_new(o, "written_spot_radius_um", fitjson_num(g->R_written_um));
+    json_object_set_new(o, "correlation",
+                        json_pack("{s:o, s:o, s:o}", "R_dx", fitjson_num(g->corr[0]), "R_dy",
+                                  fitjson_num(g->corr[1]), "dx_dy", fitjson_num(g->corr[2])));
+    json_object_set_new(o, "iterations", json_integer(g->iterations));
+    json_object_set_new(o, "evaluations", json_integer(g->evaluations));
+    return o;
+}
+
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,
                       double full_scale_dn)
 {

@@ -11,6 +11,7 @@
 
 #include <jansson.h>
 
+#include "fit/geometry.h"
 #include "fit/model.h"
 #include "fit/region.h"
 #include "fit/wiener.h"
@@ -46,6 +47,11 @@ int fitjson_add_region(json_t *root, const fit_region_t *rg, size_t n_raster);
  * region ("all": every point given was deconvolved), raster [nx, ny] (that grid), cropped (S is
  * its part in the pixel), signal_fraction. */
 json_t *fitjson_wiener(const fit_wiener_t *w);
+
+/* The geometry fit (fit/geometry.h): spot_radius_um, spot_radius_um_err, dx_um, dx_um_err, dy_um,
+ * dy_um_err, chi2_fixed, chi2_fitted, and r, status, N, params, chi2_red, written_spot_radius_um,
+ * correlation {R_dx, R_dy, dx_dy}, iterations, evaluations. */
+json_t *fitjson_geometry(const fit_geometry_t *g);
 
 /* The root document of a sweep: N, n_points, sigma, method, nonneg, design_tol, full_scale_dn,
  * fits[], best_r {aic, bic}, recommended_r, recommended_reason, range_edge. The caller adds

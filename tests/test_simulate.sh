@@ -6,7 +6,9 @@
 # an rms error below 0.03 (mean-1 normalised) with the dips at the top, left and bottom edges and
 # none on the right; the same for the paper's direct 9 x 9 grid; a 7 x 7 map file simulated
 # without noise is recovered exactly; noiseless uniform signals equal `ips box`; --offset and
-# --pixel mean what they say; bad input exits 2 with one line on stderr.
+# --pixel mean what they say; `ips fit --fit-geometry` recovers --offset and --radius (against
+# --written-radius) within 3 sigma and finds no offset where there is none; bad input exits 2
+# with one line on stderr.
 set -euo pipefail
 ips=$1
 tmp=$(mktemp -d)
@@ -139,6 +141,45 @@ done
 check points "$tmp/nb_summary.json" 81
 check inside "$tmp/nb.json"
 
+# 7. --written-radius and ips fit --fit-geometry: a 4 x 4 map scanned by a spot 1.1x wider than
+# written on a grid offset by (-0.3, +0.2) um; the r = 4 geometry fit finds the truth within
+# 3 sigma and lowers chi2; with the written geometry true, the offset found is 0 within 3 sigma.
+geo() { # geo FIT R DX DY: the geometry of ips fit's JSON against a truth
+    python3 - "$@" <<'PY'
+import json, sys
+g = json.load(open(sys.argv[1]))["geometry"]
+R, dx, dy = map(float, sys.argv[2:5])
+print("geometry: R %.4f +- %.4f (true %g), dx %.4f +- %.4f (%g), dy %.4f +- %.4f (%g), chi2 %.1f -> %.1f"
+      % (g["spot_radius_um"], g["spot_radius_um_err"], R, g["dx_um"], g["dx_um_err"], dx, g["dy_um"],
+         g["dy_um_err"], dy, g["chi2_fixed"], g["chi2_fitted"]))
+ok = g["status"] == "ok" and g["chi2_fitted"] <= g["chi2_fixed"] and g["r"] == 4
+for v, e, t in ((g["spot_radius_um"], g["spot_radius_um_err"], R), (g["dx_um"], g["dx_um_err"], dx),
+                (g["dy_um"], g["dy_um_err"], dy)):
+    ok &= 0 < e < 0.1 and abs(v - t) < 3 * e
+sys.exit(0 if ok else 1)
+PY
+}
+"$ips" simulate --scene paperlike:4 --grid 9 --seed 5 --radius 1.4762 --written-radius 1.342 \
+    --offset -0.3,0.2 -o "$tmp/geo.json" >"$tmp/geo_sum.json"
+python3 -c "import json, sys; s = json.load(open('$tmp/geo_sum.json')); f = json.load(open('$tmp/geo.json')); \
+sys.exit(0 if s['spot_radius_um'] == 1.4762 and f['spot_radius_um'] == 1.342 else 1)" && ok ||
+    bad "--written-radius: the file does not say 1.342 um with a true 1.4762 um"
+"$ips" fit "$tmp/geo.json" --r 4 --sigma shot+read --fit-geometry --geometry-r 4 >"$tmp/geo_fit.json"
+geo "$tmp/geo_fit.json" 1.4762 -0.3 0.2 && ok || bad "the geometry fit missed the offset scan's truth"
+"$ips" simulate --scene paperlike:4 --grid 9 --seed 6 -o "$tmp/geo0.json" >/dev/null
+"$ips" fit "$tmp/geo0.json" --r 4 --sigma shot+read --fit-geometry --geometry-r 4 >"$tmp/geo0_fit.json"
+geo "$tmp/geo0_fit.json" 1.342 0 0 && ok || bad "the geometry fit found an offset where none was"
+expect_fit_usage() {
+    local code=0
+    "$ips" fit "$@" >"$tmp/out" 2>"$tmp/err" || code=$?
+    if [[ $code -eq 2 && $(wc -l <"$tmp/err") -eq 1 ]]; then ok; else
+        bad "ips fit $* gave exit $code: $(cat "$tmp/err")"
+    fi
+}
+expect_fit_usage "$tmp/geo.json" --geometry-r 4
+expect_fit_usage "$tmp/geo.json" --fit-geometry --geometry-r 0
+expect_fit_usage "$tmp/geo.json" --r 2 --fit-geometry --geometry-r 9 # 84 parameters, 81 points
+
 # 6. Bad input: exit 2, one line on stderr.
 expect_usage() {
     local code=0
@@ -156,6 +197,7 @@ expect_usage --offset 1 -o "$tmp/x.json"
 expect_usage --frames 0 -o "$tmp/x.json"
 expect_usage --pixel 9,0 -o "$tmp/x.json"
 expect_usage --nope -o "$tmp/x.json"
+expect_usage --written-radius 0 -o "$tmp/x.json"
 [[ ! -e "$tmp/x.json" ]] && ok || bad "a failed simulate left an output file"
 
 echo "$pass passed, $fail failed"
