@@ -91,10 +91,14 @@ static int parse(int argc, char **argv, struct run *u)
     if (u->quick) u->seeds = 1;
     u->rules[0] = fit_recommend_opts_default();
     u->n_rules = 1;
-    if (u->tune) { /* a grid around the default; rules[0], the default, stays first */
-        static const double f[] = {0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.5, 1.0};
+    if (u->tune) { /* a grid around the default; rules[0], the default, stays first; weight 0
+                      is the rule without its step 3 (the leave-one-out pick alone) */
+        static const double f[] = {0.15, 0.2, 0.25, 0.3, 0.35, 0.5};
+        static const double w[] = {0, 1, 1.5, 2, 3};
         for (size_t a = 0; a < sizeof f / sizeof f[0]; a++)
-            u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a]};
+            for (size_t b = 0; b < sizeof w / sizeof w[0]; b++)
+                if ((f[a] == 0.25 || w[b] == 2 || w[b] == 0) && u->n_rules < FID_MAX_RULES)
+                    u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a], w[b], 1.5};
     }
     return 0;
 }
@@ -148,11 +152,13 @@ static void print_summary(const struct tally *t, const struct run *u)
                k->cases ? k->wiener_sum / k->cases : NAN);
     }
     if (!u->tune) return;
-    printf("\nrule setting noise_to_contrast: cases within %.1fx of the best, worst ratio, over "
-           "all rasters (the first row is the default)\n", OK_RATIO);
+    printf("\nrule settings noise_to_contrast, noise_weight (0: no step 3): cases within %.1fx "
+           "of the best, worst ratio, over all rasters (the first row is the default)\n",
+           OK_RATIO);
     for (int i = 0; i < u->n_rules; i++)
-        printf("  %.2f  %3d/%-3d %8.2f\n", u->rules[i].noise_to_contrast, all.s[N_FIXED + i].ok,
-               all.cases, all.s[N_FIXED + i].worst);
+        printf("  %.2f %.1f  %3d/%-3d %8.2f\n", u->rules[i].noise_to_contrast,
+               u->rules[i].noise_weight, all.s[N_FIXED + i].ok, all.cases,
+               all.s[N_FIXED + i].worst);
 }
 
 int main(int argc, char **argv)
