@@ -98,7 +98,7 @@ static int parse(int argc, char **argv, struct run *u)
         for (size_t a = 0; a < sizeof f / sizeof f[0]; a++)
             for (size_t b = 0; b < sizeof w / sizeof w[0]; b++)
                 if ((f[a] == 0.25 || w[b] == 2 || w[b] == 0) && u->n_rules < FID_MAX_RULES)
-                    u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a], w[b], 1.5};
+                    u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a], w[b], 1.5, w[b] > 0 ? 2 : 0, 0.5};
     }
     return 0;
 }

@@ -8,7 +8,8 @@
 fit_recommend_opts_t fit_recommend_opts_default(void)
 {
     return (fit_recommend_opts_t){.noise_to_contrast = 0.25, .noise_weight = 2,
-                                  .coarse_misfit = 1.5};
+                                  .coarse_misfit = 1.5,
+                                  .escape_misfit = 2, .escape_noise_to_contrast = 0.5};
 }
 
 void fit_map_noise_contrast(const fit_result_t *f, double *noise, double *contrast)
@@ -110,6 +111,20 @@ static int refine(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double s
     return r_best;
 }
 
+/* Step 4 (recommend.h): r_cv + 1 when r_cv misfits the points beyond their scatter and r_cv + 1
+ * does not, fits them better, and is not noise-dominated. */
+static int escape_misfit(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double scale,
+                         int r_cv)
+{
+    if (o->escape_misfit <= 0 || r_cv + 1 > sw->r_max) return 0;
+    const fit_result_t *f0 = &sw->fits[r_cv - sw->r_min], *f1 = f0 + 1;
+    double lim = o->escape_misfit * scale * scale;
+    fit_recommend_opts_t relaxed = *o;
+    relaxed.noise_to_contrast = o->escape_noise_to_contrast;
+    return f0->chi2_red > lim && f1->chi2_red <= lim && f1->chi2 <= f0->chi2 &&
+           admissible(f1, &relaxed, scale);
+}
+
 void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                    fit_recommendation_t *out)
 {
@@ -135,11 +150,20 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
     }
     double err;
     out->r = refine(sw, &o, scale, r_cv, &err);
+    int escaped = out->r == r_cv && escape_misfit(sw, &o, scale, r_cv);
+    if (escaped) out->r = r_cv + 1;
     const fit_result_t *f = &sw->fits[out->r - sw->r_min];
     double noise, contrast, res;
     fit_map_noise_contrast(f, &noise, &contrast);
     int n;
-    if (out->r == r_cv)
+    if (escaped)
+        n = snprintf(out->reason, sizeof out->reason,
+                     "r = %d: r = %d, the best leave-one-out predictor among maps with noise "
+                     "at most %g of contrast, misfits the points (reduced chi2 %.3g, scatter "
+                     "%.3g); r = %d fits them, noise %.2g against contrast %.2g",
+                     out->r, r_cv, o.noise_to_contrast, sw->fits[r_cv - sw->r_min].chi2_red,
+                     scale * scale, out->r, noise * scale, contrast);
+    else if (out->r == r_cv)
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d predicts left-out spot positions best (leave-one-out chi2/N %.3g) "
                      "among the maps whose noise is at most %g of their contrast (here %.2g "
