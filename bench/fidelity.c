@@ -57,6 +57,7 @@ enum { RULE_AIC, RULE_BIC, RULE_CV, RULE_REC, N_FIXED };
 struct tally {
     int cases;
     struct score s[N_FIXED + FID_MAX_RULES];
+    struct score fixed[FID_R_MAX + 1]; /* fixed[r]: always r */
     double wiener_sum, best_sum;
 };
 
@@ -91,10 +92,14 @@ static int parse(int argc, char **argv, struct run *u)
     if (u->quick) u->seeds = 1;
     u->rules[0] = fit_recommend_opts_default();
     u->n_rules = 1;
-    if (u->tune) { /* a grid around the default; rules[0], the default, stays first */
-        static const double f[] = {0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.5, 1.0};
+    if (u->tune) { /* a grid around the default; rules[0], the default, stays first; weight 0
+                      is the rule without its step 3 (the leave-one-out pick alone) */
+        static const double f[] = {0.15, 0.2, 0.25, 0.3, 0.35, 0.5};
+        static const double w[] = {0, 1, 1.5, 2, 3};
         for (size_t a = 0; a < sizeof f / sizeof f[0]; a++)
-            u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a]};
+            for (size_t b = 0; b < sizeof w / sizeof w[0]; b++)
+                if ((f[a] == 0.25 || w[b] == 2 || w[b] == 0) && u->n_rules < FID_MAX_RULES)
+                    u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a], w[b], 1.5, w[b] > 0 ? 2 : 0, 0.5};
     }
     return 0;
 }
@@ -119,48 +124,81 @@ static void tally_case(struct tally *k, const fid_result_t *f, int n_rules)
     score_add(&k->s[RULE_CV], ratio(f, f->r_cv));
     score_add(&k->s[RULE_REC], ratio(f, f->r_rec[0]));
     for (int i = 0; i < n_rules; i++) score_add(&k->s[N_FIXED + i], ratio(f, f->r_rec[i]));
+    for (int r = 1; r <= f->r_max; r++)
+        score_add(&k->fixed[r], isfinite(f->rms[r]) ? ratio(f, r) : INFINITY);
     k->best_sum += f->r_best ? f->rms[f->r_best] : 0;
     k->wiener_sum += isfinite(f->rms_wiener) ? f->rms_wiener : 0;
 }
 
-static void print_summary(const struct tally *t, const struct run *u)
+/* Adds tally k into sum. */
+static void tally_sum(struct tally *sum, const struct tally *k)
 {
-    printf("\nsummary per raster: picks within %.1fx of the best r in hindsight (cases ok / all) "
-           "and the worst ratio; mean rms of the best map and of Wiener\n", OK_RATIO);
-    printf("%-12s %5s | %14s | %14s | %14s | %14s | %8s %8s\n", "raster", "cases", "AIC", "BIC",
-           "LOO-CV", "recommended", "best", "Wiener");
-    struct tally all = {0};
-    for (size_t ri = 0; ri <= N_RASTERS; ri++) {
-        const struct tally *k = ri < N_RASTERS ? &t[ri] : &all;
-        if (ri < N_RASTERS) {
-            all.cases += k->cases;
-            all.best_sum += k->best_sum;
-            all.wiener_sum += k->wiener_sum;
-            for (int i = 0; i < N_FIXED + FID_MAX_RULES; i++) {
-                all.s[i].ok += k->s[i].ok;
-                all.s[i].worst = fmax(all.s[i].worst, k->s[i].worst);
-            }
-        }
-        printf("%-12s %5d |", ri < N_RASTERS ? rasters[ri].name : "all", k->cases);
-        for (int i = 0; i < N_FIXED; i++)
-            printf(" %3d/%-3d %6.2f |", k->s[i].ok, k->cases, k->s[i].worst);
-        printf(" %8.4f %8.4f\n", k->cases ? k->best_sum / k->cases : NAN,
-               k->cases ? k->wiener_sum / k->cases : NAN);
+    sum->cases += k->cases;
+    sum->best_sum += k->best_sum;
+    sum->wiener_sum += k->wiener_sum;
+    for (int i = 0; i < N_FIXED + FID_MAX_RULES; i++) {
+        sum->s[i].ok += k->s[i].ok;
+        sum->s[i].worst = fmax(sum->s[i].worst, k->s[i].worst);
     }
+    for (int r = 0; r <= FID_R_MAX; r++) {
+        sum->fixed[r].ok += k->fixed[r].ok;
+        sum->fixed[r].worst = fmax(sum->fixed[r].worst, k->fixed[r].worst);
+    }
+}
+
+/* One row: the rules, the best fixed r (most cases within OK_RATIO, then the smallest worst
+ * ratio), the mean rms of the best map and of Wiener. */
+static void print_row(const char *name, const struct tally *k, int r_max)
+{
+    int rf = 1;
+    for (int r = 2; r <= r_max; r++)
+        if (k->fixed[r].ok > k->fixed[rf].ok ||
+            (k->fixed[r].ok == k->fixed[rf].ok && k->fixed[r].worst < k->fixed[rf].worst))
+            rf = r;
+    printf("%-12s %5d |", name, k->cases);
+    for (int i = 0; i < N_FIXED; i++) printf(" %3d/%-3d %6.2f |", k->s[i].ok, k->cases, k->s[i].worst);
+    printf(" r=%-2d %3d/%-3d %7.2f |", rf, k->fixed[rf].ok, k->cases, k->fixed[rf].worst);
+    printf(" %8.4f %8.4f\n", k->cases ? k->best_sum / k->cases : NAN,
+           k->cases ? k->wiener_sum / k->cases : NAN);
+}
+
+static void print_header(const char *what)
+{
+    printf("%-12s %5s | %14s | %14s | %14s | %14s | %19s | %8s %8s\n", what, "cases", "AIC",
+           "BIC", "LOO-CV", "recommended", "best fixed r", "best", "Wiener");
+}
+
+static void print_summary(const struct tally *t, const struct tally *ts, const struct run *u)
+{
+    printf("\nsummary: picks within %.1fx of the best r in hindsight (cases ok / all) and the "
+           "worst ratio; mean rms of the best map and of Wiener\n", OK_RATIO);
+    print_header("raster");
+    struct tally all = {0};
+    for (size_t ri = 0; ri < N_RASTERS; ri++) {
+        tally_sum(&all, &t[ri]);
+        print_row(rasters[ri].name, &t[ri], u->r_max);
+    }
+    print_row("all", &all, u->r_max);
+    printf("\n");
+    print_header("scene");
+    for (size_t si = 0; si < N_SCENES; si++) print_row(scenes[si], &ts[si], u->r_max);
     if (!u->tune) return;
-    printf("\nrule setting noise_to_contrast: cases within %.1fx of the best, worst ratio, over "
-           "all rasters (the first row is the default)\n", OK_RATIO);
+    printf("\nrule settings noise_to_contrast, noise_weight (0: steps 1-2 only): cases within "
+           "%.1fx of the best, worst ratio, over all rasters (the first row is the default)\n",
+           OK_RATIO);
     for (int i = 0; i < u->n_rules; i++)
-        printf("  %.2f  %3d/%-3d %8.2f\n", u->rules[i].noise_to_contrast, all.s[N_FIXED + i].ok,
-               all.cases, all.s[N_FIXED + i].worst);
+        printf("  %.2f %.1f  %3d/%-3d %8.2f\n", u->rules[i].noise_to_contrast,
+               u->rules[i].noise_weight, all.s[N_FIXED + i].ok, all.cases,
+               all.s[N_FIXED + i].worst);
 }
 
 int main(int argc, char **argv)
 {
     struct run u;
     if (parse(argc, argv, &u)) return 2;
-    struct tally t[N_RASTERS];
+    struct tally t[N_RASTERS], ts[N_SCENES];
     memset(t, 0, sizeof t);
+    memset(ts, 0, sizeof ts);
     double t0 = clock_mono_s();
     printf("map rms error against the simulator's truth (mean-1 maps, 240 x 240 samples)\n");
     printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s %3s | %7s %7s %7s %7s | %7s | rms by r = "
@@ -184,8 +222,12 @@ int main(int argc, char **argv)
                     }
                     print_case(&c, rasters[ri].name, &f, u.r_max);
                     tally_case(&t[ri], &f, u.n_rules);
+                    tally_case(&ts[si], &f, u.n_rules);
+                    if (ratio(&f, f.r_rec[0]) > OK_RATIO)
+                        printf("  ^ recommended r = %d is %.2fx the best r = %d\n", f.r_rec[0],
+                               ratio(&f, f.r_rec[0]), f.r_best);
                 }
-    print_summary(t, &u);
+    print_summary(t, ts, &u);
     printf("\ntotal %.1f s\n", clock_mono_s() - t0);
     return 0;
 }

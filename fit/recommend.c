@@ -7,7 +7,9 @@
 
 fit_recommend_opts_t fit_recommend_opts_default(void)
 {
-    return (fit_recommend_opts_t){.noise_to_contrast = 0.25};
+    return (fit_recommend_opts_t){.noise_to_contrast = 0.25, .noise_weight = 2,
+                                  .coarse_misfit = 1.5,
+                                  .escape_misfit = 2, .escape_noise_to_contrast = 0.5};
 }
 
 void fit_map_noise_contrast(const fit_result_t *f, double *noise, double *contrast)
@@ -21,6 +23,30 @@ void fit_map_noise_contrast(const fit_result_t *f, double *noise, double *contra
     for (size_t j = 0; j < m; j++) c += (f->S[j] - mean) * (f->S[j] - mean);
     *noise = sqrt(v / (double)m);
     *contrast = sqrt(c / (double)m);
+}
+
+double fit_map_expected_error(const fit_result_t *f, double noise_scale, double noise_weight,
+                              double *noise, double *resolution)
+{
+    if (noise) *noise = NAN;
+    if (resolution) *resolution = NAN;
+    if (!f->S || !f->S_err || f->r < 2) return NAN;
+    int r = f->r;
+    double v = 0, dx = 0, dy = 0;
+    for (int j = 0; j < r; j++)
+        for (int i = 0; i < r; i++) {
+            double s = f->S[j * r + i];
+            v += f->S_err[j * r + i] * f->S_err[j * r + i];
+            if (i + 1 < r) dx += (f->S[j * r + i + 1] - s) * (f->S[j * r + i + 1] - s);
+            if (j + 1 < r) dy += (f->S[(j + 1) * r + i] - s) * (f->S[(j + 1) * r + i] - s);
+        }
+    double n2 = v / ((double)r * r) * noise_scale * noise_scale, pairs = (double)r * (r - 1);
+    /* within-sub-pixel variance of a linear truth: d^2 / 12 per axis (uniform over the width);
+     * E[d_measured^2] = d^2 + 2 noise^2 per axis, so 4 noise^2 come off the sum of the two */
+    double res2 = fmax((dx / pairs + dy / pairs - 4 * n2) / 12, 0);
+    if (noise) *noise = sqrt(n2);
+    if (resolution) *resolution = sqrt(res2);
+    return sqrt(noise_weight * n2 + res2);
 }
 
 /* The flags that make a map untrustworthy as it is (model.h). */
@@ -63,6 +89,42 @@ static int largest_determined(const fit_sweep_t *sw)
     return r_det;
 }
 
+/* Step 3 (recommend.h): r_cv against r_cv - 1 and r_cv + 1 by the expected error. */
+static int refine(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double scale, int r_cv,
+                  double *err_best)
+{
+    const fit_result_t *f0 = &sw->fits[r_cv - sw->r_min];
+    int r_best = r_cv;
+    *err_best = fit_map_expected_error(f0, scale, o->noise_weight, NULL, NULL);
+    if (o->noise_weight <= 0 || !isfinite(*err_best)) return r_cv;
+    for (int r = r_cv - 1; r <= r_cv + 1; r += 2) {
+        if (r < 2 || r < sw->r_min || r > sw->r_max) continue;
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        if (!admissible(f, o, scale)) continue;
+        if (r > r_cv && !(f->chi2 <= f0->chi2)) continue; /* misaligned with what r_cv resolves */
+        /* too coarse: misfits the points beyond their own scatter (the noise model's absolute
+         * sigma, hence FIT_POOR_FIT, is off by sqrt(G) under the paper's model) */
+        if (r < r_cv && !(f->chi2_red <= o->coarse_misfit * scale * scale)) continue;
+        double e = fit_map_expected_error(f, scale, o->noise_weight, NULL, NULL);
+        if (e < *err_best) *err_best = e, r_best = r;
+    }
+    return r_best;
+}
+
+/* Step 4 (recommend.h): r_cv + 1 when r_cv misfits the points beyond their scatter and r_cv + 1
+ * does not, fits them better, and is not noise-dominated. */
+static int escape_misfit(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double scale,
+                         int r_cv)
+{
+    if (o->escape_misfit <= 0 || r_cv + 1 > sw->r_max) return 0;
+    const fit_result_t *f0 = &sw->fits[r_cv - sw->r_min], *f1 = f0 + 1;
+    double lim = o->escape_misfit * scale * scale;
+    fit_recommend_opts_t relaxed = *o;
+    relaxed.noise_to_contrast = o->escape_noise_to_contrast;
+    return f0->chi2_red > lim && f1->chi2_red <= lim && f1->chi2 <= f0->chi2 &&
+           admissible(f1, &relaxed, scale);
+}
+
 void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                    fit_recommendation_t *out)
 {
@@ -86,16 +148,37 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                  sw->r_min, sw->r_max);
         return;
     }
-    out->r = r_cv;
+    double err;
+    out->r = refine(sw, &o, scale, r_cv, &err);
+    int escaped = out->r == r_cv && escape_misfit(sw, &o, scale, r_cv);
+    if (escaped) out->r = r_cv + 1;
     const fit_result_t *f = &sw->fits[out->r - sw->r_min];
-    double noise, contrast;
+    double noise, contrast, res;
     fit_map_noise_contrast(f, &noise, &contrast);
-    int n = snprintf(out->reason, sizeof out->reason,
+    int n;
+    if (escaped)
+        n = snprintf(out->reason, sizeof out->reason,
+                     "r = %d: r = %d, the best leave-one-out predictor among maps with noise "
+                     "at most %g of contrast, misfits the points (reduced chi2 %.3g, scatter "
+                     "%.3g); r = %d fits them, noise %.2g against contrast %.2g",
+                     out->r, r_cv, o.noise_to_contrast, sw->fits[r_cv - sw->r_min].chi2_red,
+                     scale * scale, out->r, noise * scale, contrast);
+    else if (out->r == r_cv)
+        n = snprintf(out->reason, sizeof out->reason,
                      "r = %d predicts left-out spot positions best (leave-one-out chi2/N %.3g) "
                      "among the maps whose noise is at most %g of their contrast (here %.2g "
                      "against %.2g)",
                      out->r, f->cv_chi2 / (double)f->n_used, o.noise_to_contrast, noise * scale,
                      contrast);
+    else {
+        fit_map_expected_error(f, scale, o.noise_weight, &noise, &res);
+        n = snprintf(out->reason, sizeof out->reason,
+                     "r = %d has the smallest expected map error (noise %.2g, sub-pixel "
+                     "resolution %.2g) of r = %d, which predicts left-out spot positions best "
+                     "among the maps whose noise is at most %g of their contrast, and its "
+                     "neighbours",
+                     out->r, noise, res, r_cv, o.noise_to_contrast);
+    }
     if (first_bad && n > 0 && (size_t)n < sizeof out->reason)
         snprintf(out->reason + n, sizeof out->reason - (size_t)n,
                  "; r = %d is the first whose map is noise-dominated or flagged", first_bad);

@@ -4,7 +4,8 @@
  * of fit/box.c, not the design matrix, and sigma from eq. 5 written out here); range_edge against
  * the argmin of the published AIC / BIC of tests/data/paperlike_scan.json; the admissibility rule
  * on maps built by hand (a map whose noise exceeds a quarter of its contrast is never recommended,
- * r = 1 always may be, flagged fits never). */
+ * r = 1 always may be, flagged fits never); the expected map error of step 3 against the analytic
+ * within-sub-pixel variance of a linear truth, and step 3 on a tilt built by hand. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -151,6 +152,76 @@ static void test_rule(void)
     CHECK(rec.r == 0 && strstr(rec.reason, "no fit"));
 }
 
+/* The expected error's resolution part against the analytic within-sub-pixel variance of a
+ * linear truth 1 + g (x/p - 1/2): a sub-pixel of width p/r sees it vary by g/r, uniformly, so
+ * its variance is (g/r)^2 / 12; a noiseless r x r map of its sub-pixel means has exactly that. */
+static void test_expected_error(void)
+{
+    const double g = 0.2;
+    for (int r = 2; r <= 6; r++) {
+        double S[36], E[36] = {0};
+        for (int j = 0; j < r; j++)
+            for (int i = 0; i < r; i++) S[j * r + i] = 1 + g * ((i + 0.5) / r - 0.5);
+        fit_result_t f = {.r = r, .S = S, .S_err = E};
+        double noise, res;
+        double e = fit_map_expected_error(&f, 1, 2, &noise, &res);
+        /* dy = 0: the mean of dx^2 + dy^2 is (g/r)^2, and the resolution error is its 1/12 */
+        CHECK_NEAR(res, sqrt((g / r) * (g / r) / 12 / 1), 1e-12, 0);
+        CHECK(noise == 0);
+        CHECK_NEAR(e, res, 1e-15, 0);
+        /* noise: rms 0.01 scaled by 2 counts 0.02, twice in the sum of squares */
+        for (int k = 0; k < r * r; k++) E[k] = 0.01;
+        e = fit_map_expected_error(&f, 2, 2, &noise, &res);
+        CHECK_NEAR(noise, 0.02, 1e-12, 0);
+        /* at r = 5 the two cancel: the square root of a rounding error, hence the absolute 1e-9 */
+        CHECK_NEAR(res, sqrt(fmax(((g / r) * (g / r) - 4 * 0.02 * 0.02) / 12, 0)), 1e-12, 1e-9);
+        CHECK_NEAR(e, sqrt(2 * 0.02 * 0.02 + res * res), 1e-12, 0);
+    }
+    double one = 1, zero = 0;
+    fit_result_t f1 = {.r = 1, .S = &one, .S_err = &zero};
+    CHECK(isnan(fit_map_expected_error(&f1, 1, 2, NULL, NULL)));
+}
+
+/* Step 3 on a sweep built by hand: a linear tilt seen at r = 2, 3, 4 without noise. r = 2
+ * predicts left-out points best, but r = 3 fits the points as well and resolves the tilt better
+ * (resolution error g/(3 sqrt 12) against g/(2 sqrt 12)); r = 4 is not r_cv's neighbour. With
+ * r = 3 fitting worse than r = 2 (misaligned), r = 2 stays. */
+static void test_refine(void)
+{
+    const double g = 0.2;
+    fit_result_t f[4];
+    double S[4][16], E[4][16], one = 1, zero = 0;
+    memset(f, 0, sizeof f);
+    memset(E, 0, sizeof E);
+    for (int k = 0; k < 4; k++) {
+        int r = k + 1;
+        f[k].r = r;
+        f[k].params = r * r + 1;
+        f[k].n_used = 100;
+        f[k].chi2 = 100, f[k].chi2_red = 100.0 / (100 - f[k].params);
+        f[k].cv_chi2 = k == 1 ? 200 : 300;
+        f[k].S = S[k], f[k].S_err = E[k];
+        for (int j = 0; j < r; j++)
+            for (int i = 0; i < r; i++) S[k][j * r + i] = 1 + g * ((i + 0.5) / r - 0.5);
+    }
+    f[0].S = &one, f[0].S_err = &zero;
+    fit_sweep_t sw = {.r_min = 1, .r_max = 4, .fits = f};
+    fit_recommendation_t rec;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 3);
+    CHECK(strstr(rec.reason, "expected map error") != NULL);
+    f[2].chi2 = 150;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 2);
+    /* without step 3 (noise_weight 0) the leave-one-out pick stands */
+    f[2].chi2 = 100;
+    fit_recommend_opts_t o = fit_recommend_opts_default();
+    o.noise_weight = 0;
+    o.escape_misfit = 0;
+    fit_recommend(&sw, &o, &rec);
+    CHECK(rec.r == 2);
+}
+
 int main(void)
 {
     ref_scan_t ref;
@@ -158,6 +229,8 @@ int main(void)
     test_loo(&ref);
     test_range_edge(&ref);
     test_rule();
+    test_expected_error();
+    test_refine();
     ref_scan_free(&ref);
     CHECK_DONE();
 }
