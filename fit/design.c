@@ -150,6 +150,43 @@ static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, doub
     if (wp) *wp = g->cp + radial_clenshaw(g->Cp, m, t);
 }
 
+/* One target of a sweep: E = s, the node's place in the wedge arrays, what it needs (need[]). */
+struct target {
+    double s;
+    size_t at;
+    unsigned char need;
+};
+
+/* sweep_eval's Q part for four targets at once: the four Clenshaw recurrences are independent,
+ * so interleaving them hides the latency of each step's dependent multiply-add (the recurrence
+ * is the hot loop of the whole matrix); each lane does exactly sweep_eval's arithmetic. */
+static void sweep_eval4(const struct sweep *sw, int m, const struct target *tg, double *wq)
+{
+    const double *c[4];
+    double t[4], t2[4], base[4], b1[4] = {0, 0, 0, 0}, b2[4] = {0, 0, 0, 0};
+    for (int l = 0; l < 4; l++) {
+        double s = tg[l].s;
+        const struct segment *g = sw->seg;
+        for (int len = sw->nseg; len > 1;) {
+            int half = len / 2;
+            g = g[half].sa <= s ? g + half : g;
+            len -= half;
+        }
+        double h = 0.5 * (g->sb - g->sa), tt = h > 0 ? (s - 0.5 * (g->sa + g->sb)) / h : 1.0;
+        t[l] = tt > 1 ? 1 : tt;
+        t2[l] = 2 * t[l];
+        c[l] = g->Cq;
+        base[l] = g->cq;
+    }
+    for (int k = m; k >= 1; k--)
+        for (int l = 0; l < 4; l++) {
+            double b0 = t2[l] * b1[l] + (c[l][k] - b2[l]);
+            b2[l] = b1[l];
+            b1[l] = b0;
+        }
+    for (int l = 0; l < 4; l++) wq[tg[l].at] = base[l] + (t[l] * b1[l] + (c[l][0] - b2[l]));
+}
+
 /* ---- the design matrix ---- */
 
 struct line_pair {
@@ -172,6 +209,8 @@ struct work {
     double *wq[2], *wp[2];    /* [k][node]: wedge values of the vertical [0] and horizontal [1] lines */
     unsigned char *need, *skip; /* [k][node] wedges needed (1: Q, 2: Q and P), [k][cell] left out */
     double *gs;               /* [node]: signed node values of the row being assembled */
+    struct target *tg;        /* the targets of one sweep */
+    size_t tg_cap;
     struct line_pair *pairs;
     struct sweep sw;
 };
@@ -244,33 +283,39 @@ static int direction_pass(const struct cheb *ch, const fit_design_opts_t *o, str
         int g1 = g0;
         while (g1 < np && wk->pairs[g1].w == wk->pairs[g0].w) g1++;
         double w = wk->pairs[g0].w, smax = 0;
-        for (int pass = 0; pass < 2; pass++) {
-            for (int q = g0; q < g1; q++) {
-                int k = wk->pairs[q].k, l = wk->pairs[q].l;
-                const unsigned char *need = wk->need + (size_t)k * n1 * n1;
-                double dist = fabs(wk->e[l] - across[k]);
-                for (int m = 0; m < n1; m++) {
-                    int node = dir ? l * n1 + m : m * n1 + l;
-                    double other = fabs(wk->e[m] - along[k]);
-                    if (!need[node] || wk->a * other < FIT_CORNER_TINY) continue;
-                    double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
-                    if (pass == 0) {
-                        if (s > smax) smax = s;
-                    } else {
-                        size_t at = (size_t)k * n1 * n1 + (size_t)node;
-                        sweep_eval(&wk->sw, ch->m, s, &wk->wq[dir][at],
-                                   need[node] == 2 ? &wk->wp[dir][at] : NULL);
-                    }
-                }
+        size_t nt = 0;
+        for (int q = g0; q < g1; q++) { /* the targets of this line distance */
+            int k = wk->pairs[q].k, l = wk->pairs[q].l;
+            const unsigned char *need = wk->need + (size_t)k * n1 * n1;
+            double dist = fabs(wk->e[l] - across[k]);
+            if (nt + (size_t)n1 > wk->tg_cap) {
+                size_t cap = 2 * (nt + (size_t)n1);
+                struct target *t = realloc(wk->tg, sizeof *t * cap);
+                if (!t) return -ENOMEM;
+                wk->tg = t;
+                wk->tg_cap = cap;
             }
-            if (pass == 0) {
-                if (smax <= 1) break;
-                size_t ev = sweep_build(ch, o, w, smax, &wk->sw);
-                if (ev == (size_t)-1) return -ENOMEM;
-                *evals += ev;
+            for (int m = 0; m < n1; m++) {
+                int node = dir ? l * n1 + m : m * n1 + l;
+                double other = fabs(wk->e[m] - along[k]);
+                if (!need[node] || wk->a * other < FIT_CORNER_TINY) continue;
+                double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
+                if (s > smax) smax = s;
+                wk->tg[nt++] = (struct target){s, (size_t)k * n1 * n1 + (size_t)node, need[node]};
             }
         }
         g0 = g1;
+        if (smax <= 1) continue; /* no targets */
+        size_t ev = sweep_build(ch, o, w, smax, &wk->sw);
+        if (ev == (size_t)-1) return -ENOMEM;
+        *evals += ev;
+        size_t t = 0;
+        for (; t + 4 <= nt; t += 4) sweep_eval4(&wk->sw, ch->m, wk->tg + t, wk->wq[dir]);
+        for (; t < nt; t++) sweep_eval(&wk->sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at], NULL);
+        for (t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot (rare) */
+            if (wk->tg[t].need == 2)
+                sweep_eval(&wk->sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at],
+                           &wk->wp[dir][wk->tg[t].at]);
     }
     return 0;
 }
@@ -415,5 +460,6 @@ out:
     free(wk.wq[0]);
     free(wk.need);
     free(wk.pairs);
+    free(wk.tg);
     return rc;
 }
