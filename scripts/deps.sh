@@ -12,7 +12,7 @@ IPSD_PACKAGES=(
     libmicrohttpd-dev                       # api/
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
     curl wrk python3                        # HTTP tests, load benchmark, test scripts
-    python3-numpy                           # bench/numpy_peer.py (the NumPy peer of the fit)
+    python3-numpy python3-scipy             # bench/numpy_peer.py (the NumPy peer of the fit)
     chromium                                # the dashboard's browser test (headless)
     clang                                   # scripts/build-matrix.sh's second compiler
 )
