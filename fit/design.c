@@ -138,17 +138,53 @@ static size_t sweep_build(const struct cheb *ch, const fit_design_opts_t *o, dou
 /* Prefix integrals of Q (and of P when wp is not NULL) up to E = s (1 <= s <= the sweep's end). */
 static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, double *wp)
 {
-    int lo = 0, hi = sw->nseg - 1;
-    while (lo < hi) { /* the segment with sa <= s < sb */
-        int mid = (lo + hi + 1) / 2;
-        if (sw->seg[mid].sa <= s) lo = mid;
-        else hi = mid - 1;
+    const struct segment *g = sw->seg; /* the last segment with sa <= s: branch-free halving */
+    for (int len = sw->nseg; len > 1;) {
+        int half = len / 2;
+        g = g[half].sa <= s ? g + half : g;
+        len -= half;
     }
-    const struct segment *g = &sw->seg[lo];
     double h = 0.5 * (g->sb - g->sa), t = h > 0 ? (s - 0.5 * (g->sa + g->sb)) / h : 1.0;
     if (t > 1) t = 1;
     *wq = g->cq + radial_clenshaw(g->Cq, m, t);
     if (wp) *wp = g->cp + radial_clenshaw(g->Cp, m, t);
+}
+
+/* One target of a sweep: E = s, the node's place in the wedge arrays, what it needs (need[]). */
+struct target {
+    double s;
+    size_t at;
+    unsigned char need;
+};
+
+/* sweep_eval's Q part for four targets at once: the four Clenshaw recurrences are independent,
+ * so interleaving them hides the latency of each step's dependent multiply-add (the recurrence
+ * is the hot loop of the whole matrix); each lane does exactly sweep_eval's arithmetic. */
+static void sweep_eval4(const struct sweep *sw, int m, const struct target *tg, double *wq)
+{
+    const double *c[4];
+    double t[4], t2[4], base[4], b1[4] = {0, 0, 0, 0}, b2[4] = {0, 0, 0, 0};
+    for (int l = 0; l < 4; l++) {
+        double s = tg[l].s;
+        const struct segment *g = sw->seg;
+        for (int len = sw->nseg; len > 1;) {
+            int half = len / 2;
+            g = g[half].sa <= s ? g + half : g;
+            len -= half;
+        }
+        double h = 0.5 * (g->sb - g->sa), tt = h > 0 ? (s - 0.5 * (g->sa + g->sb)) / h : 1.0;
+        t[l] = tt > 1 ? 1 : tt;
+        t2[l] = 2 * t[l];
+        c[l] = g->Cq;
+        base[l] = g->cq;
+    }
+    for (int k = m; k >= 1; k--)
+        for (int l = 0; l < 4; l++) {
+            double b0 = t2[l] * b1[l] + (c[l][k] - b2[l]);
+            b2[l] = b1[l];
+            b1[l] = b0;
+        }
+    for (int l = 0; l < 4; l++) wq[tg[l].at] = base[l] + (t[l] * b1[l] + (c[l][0] - b2[l]));
 }
 
 /* ---- the design matrix ---- */
@@ -168,12 +204,30 @@ struct work {
     int r, n1;
     const double *e;
     double a;
+    double near2;             /* cells nearer than sqrt(near2) to the spot are never left out */
     const double *x, *y;      /* spot positions of the batch */
     double *wq[2], *wp[2];    /* [k][node]: wedge values of the vertical [0] and horizontal [1] lines */
     unsigned char *need, *skip; /* [k][node] wedges needed (1: Q, 2: Q and P), [k][cell] left out */
+    double *gs;               /* [node]: signed node values of the row being assembled */
+    struct target *tg;        /* the targets of one sweep */
+    size_t tg_cap;
     struct line_pair *pairs;
     struct sweep sw;
 };
+
+/* The squared distance below which no cell's leave-out bound (its area times the envelope
+ * 2.4701 v^(-8/3) at its nearest point, airy.h) can be below the limit: the envelope is
+ * non-increasing, so every cell (the smallest of area A) is kept while 2.4701 (a d)^(-8/3) A >= limit,
+ * i.e. d <= (2.4701 A / limit)^(3/8) / a; 0.999 of that guards the rounding of pow(). */
+static double near_distance2(const fit_design_opts_t *o, double a, const double *e, int r)
+{
+    double limit = o->skip_tol * fit_airy_total(a), area = INFINITY;
+    for (int i = 0; i < r; i++)
+        for (int j = 0; j < r; j++) area = fmin(area, (e[i + 1] - e[i]) * (e[j + 1] - e[j]));
+    if (!(limit > 0) || area * 0.5 < limit) return 0; /* the cap at 1 could matter: no shortcut */
+    double d = 0.999 * pow(2.4701 * area / limit, 3.0 / 8.0) / a;
+    return d * d;
+}
 
 /* Marks, for spot k of the batch, the cells left out and the nodes needed. */
 static void mark_cells(const fit_design_opts_t *o, struct work *wk, int k, fit_design_stats_t *st)
@@ -191,8 +245,11 @@ static void mark_cells(const fit_design_opts_t *o, struct work *wk, int k, fit_d
                 double dy = e[j] - yk > yk - e[j + 1] ? e[j] - yk : yk - e[j + 1];
                 dx = dx > 0 ? dx : 0;
                 dy = dy > 0 ? dy : 0;
-                double bound = (e[i + 1] - e[i]) * (e[j + 1] - e[j]) *
-                               fit_airy_envelope(wk->a, hypot(dx, dy));
+                /* nearer than near2, the bound cannot be below the limit: no pow() */
+                double bound = dx * dx + dy * dy < wk->near2
+                                   ? limit
+                                   : (e[i + 1] - e[i]) * (e[j + 1] - e[j]) *
+                                         fit_airy_envelope(wk->a, hypot(dx, dy));
                 if (bound < limit) {
                     left_out = 1;
                     st->skipped++;
@@ -226,45 +283,67 @@ static int direction_pass(const struct cheb *ch, const fit_design_opts_t *o, str
         int g1 = g0;
         while (g1 < np && wk->pairs[g1].w == wk->pairs[g0].w) g1++;
         double w = wk->pairs[g0].w, smax = 0;
-        for (int pass = 0; pass < 2; pass++) {
-            for (int q = g0; q < g1; q++) {
-                int k = wk->pairs[q].k, l = wk->pairs[q].l;
-                const unsigned char *need = wk->need + (size_t)k * n1 * n1;
-                double dist = fabs(wk->e[l] - across[k]);
-                for (int m = 0; m < n1; m++) {
-                    int node = dir ? l * n1 + m : m * n1 + l;
-                    double other = fabs(wk->e[m] - along[k]);
-                    if (!need[node] || wk->a * other < FIT_CORNER_TINY) continue;
-                    double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
-                    if (pass == 0) {
-                        if (s > smax) smax = s;
-                    } else {
-                        size_t at = (size_t)k * n1 * n1 + (size_t)node;
-                        sweep_eval(&wk->sw, ch->m, s, &wk->wq[dir][at],
-                                   need[node] == 2 ? &wk->wp[dir][at] : NULL);
-                    }
-                }
+        size_t nt = 0;
+        for (int q = g0; q < g1; q++) { /* the targets of this line distance */
+            int k = wk->pairs[q].k, l = wk->pairs[q].l;
+            const unsigned char *need = wk->need + (size_t)k * n1 * n1;
+            double dist = fabs(wk->e[l] - across[k]);
+            if (nt + (size_t)n1 > wk->tg_cap) {
+                size_t cap = 2 * (nt + (size_t)n1);
+                struct target *t = realloc(wk->tg, sizeof *t * cap);
+                if (!t) return -ENOMEM;
+                wk->tg = t;
+                wk->tg_cap = cap;
             }
-            if (pass == 0) {
-                if (smax <= 1) break;
-                size_t ev = sweep_build(ch, o, w, smax, &wk->sw);
-                if (ev == (size_t)-1) return -ENOMEM;
-                *evals += ev;
+            for (int m = 0; m < n1; m++) {
+                int node = dir ? l * n1 + m : m * n1 + l;
+                double other = fabs(wk->e[m] - along[k]);
+                if (!need[node] || wk->a * other < FIT_CORNER_TINY) continue;
+                double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
+                if (s > smax) smax = s;
+                wk->tg[nt++] = (struct target){s, (size_t)k * n1 * n1 + (size_t)node, need[node]};
             }
         }
         g0 = g1;
+        if (smax <= 1) continue; /* no targets */
+        size_t ev = sweep_build(ch, o, w, smax, &wk->sw);
+        if (ev == (size_t)-1) return -ENOMEM;
+        *evals += ev;
+        size_t t = 0;
+        for (; t + 4 <= nt; t += 4) sweep_eval4(&wk->sw, ch->m, wk->tg + t, wk->wq[dir]);
+        for (; t < nt; t++) sweep_eval(&wk->sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at], NULL);
+        for (t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot (rare) */
+            if (wk->tg[t].need == 2)
+                sweep_eval(&wk->sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at],
+                           &wk->wp[dir][wk->tg[t].at]);
     }
     return 0;
 }
 
-/* Cells of spot k from its node values, into row (r*r). */
+/* Cells of spot k from its node values, into row (r*r). A cell that does not hold the spot is
+ * minus the signed sum of its corners' G (corner.h), and the sign of a corner is that of its
+ * quadrant, sgn(u) sgn(v), times the corner's place in the cell: so with the signed node values
+ * g = sgn(u) sgn(v) G, computed once per node rather than once per cell corner, the cell is the
+ * mixed second difference -(g[j+1][i+1] - g[j+1][i] - g[j][i+1] + g[j][i]) (added in
+ * corner_combine's order). Cells holding the spot go through corner_combine with F. */
 static void assemble_row(struct work *wk, int k, double *row)
 {
     int r = wk->r, n1 = wk->n1;
     const double *e = wk->e;
-    double xk = wk->x[k], yk = wk->y[k], unit = 2 / (wk->a * wk->a);
+    double xk = wk->x[k], yk = wk->y[k], unit = 2 / (wk->a * wk->a), *g = wk->gs;
     size_t base = (size_t)k * n1 * n1;
-    const unsigned char *skip = wk->skip + (size_t)k * r * r;
+    const unsigned char *skip = wk->skip + (size_t)k * r * r, *need = wk->need + base;
+    for (int j = 0; j < n1; j++) {
+        double v = e[j] - yk;
+        for (int i = 0; i < n1; i++) {
+            double u = e[i] - xk, sg = corner_sgn(u) * corner_sgn(v);
+            size_t node = base + (size_t)j * n1 + (size_t)i;
+            if (!need[j * n1 + i] || sg == 0) g[j * n1 + i] = 0;
+            else if (wk->a * fabs(u) < FIT_CORNER_TINY || wk->a * fabs(v) < FIT_CORNER_TINY)
+                g[j * n1 + i] = sg * (M_PI / 2); /* corner on an axis through the spot */
+            else g[j * n1 + i] = sg * (wk->wq[0][node] + wk->wq[1][node]);
+        }
+    }
     for (int j = 0; j < r; j++)
         for (int i = 0; i < r; i++) {
             if (skip[j * r + i]) {
@@ -272,6 +351,11 @@ static void assemble_row(struct work *wk, int k, double *row)
                 continue;
             }
             double uu[2] = {e[i] - xk, e[i + 1] - xk}, vv[2] = {e[j] - yk, e[j + 1] - yk};
+            if (!(uu[0] <= 0 && uu[1] >= 0 && vv[0] <= 0 && vv[1] >= 0)) {
+                const double *g0 = g + j * n1 + i, *g1 = g0 + n1;
+                row[j * r + i] = unit * (((-g0[0] + g0[1]) + g1[0]) - g1[1]);
+                continue;
+            }
             double fq[2][2], fp[2][2];
             for (int b = 0; b < 2; b++)
                 for (int c = 0; c < 2; c++) {
@@ -293,7 +377,7 @@ static void assemble_row(struct work *wk, int k, double *row)
 static int work_alloc(struct work *wk, size_t batch)
 {
     size_t nodes = (size_t)wk->n1 * wk->n1, cells = (size_t)wk->r * wk->r;
-    double *buf = malloc(sizeof(double) * 4 * nodes * batch);
+    double *buf = malloc(sizeof(double) * (4 * nodes * batch + nodes));
     wk->need = malloc((nodes + cells) * batch);
     wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch);
     wk->wq[0] = buf;
@@ -301,6 +385,7 @@ static int work_alloc(struct work *wk, size_t batch)
     wk->wq[1] = buf + nodes * batch;
     wk->wp[0] = buf + 2 * nodes * batch;
     wk->wp[1] = buf + 3 * nodes * batch;
+    wk->gs = buf + 4 * nodes * batch;
     wk->skip = wk->need + nodes * batch;
     return 0;
 }
@@ -353,6 +438,7 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
     }
     cheb_init(ch, o.order);
     for (int i = 0; i <= r; i++) e[i] = pitch * i / r; /* exact at 0 and at pitch */
+    wk.near2 = near_distance2(&o, wk.a, e, r);
     for (size_t k0 = 0; k0 < n; k0 += batch) {
         int nb = (int)(n - k0 < batch ? n - k0 : batch);
         wk.x = x + k0;
@@ -374,5 +460,6 @@ out:
     free(wk.wq[0]);
     free(wk.need);
     free(wk.pairs);
+    free(wk.tg);
     return rc;
 }

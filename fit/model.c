@@ -177,22 +177,18 @@ static int run_lm(const double *A, const struct points *p, size_t m, const fit_o
 /* Leave-one-out prediction chi2 of a linear least-squares fit, without refitting: with the
  * weighted hat matrix H = W^1/2 A C A^T W^1/2, C = (A^T W A)^-1, the residual of point k when it
  * is left out is e_k / (1 - h_kk) (the PRESS identity), so sum w_k (e_k / (1 - h_kk))^2 is the
- * chi2 of predicting every point from all the others. A point that alone determines a
- * parameter (h_kk -> 1) makes it infinite. */
+ * chi2 of predicting every point from all the others. The leverages h_kk come from the solver
+ * (wls.h: the squared row norms of the thin Q, exact to rounding, not A C A^T, which loses
+ * cond^2 times the rounding). A point that alone determines a parameter (h_kk -> 1) makes it
+ * infinite. */
 static double loo_chi2(const double *A, const struct points *p, size_t m, const double *T,
-                       const double *C)
+                       const double *hat)
 {
     double sum = 0;
     for (size_t k = 0; k < p->n; k++) {
         const double *a = A + k * m;
-        double e = p->d[k], h = 0;
-        for (size_t i = 0; i < m; i++) {
-            double ci = 0;
-            for (size_t j = 0; j < m; j++) ci += C[i * m + j] * a[j];
-            h += a[i] * ci;
-            e -= a[i] * T[i];
-        }
-        h *= p->w[k];
+        double e = p->d[k], h = hat[k];
+        for (size_t i = 0; i < m; i++) e -= a[i] * T[i];
         if (!(h < 1 - 1e-12)) return INFINITY;
         double loo = e / (1 - h);
         sum += p->w[k] * loo * loo;
@@ -206,13 +202,14 @@ static int solve(const double *A, const struct points *p, int r, const fit_optio
 {
     size_t m = (size_t)r * r, n = p->n;
     double *T = malloc(sizeof(double) * m), *cov = malloc(sizeof(double) * m * m);
+    double *hat = malloc(sizeof(double) * n);
     int rc = -ENOMEM;
-    if (!T || !cov) goto out;
+    if (!T || !cov || !hat) goto out;
     wls_result_t w;
-    if ((rc = wls_solve(A, p->w, p->d, n, m, opts->nonneg, T, cov, &w))) goto out;
+    if ((rc = wls_solve_hat(A, p->w, p->d, n, m, opts->nonneg, T, cov, hat, &w))) goto out;
     res->chi2 = w.chi2;
     res->cond = w.rcond > 0 ? 1 / w.rcond : INFINITY;
-    res->cv_chi2 = loo_chi2(A, p, m, T, cov);
+    res->cv_chi2 = loo_chi2(A, p, m, T, hat);
     if (opts->method != FIT_LINEAR && !opts->nonneg && (rc = run_lm(A, p, m, opts, T, res)))
         goto out;
     res->chi2_red = n > (size_t)res->params ? res->chi2 / (double)(n - (size_t)res->params) : NAN;
@@ -252,6 +249,7 @@ static int solve(const double *A, const struct points *p, int r, const fit_optio
 out:
     free(T);
     free(cov);
+    free(hat);
     return rc;
 }
 

@@ -11,14 +11,21 @@ typedef struct wls_result {
     double rcond;   /* reciprocal 2-norm condition number of the (column-balanced) weighted matrix */
     size_t rank;    /* numerical rank used */
     size_t n_bound; /* parameters held at 0 by the non-negativity constraint */
+    int lapack;     /* 1: solved by the LAPACK QR path; 0: by the rank-revealing SVD fallback */
 } wls_result_t;
 
 /* Minimises sum_k w_k (y_k - sum_j X_kj c_j)^2 over c (m parameters, n >= m points), X row-major
  * n x m. c (m) and cov (m x m, row-major, (X^T W X)^-1, unscaled) are caller-allocated; cov may
- * be NULL. nonneg: c_j >= 0 by Lawson-Hanson active sets (GSL has no NNLS); the covariance is
+ * be NULL. nonneg: c_j >= 0 by Lawson-Hanson active sets (LAPACK has no NNLS); the covariance is
  * then that of the free parameters, with zero rows/columns for those held at 0.
- * Returns 0, -ENOMEM, or -EDOM when GSL fails. */
+ * Returns 0, -ENOMEM, or -EDOM when the linear algebra fails. */
 int wls_solve(const double *X, const double *w, const double *y, size_t n, size_t m, int nonneg,
               double *c, double *cov, wls_result_t *res);
+
+/* The same, and hat (n, may be NULL) gets the diagonal of the weighted hat matrix
+ * H = W^1/2 X (X^T W X)^-1 X^T W^1/2 (of the free parameters' columns under nonneg): the
+ * leverages h_kk = ||Q_k||^2, the squared norms of the rows of the thin Q of W^1/2 X. */
+int wls_solve_hat(const double *X, const double *w, const double *y, size_t n, size_t m,
+                  int nonneg, double *c, double *cov, double *hat, wls_result_t *res);
 
 #endif

@@ -6,10 +6,13 @@ set -euo pipefail
 IPSD_PACKAGES=(
     build-essential cmake pkg-config        # the build
     libgsl-dev libjansson-dev               # fit/ and JSON
+    liblapacke-dev libopenblas0-serial      # fit/'s least squares: LAPACK's C interface, and
+                                            # single-threaded OpenBLAS as the system BLAS/LAPACK
     libsqlite3-dev sqlite3                  # storage/ (and the sqlite3 shell, tests/docs use it)
     libmicrohttpd-dev                       # api/
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
     curl wrk python3                        # HTTP tests, load benchmark, test scripts
+    python3-numpy python3-scipy             # bench/numpy_peer.py (the NumPy peer of the fit)
     chromium                                # the dashboard's browser test (headless)
     clang                                   # scripts/build-matrix.sh's second compiler
 )

@@ -4,6 +4,7 @@ ipsd_add_test(test_box ipsfit PkgConfig::JANSSON)
 ipsd_add_test(test_design ipsfit)
 set_tests_properties(test_design PROPERTIES TIMEOUT 150) # busy, ASan: 36 s (optimised 18 s); 4x
 ipsd_add_test(test_model ipsfit PkgConfig::JANSSON)
+ipsd_add_test(test_solve ipsfit) # the LAPACK least squares against independent computations
 ipsd_add_test(test_pipeline ipsfit PkgConfig::JANSSON)
 ipsd_add_test(test_recommend ipsfit PkgConfig::JANSSON)
 set_tests_properties(test_recommend PROPERTIES TIMEOUT 120) # 162 refits with box integrals
