@@ -76,7 +76,8 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
         (ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
                                    &srv->failpoints, err)) ||
         (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
-        (ret = srv_dbpool_open(cfg->db_path, &srv->pool, err)) ||
+        (ret = storage_gate_new(&srv->gate)) ||
+        (ret = srv_dbpool_open(cfg->db_path, srv->gate, &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||
         (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
         if (ret == -ENOMEM) err_set(err, ret, "out of memory");
@@ -98,6 +99,7 @@ int srv_start(srv_t *srv, err_t *err)
         srv_worker_t *w = &srv->workers[i];
         w->srv = srv;
         if ((ret = storage_open(srv->cfg.db_path, &w->st, err))) break;
+        storage_set_gate(w->st, srv->gate);
         int rc = pthread_create(&w->thread, NULL, i == 0 ? srv_scanner_main : srv_fitter_main, w);
         if (rc) ret = err_set(err, -rc, "cannot start a worker thread: %s", strerror(rc));
         w->running = rc == 0;
@@ -129,6 +131,7 @@ void srv_close(srv_t *srv)
     free(srv->workers);
     srv_events_close(srv->events);
     srv_dbpool_close(srv->pool);
+    storage_gate_free(srv->gate);
     pthread_cond_destroy(&srv->cv);
     pthread_mutex_destroy(&srv->mu);
     free(srv->cfg.token);

@@ -10,11 +10,12 @@
 struct srv_dbpool {
     pthread_mutex_t mu;
     char *path;
+    storage_gate_t *gate;
     storage_t **idle;
     size_t n_idle, cap;
 };
 
-int srv_dbpool_open(const char *path, srv_dbpool_t **out, err_t *err)
+int srv_dbpool_open(const char *path, storage_gate_t *gate, srv_dbpool_t **out, err_t *err)
 {
     srv_dbpool_t *p = calloc(1, sizeof *p);
     *out = NULL;
@@ -23,6 +24,7 @@ int srv_dbpool_open(const char *path, srv_dbpool_t **out, err_t *err)
         return err_set(err, -ENOMEM, "database pool: out of memory");
     }
     pthread_mutex_init(&p->mu, NULL);
+    p->gate = gate;
     *out = p;
     return 0;
 }
@@ -45,7 +47,9 @@ storage_t *srv_dbpool_get(srv_dbpool_t *p, err_t *err)
     if (p->n_idle) st = p->idle[--p->n_idle];
     pthread_mutex_unlock(&p->mu);
     if (st) return st;
-    return storage_open(p->path, &st, err) ? NULL : st;
+    if (storage_open(p->path, &st, err)) return NULL;
+    storage_set_gate(st, p->gate);
+    return st;
 }
 
 void srv_dbpool_put(srv_dbpool_t *p, storage_t *st)

@@ -24,6 +24,7 @@ typedef struct srv_failpoints srv_failpoints_t; /* test hooks, srv_failpoint.h *
 struct srv {
     srv_config_t cfg; /* a copy; cfg.token is owned */
     srv_dbpool_t *pool;
+    storage_gate_t *gate; /* every handle's writes, first come first served (storage.h) */
     srv_events_t *events;
     pthread_mutex_t mu; /* guards work_seq; cv signals new work or stopping */
     pthread_cond_t cv;

@@ -128,9 +128,17 @@ char *stg_col_text(sqlite3_stmt *s, int i, int *oom)
 
 int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
 {
+    /* a write outside a transaction (one statement) takes its turn at the gate too */
+    int gated = st->gate && !st->gate_held && !sqlite3_stmt_readonly(s) &&
+                sqlite3_get_autocommit(st->db);
+    if (gated && stg_gate_enter(st)) {
+        stg_reset(s);
+        return err_set(err, -EDEADLK, "%s: this thread is writing through another handle", what);
+    }
     int rc = sqlite3_step(s);
     int ret = rc == SQLITE_DONE ? 0 : stg_error(st, rc, err, what);
     stg_reset(s);
+    if (gated) stg_gate_leave(st);
     return ret;
 }
 
@@ -190,7 +198,12 @@ static int run_fixed(storage_t *st, enum stg_id id, err_t *err, const char *what
 
 int stg_begin_write(storage_t *st, err_t *err)
 {
-    return run_fixed(st, STG_BEGIN_WRITE, err, "starting a write transaction");
+    if (stg_gate_enter(st))
+        return err_set(err, -EDEADLK, "starting a write transaction: this thread is writing "
+                                      "through another handle");
+    int ret = run_fixed(st, STG_BEGIN_WRITE, err, "starting a write transaction");
+    if (ret) stg_gate_leave(st);
+    return ret;
 }
 
 int stg_begin_read(storage_t *st, err_t *err)
@@ -202,14 +215,16 @@ int stg_commit(storage_t *st, err_t *err)
 {
     int ret = run_fixed(st, STG_COMMIT, err, "committing");
     if (ret) stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
+    else stg_gate_leave(st);
     return ret;
 }
 
 void stg_rollback(storage_t *st)
 {
-    if (sqlite3_get_autocommit(st->db)) return; /* no transaction (SQLite may have ended it) */
-    /* a failed ROLLBACK leaves nothing to do but report; the connection rolls back on close */
-    (void)run_fixed(st, STG_ROLLBACK, NULL, "rolling back");
+    if (!sqlite3_get_autocommit(st->db)) /* else no transaction (SQLite may have ended it) */
+        /* a failed ROLLBACK leaves nothing to do but report; the connection rolls back on close */
+        (void)run_fixed(st, STG_ROLLBACK, NULL, "rolling back");
+    stg_gate_leave(st);
 }
 
 /* ---- clock -------------------------------------------------------------------------------- */
@@ -419,6 +434,7 @@ out:
 void storage_close(storage_t *st)
 {
     if (!st) return;
+    stg_gate_leave(st); /* a transaction left open is rolled back by the close */
     for (int i = 0; i < STG_N; i++) sqlite3_finalize(st->stmt[i]);
     sqlite3_close_v2(st->db); /* NULL is a no-op; frees once nothing is pending */
     free(st);

@@ -36,6 +36,17 @@
 
 typedef struct storage storage_t;
 
+/* A write gate: handles of one process that share it take the write lock first come, first
+ * served (SQLite's busy handler is not fair: a handle committing a scan point every millisecond
+ * starved a waiting fit worker and a cancel past the busy timeout). One per database, shared by
+ * all of a server's handles; it must outlive them. The gate's wait has no deadline (in-process
+ * write transactions are short); a thread that writes through one handle and begins a write
+ * through another gets -EDEADLK instead of waiting for itself. */
+typedef struct storage_gate storage_gate_t;
+int storage_gate_new(storage_gate_t **out); /* 0 or -ENOMEM */
+void storage_gate_free(storage_gate_t *g);
+void storage_set_gate(storage_t *st, storage_gate_t *g);
+
 /* The schema version this code creates and understands (PRAGMA user_version). */
 int storage_schema_version(void);
 

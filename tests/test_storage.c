@@ -589,6 +589,48 @@ static void test_busy(void)
     storage_close(st);
 }
 
+/* The write gate: a hot writer (a scan storing points back to back) and another writer, each on
+ * its own handle with a 1 ms busy timeout, sharing a gate: every write of both succeeds (the gate
+ * serves them in turn, so SQLite's lock is always free when a handle asks). */
+struct gate_writer {
+    storage_t *st;
+    int n, failures;
+};
+
+static void *gate_write_loop(void *arg)
+{
+    struct gate_writer *g = arg;
+    int64_t id;
+    err_t err = {{0}};
+    for (int i = 0; i < g->n; i++)
+        if (storage_job_enqueue(g->st, STORAGE_JOB_FIT, "{}", 0, &id, &err) != 0) {
+            if (!g->failures) fprintf(stderr, "gate writer: %s\n", err.msg);
+            g->failures++;
+        }
+    return NULL;
+}
+
+static void test_gate(void)
+{
+    storage_t *a = open_db("gate.db"), *b = open_db("gate.db");
+    storage_gate_t *gate = NULL;
+    CHECK(storage_gate_new(&gate) == 0);
+    storage_set_gate(a, gate);
+    storage_set_gate(b, gate);
+    CHECK(storage_set_busy_timeout(a, 1, NULL) == 0 && storage_set_busy_timeout(b, 1, NULL) == 0);
+    struct gate_writer w[2] = {{a, 3000, 0}, {b, 300, 0}};
+    pthread_t t[2];
+    for (int k = 0; k < 2; k++) CHECK(pthread_create(&t[k], NULL, gate_write_loop, &w[k]) == 0);
+    for (int k = 0; k < 2; k++) pthread_join(t[k], NULL);
+    CHECK(w[0].failures == 0 && w[1].failures == 0);
+    storage_job_list_t l;
+    CHECK(storage_job_list(a, STORAGE_ANY, STORAGE_ANY, 0, 0, 0, &l, NULL) == 0 && l.total == 3300);
+    storage_job_list_free(&l);
+    storage_close(a);
+    storage_close(b);
+    storage_gate_free(gate);
+}
+
 /* ---- fits and calibrations ------------------------------------------------------------------ */
 
 static int64_t put_calib(storage_t *st, int64_t sensor, int col, int row, double s0,
@@ -1096,6 +1138,7 @@ int main(void)
     test_requeue();
     test_cancel();
     test_busy();
+    test_gate();
     test_fits();
     test_calibrations();
     test_pagination();

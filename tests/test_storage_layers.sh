@@ -34,7 +34,8 @@ fi
 rm -f "${TMPDIR:-/tmp}/tsort.$$"
 
 # (1b) exactly the documented calls (docs/schema.md, "The code"): keep the two in step
-want='storage.c storage_sql.c
+want='storage.c storage_gate.c
+storage.c storage_sql.c
 storage_calib.c storage.c
 storage_calib.c storage_sensor.c
 storage_compose.c storage.c
