@@ -8,6 +8,7 @@ IPSD_PACKAGES=(
     libgsl-dev libjansson-dev               # fit/ and JSON
     liblapacke-dev libopenblas0-serial      # fit/'s least squares: LAPACK's C interface, and
                                             # single-threaded OpenBLAS as the system BLAS/LAPACK
+    libopenblas-serial-dev libgfortran-12-dev  # their archives: ips links LAPACK statically
     libsqlite3-dev sqlite3                  # storage/ (and the sqlite3 shell, tests/docs use it)
     libmicrohttpd-dev                       # api/
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
