@@ -99,26 +99,21 @@ def main():
         sensor = json.loads(data)["id"]
         fit_body = {"scan": scan, "sensor_id": sensor, "pixel": {"col": 10, "row": 10},
                     "r_max": 6, "wiener": True}
-        st, data = call(c, "POST", "/api/fits", fit_body)
-        job = json.loads(data)["job"]["id"]
-        while True:
-            st, data = call(c, "GET", "/api/jobs/%d" % job)
-            j = json.loads(data)
-            if j["state"] in ("done", "failed"):
-                break
-            time.sleep(0.05)
-        fit_id = j["fit_id"]
+        def run_job(path, body):
+            """POSTs a job and polls it to its end; the job document."""
+            st, data = call(c, "POST", path, body)
+            job = json.loads(data)["job"]["id"]
+            while True:
+                st, data = call(c, "GET", "/api/jobs/%d" % job)
+                j = json.loads(data)
+                if j["state"] in ("done", "failed", "cancelled"):
+                    return j
+                time.sleep(0.05)
+
+        fit_id = run_job("/api/fits", fit_body)["fit_id"]
         # a scan on the simulated bench, to read its raster and frames
-        st, data = call(c, "POST", "/api/scans", {"sensor_id": sensor, "poi": {"col": 100, "row": 100},
-                                                  "raster": {"area_px": 3, "step_um": 1.0}})
-        job = json.loads(data)["job"]["id"]
-        while True:
-            st, data = call(c, "GET", "/api/jobs/%d" % job)
-            j = json.loads(data)
-            if j["state"] in ("done", "failed"):
-                break
-            time.sleep(0.1)
-        scan_id = j["scan_id"]
+        scan_id = run_job("/api/scans", {"sensor_id": sensor, "poi": {"col": 100, "row": 100},
+                                         "raster": {"area_px": 3, "step_um": 1.0}})["scan_id"]
         c.close()
 
         stats = Stats()
