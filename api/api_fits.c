@@ -13,7 +13,7 @@
 
 #define FIT_OPTION_KEYS                                                                            \
     "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg", "region",       \
-        "margin_um"
+        "margin_um", "fit_geometry", "geometry_r"
 
 #define FIT_PROMOTE_KEYS "promote", "by", "reason"
 
@@ -61,7 +61,7 @@ static int read_region(api_req_t *q, json_t *o, srv_fit_params_t *p)
 /* Reads the fit options shared by both requests into p; -1 after replying. */
 static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
 {
-    long long r_min = p->r_min, r_max = p->r_max, ftest_r = p->ftest_r;
+    long long r_min = p->r_min, r_max = p->r_max, ftest_r = p->ftest_r, geometry_r = 0;
     const char *sigma = NULL, *method = NULL;
     json_t *ftest = json_object_get(o, "ftest");
     if (api_get_int(q, o, "r_min", "r_min", 0, 1, 32, &r_min) ||
@@ -70,8 +70,15 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         api_get_int(q, o, "ftest_r", "ftest_r", 0, 1, 32, &ftest_r) ||
         api_get_bool(q, o, "wiener", "wiener", &p->wiener) ||
         api_get_str(q, o, "method", "method", 0, 16, &method) ||
-        api_get_bool(q, o, "nonneg", "nonneg", &p->opts.nonneg) || read_region(q, o, p))
+        api_get_bool(q, o, "nonneg", "nonneg", &p->opts.nonneg) || read_region(q, o, p) ||
+        api_get_bool(q, o, "fit_geometry", "fit_geometry", &p->fit_geometry) ||
+        api_get_int(q, o, "geometry_r", "geometry_r", 0, 1, 32, &geometry_r))
         return -1;
+    if (geometry_r && !p->fit_geometry) {
+        api_error(q, 422, "invalid", "geometry_r", "geometry_r goes with \"fit_geometry\": true");
+        return -1;
+    }
+    p->geometry_r = (int)geometry_r;
     if (r_min > r_max) {
         api_error(q, 422, "out_of_range", "r_min", "r_min (%lld) must not exceed r_max (%lld)",
                   r_min, r_max);

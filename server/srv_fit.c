@@ -54,7 +54,10 @@ static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
         json_decref(root);
         return NULL;
     }
-    const fit_part_t *ft = &pl->ftest_part, *wi = &pl->wiener_part;
+    const fit_part_t *ft = &pl->ftest_part, *wi = &pl->wiener_part, *ge = &pl->geometry_part;
+    if (ge->asked)
+        json_object_set_new(root, "geometry",
+                            ge->rc ? part_error(ge) : fitjson_geometry(&pl->geometry));
     if (ft->asked)
         json_object_set_new(root, "ftest", ft->rc ? part_error(ft) : fitjson_ftest(&pl->ftest));
     if (wi->asked)
@@ -63,6 +66,9 @@ static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
                         json_pack("{s:f, s:f, s:f, s:f}", "sweep", pl->sweep_ms, "ftest",
                                   pl->ftest_part.ms, "wiener", pl->wiener_part.ms, "total",
                                   clock_mono_ms() - t0));
+    if (ge->asked)
+        json_object_set_new(json_object_get(root, "timing_ms"), "geometry",
+                            json_real(ge->ms));
     return root;
 }
 
@@ -94,7 +100,8 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
     if (scan->n == 0) return err_set(err, -EINVAL, "the scan has no points inside the pixel");
     fit_pipeline_opts_t po = {.r_min = p->r_min, .r_max = p->r_max, .fit = p->opts,
                               .ftest_edges = p->ftest_edges, .ftest_r = p->ftest_r,
-                              .wiener = p->wiener, .region = p->region};
+                              .wiener = p->wiener, .region = p->region,
+                              .fit_geometry = p->fit_geometry, .geometry_r = p->geometry_r};
     fit_watch_t watch = {.stop = watch_stop, .progress = watch_progress, .params = (void *)hooks};
     fit_pipeline_t pl;
     double t0 = clock_mono_ms();

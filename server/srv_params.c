@@ -111,6 +111,10 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
     if (p->by[0]) json_object_set_new(o, "by", json_string(p->by));
     if (p->reason[0]) json_object_set_new(o, "reason", json_string(p->reason));
     json_object_set_new(o, "region", json_string(fit_region_name(p->region.kind)));
+    if (p->fit_geometry) {
+        json_object_set_new(o, "fit_geometry", json_true());
+        if (p->geometry_r) json_object_set_new(o, "geometry_r", json_integer(p->geometry_r));
+    }
     if (p->region.kind == FIT_REGION_MARGIN)
         json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
     char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
@@ -158,6 +162,9 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     opt_int(json_object_get(o, "pixel"), "col", &p->pixel_col);
     opt_int(json_object_get(o, "pixel"), "row", &p->pixel_row);
     p->wiener = json_is_true(json_object_get(o, "wiener"));
+    p->fit_geometry = json_is_true(json_object_get(o, "fit_geometry"));
+    if ((x = json_object_get(o, "geometry_r")) && json_is_integer(x))
+        p->geometry_r = (int)json_integer_value(x);
     p->opts.nonneg = json_is_true(json_object_get(o, "nonneg"));
     if ((x = json_object_get(o, "wavelength_um")) && json_is_number(x))
         p->wavelength_um = json_number_value(x);

@@ -48,6 +48,8 @@ typedef struct srv_fit_params {
     char by[SRV_BY_MAX + 1];
     char reason[SRV_REASON_MAX + 1];
     fit_region_t region;  /* the points fitted (fit/region.h): inside (the paper's) */
+    int fit_geometry;     /* fit R, dx, dy first (fit/geometry.h) at geometry_r (0: default) */
+    int geometry_r;
 } srv_fit_params_t;
 
 /* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload, not

@@ -59,7 +59,10 @@ def test(c, t, argv, daemons):
             ({"region": "margin", "margin_um": -1}, 422, "margin_um"),
             ({"region": "margin", "margin_um": "wide"}, 400, "margin_um"),
             ({"region": "inside", "margin_um": 1}, 422, "margin_um"),
-            ({"margin_um": 1}, 422, "margin_um")]:
+            ({"margin_um": 1}, 422, "margin_um"),
+            ({"fit_geometry": "yes"}, 400, "fit_geometry"),
+            ({"geometry_r": 3}, 422, "geometry_r"),
+            ({"fit_geometry": True, "geometry_r": 0}, 422, "geometry_r")]:
         c.error(d.post("/api/fits", dict(base, **extra)), status, field, "upload with %r" % extra)
     c.eq(fits_jobs(), before, "bad regions stored nothing")
 
@@ -89,6 +92,29 @@ def test(c, t, argv, daemons):
              "Wiener: whole raster deconvolved, cropped to the pixel")
         c.ok(abs(w["x0_um"] - inside_nodes[0]) < 1e-9, "Wiener map starts at the first node inside")
     c.ok(count(scan) < count(scan, 0.6) < N * N, "the regions differ on this raster")
+
+    # the geometry fit (issue 9 item 6) through the API: the document's geometry member, and the
+    # chi2 at the fitted geometry no larger than at the written one (the fit starts there and
+    # only goes down)
+    r = d.post("/api/fits", dict(base, fit_geometry=True, geometry_r=5))
+    c.status(r, 202, "upload with fit_geometry")
+    j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    c.ok(j, "geometry fit done")
+    if j:
+        c.eq((j["params"].get("fit_geometry"), j["params"].get("geometry_r")), (True, 5),
+             "job params record the geometry fit")
+        res = d.get("/api/fits/%d" % j["fit_id"]).json()["result"]
+        g = res.get("geometry", {})
+        keys = ["spot_radius_um", "spot_radius_um_err", "dx_um", "dx_um_err", "dy_um",
+                "dy_um_err", "chi2_fixed", "chi2_fitted"]
+        if "error" in g:
+            c.ok(False, "geometry failed: %s" % g["error"])
+        else:
+            c.ok(all(isinstance(g.get(k), (int, float)) for k in keys),
+                 "geometry has the contract's fields: %r" % sorted(g))
+            c.ok(g["chi2_fitted"] <= g["chi2_fixed"] * (1 + 1e-9),
+                 "chi2 fitted %r <= fixed %r" % (g.get("chi2_fitted"), g.get("chi2_fixed")))
+            c.ok("geometry" in res["timing_ms"], "timing_ms has geometry")
 
 
 if __name__ == "__main__":
