@@ -187,6 +187,25 @@ int stg_collect(storage_t *st, sqlite3_stmt *s, size_t size, stg_reader_fn read,
     return ret;
 }
 
+int stg_bind_map(sqlite3_stmt *q, const storage_calib_t *c, unsigned char **s, unsigned char **e,
+                 int *rc)
+{
+    size_t n = (size_t)c->r * (size_t)c->r;
+    *s = stg_blob_from_f64(c->S, n);
+    *e = stg_blob_from_f64(c->S_err, n);
+    if (!*s || !*e) return -ENOMEM;
+    stg_bind_int(q, 2, c->sensor_id, rc);
+    stg_bind_int(q, 3, c->pixel_col, rc);
+    stg_bind_int(q, 4, c->pixel_row, rc);
+    stg_bind_int(q, 5, c->r, rc);
+    stg_bind_blob(q, 6, *s, n * 8, rc);
+    stg_bind_blob(q, 7, *e, n * 8, rc);
+    stg_bind_double(q, 8, c->I0, rc);
+    stg_bind_double(q, 9, c->chi2_red, rc);
+    stg_bind_text(q, 10, c->status, rc);
+    return 0;
+}
+
 /* ---- transactions ------------------------------------------------------------------------- */
 
 static int run_fixed(storage_t *st, enum stg_id id, err_t *err, const char *what)

@@ -158,23 +158,14 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
     int64_t new_id = 0, old = 0;
     int ret = stg_calib_check(st, c, err), rc = SQLITE_OK;
     if (ret || (ret = supersede(st, c, &old, &new_id, err))) return ret;
-    size_t n = (size_t)c->r * (size_t)c->r;
-    unsigned char *s = stg_blob_from_f64(c->S, n), *e = stg_blob_from_f64(c->S_err, n);
-    if (!s || !e) {
+    unsigned char *s = NULL, *e = NULL;
+    if ((ret = stg_stmt(st, STG_CALIB_INSERT, &q, err))) goto out;
+    stg_bind_int(q, 1, new_id, &rc);
+    if (stg_bind_map(q, c, &s, &e, &rc)) {
+        stg_reset(q);
         ret = err_set(err, -ENOMEM, "calibration: out of memory");
         goto out;
     }
-    if ((ret = stg_stmt(st, STG_CALIB_INSERT, &q, err))) goto out;
-    stg_bind_int(q, 1, new_id, &rc);
-    stg_bind_int(q, 2, c->sensor_id, &rc);
-    stg_bind_int(q, 3, c->pixel_col, &rc);
-    stg_bind_int(q, 4, c->pixel_row, &rc);
-    stg_bind_int(q, 5, c->r, &rc);
-    stg_bind_blob(q, 6, s, n * 8, &rc);
-    stg_bind_blob(q, 7, e, n * 8, &rc);
-    stg_bind_double(q, 8, c->I0, &rc);
-    stg_bind_double(q, 9, c->chi2_red, &rc);
-    stg_bind_text(q, 10, c->status, &rc);
     stg_bind_id(q, 11, c->scan_id, &rc);
     stg_bind_id(q, 12, c->fit_id, &rc);
     stg_bind_text(q, 13, c->noise_model, &rc);

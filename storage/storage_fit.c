@@ -147,23 +147,14 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
 {
     sqlite3_stmt *q;
     int ret, rc = SQLITE_OK;
-    size_t n = (size_t)c->r * (size_t)c->r;
-    unsigned char *s = stg_blob_from_f64(c->S, n), *e = stg_blob_from_f64(c->S_err, n);
-    if (!s || !e) {
+    unsigned char *s = NULL, *e = NULL;
+    if ((ret = stg_stmt(st, STG_FIT_MAP_INSERT, &q, err))) goto out;
+    stg_bind_int(q, 1, fit_id, &rc);
+    if (stg_bind_map(q, c, &s, &e, &rc)) {
+        stg_reset(q);
         ret = err_set(err, -ENOMEM, "fit map: out of memory");
         goto out;
     }
-    if ((ret = stg_stmt(st, STG_FIT_MAP_INSERT, &q, err))) goto out;
-    stg_bind_int(q, 1, fit_id, &rc);
-    stg_bind_int(q, 2, c->sensor_id, &rc);
-    stg_bind_int(q, 3, c->pixel_col, &rc);
-    stg_bind_int(q, 4, c->pixel_row, &rc);
-    stg_bind_int(q, 5, c->r, &rc);
-    stg_bind_blob(q, 6, s, n * 8, &rc);
-    stg_bind_blob(q, 7, e, n * 8, &rc);
-    stg_bind_double(q, 8, c->I0, &rc);
-    stg_bind_double(q, 9, c->chi2_red, &rc);
-    stg_bind_text(q, 10, c->status, &rc);
     stg_bind_double(q, 11, c->wavelength_um, &rc);
     stg_bind_double(q, 12, c->na, &rc);
     stg_bind_double(q, 13, c->spot_radius_um, &rc);

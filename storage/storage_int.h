@@ -125,6 +125,12 @@ void stg_bind_id(sqlite3_stmt *s, int i, int64_t v, int *rc);
 void stg_bind_double(sqlite3_stmt *s, int i, double v, int *rc);
 void stg_bind_text(sqlite3_stmt *s, int i, const char *v, int *rc);
 void stg_bind_blob(sqlite3_stmt *s, int i, const void *v, size_t n, int *rc);
+/* Binds the map columns that calibrations and fit_maps share, ?2..?10 in this order: sensor_id,
+ * pixel_col, pixel_row, r, s, s_err, i0, chi2_red, status. The two BLOBs are encoded into *s and
+ * *e, which must live until the statement has run (caller frees both, also on error); -ENOMEM
+ * when they cannot be made. */
+int stg_bind_map(sqlite3_stmt *q, const storage_calib_t *c, unsigned char **s, unsigned char **e,
+                 int *rc);
 
 /* Column readers: NULL reads as NaN (double), 0 (id), NULL (text). stg_col_text returns a
  * malloc'ed copy and sets *oom when the copy fails. */
