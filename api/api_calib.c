@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "api_calib_cache.h"
 #include "api_int.h"
 
 /* Replies with calibrations c[0..n) as CSV, or as JSON: one object (single) or a page. */
@@ -73,6 +74,16 @@ void api_h_pixel_calib(api_req_t *q)
     err_t err = {{0}};
     int csv, ret = pixel_args(q, &st, &csv, &sensor, &col, &row);
     if (ret > 0) return;
+    /* JSON replies come from the cache while no calibration was stored since they were read;
+     * the generation is read before the query (api_calib_cache.h) */
+    uint64_t gen;
+    size_t len;
+    char *text;
+    int cached = ret == 0 && !csv && storage_calib_generation(st, &gen) == 0;
+    if (cached && (text = api_calib_cache_get(q->calib_cache, sensor, col, row, gen, &len))) {
+        api_reply_text(q, 200, "application/json", text, len);
+        return;
+    }
     if (ret == 0) ret = storage_calib_current(st, sensor, (int)col, (int)row, &c, &err);
     if (ret == -ENOENT) {
         pixel_not_found(q, st, sensor, col, row);
@@ -82,7 +93,12 @@ void api_h_pixel_calib(api_req_t *q)
         api_error_rc(q, ret, NULL, err.msg);
         return;
     }
-    reply_calibs(q, csv, &c, 1, 1, 1, 1, 0);
+    if (cached && (text = api_json_text(api_enc_calib(&c), &len))) {
+        api_calib_cache_put(q->calib_cache, sensor, col, row, gen, text, len);
+        api_reply_text(q, 200, "application/json", text, len);
+    } else {
+        reply_calibs(q, csv, &c, 1, 1, 1, 1, 0);
+    }
     storage_calib_free(&c);
 }
 

@@ -16,6 +16,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include "api_calib_cache.h"
 #include "api_conn.h"
 #include "api_int.h"
 
@@ -23,6 +24,7 @@ typedef struct api_http {
     srv_t *srv;
     struct MHD_Daemon *d;
     api_conns_t *conns;  /* open connections and their request deadlines */
+    api_calib_cache_t *calib_cache; /* replies of current calibrations (api_calib_cache.h) */
     MHD_socket quiesced; /* the listening socket after quiesce, closed after the stop */
 } api_http_t;
 
@@ -184,6 +186,7 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         if (!(q = calloc(1, sizeof *q))) return MHD_NO;
         q->srv = h->srv;
         q->conns = h->conns;
+        q->calib_cache = h->calib_cache;
         q->conn = conn;
         *con_cls = q;
         if (check_request(q, method, url)) return send_reply(q);
@@ -265,6 +268,12 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
         free(h);
         return err_set(err, -ENOMEM, "out of memory starting the connection tracker");
     }
+    /* 4096 pixels, 32 MiB: a sensor's worth of typical (r <= 8, ~4 KB) maps */
+    if (!(h->calib_cache = api_calib_cache_new(4096, (size_t)32 << 20))) {
+        api_conns_close(h->conns);
+        free(h);
+        return err_set(err, -ENOMEM, "out of memory starting the calibration cache");
+    }
     raise_fd_limit(cfg);
     unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_AUTO | MHD_ALLOW_SUSPEND_RESUME |
                      MHD_USE_ERROR_LOG | (ss.ss_family == AF_INET6 ? MHD_USE_IPv6 : 0);
@@ -278,6 +287,7 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
         MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL, MHD_OPTION_END);
     if (!h->d) {
         api_conns_close(h->conns);
+        api_calib_cache_free(h->calib_cache);
         free(h);
         return err_set(err, -EADDRINUSE,
                        "cannot listen on %s port %d (in use, or not an "
@@ -303,6 +313,7 @@ static void http_stop(void *handle)
     api_sse_drain(h->srv, 2000);
     MHD_stop_daemon(h->d);
     api_conns_close(h->conns);
+    api_calib_cache_free(h->calib_cache);
     if (h->quiesced != MHD_INVALID_SOCKET) close(h->quiesced);
     free(h);
 }

@@ -31,6 +31,7 @@ typedef struct api_conns api_conns_t;
 struct api_req {
     srv_t *srv;
     api_conns_t *conns; /* the HTTP server's connection tracker (api_conn.h) */
+    struct api_calib_cache *calib_cache; /* current calibrations' replies (api_calib_cache.h) */
     struct MHD_Connection *conn;
     const api_route_t *route;
     int64_t arg[API_MAX_ARGS]; /* the route's {name} segments, in order */
@@ -54,6 +55,9 @@ const char *api_route_allow(const char *path, char *buf, size_t n);
 
 /* ---- replies (api_reply.c) ---- */
 
+/* The text api_reply_json sends for body (takes its reference): malloc'ed, *len bytes; NULL on
+ * out of memory. */
+char *api_json_text(json_t *body, size_t *len);
 /* Replies with JSON (takes the reference of body; NULL body: 500 out of memory). */
 void api_reply_json(api_req_t *q, unsigned status, json_t *body);
 /* Replies with text of a content type (takes buf, malloc'ed, len bytes). */

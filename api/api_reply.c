@@ -26,17 +26,24 @@ void api_reply_text(api_req_t *q, unsigned status, const char *ctype, char *buf,
     MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
 }
 
-void api_reply_json(api_req_t *q, unsigned status, json_t *body)
+char *api_json_text(json_t *body, size_t *len)
 {
-    if (!body) {
-        api_error(q, 500, "internal", NULL, "out of memory building the reply");
-        return;
-    }
+    if (!body) return NULL;
     /* 17 significant digits: maps and positions read back bit-identical */
     char *text = json_dumps(body, JSON_COMPACT | JSON_REAL_PRECISION(17));
     json_decref(body);
-    if (!text) return;
-    size_t len = strlen(text);
+    if (text) *len = strlen(text);
+    return text;
+}
+
+void api_reply_json(api_req_t *q, unsigned status, json_t *body)
+{
+    size_t len = 0;
+    char *text = api_json_text(body, &len);
+    if (!text) {
+        api_error(q, 500, "internal", NULL, "out of memory building the reply");
+        return;
+    }
     api_reply_text(q, status, "application/json", text, len);
 }
 

@@ -233,8 +233,12 @@ int stg_begin_read(storage_t *st, err_t *err)
 int stg_commit(storage_t *st, err_t *err)
 {
     int ret = run_fixed(st, STG_COMMIT, err, "committing");
-    if (ret) stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
-    else stg_gate_leave(st);
+    if (ret) {
+        stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
+    } else {
+        stg_gate_committed(st);
+        stg_gate_leave(st);
+    }
     return ret;
 }
 

@@ -46,6 +46,11 @@ typedef struct storage_gate storage_gate_t;
 int storage_gate_new(storage_gate_t **out); /* 0 or -ENOMEM */
 void storage_gate_free(storage_gate_t *g);
 void storage_set_gate(storage_t *st, storage_gate_t *g);
+/* The calibration generation of the gate's database: a counter that grows after every committed
+ * transaction (of a handle sharing the gate) that stored a calibration; read before a read, it
+ * tells a cache of calibration replies whether what it holds may be stale. -ENOTSUP without a
+ * gate (then changes cannot be seen: do not cache). Writes by other processes are not counted. */
+int storage_calib_generation(storage_t *st, uint64_t *gen);
 
 /* The schema version this code creates and understands (PRAGMA user_version). */
 int storage_schema_version(void);

@@ -186,7 +186,10 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
     if (ret == -ENOENT)
         err_set(err, ret, "calibration: scan %lld or fit %lld does not exist",
                 (long long)c->scan_id, (long long)c->fit_id);
-    if (ret == 0) *id = new_id;
+    if (ret == 0) {
+        *id = new_id;
+        st->calib_dirty = 1; /* the commit counts it (storage_calib_generation) */
+    }
 out:
     free(s);
     free(e);

@@ -9,6 +9,7 @@
 
 #include <errno.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 
 struct storage_gate {
@@ -17,6 +18,7 @@ struct storage_gate {
     unsigned long next, serving; /* the next ticket to hand out; the ticket that may write */
     pthread_t owner;             /* the thread writing now, when owned */
     int owned;
+    atomic_uint_least64_t calib_gen; /* committed transactions that stored a calibration */
 };
 
 int storage_gate_new(storage_gate_t **out)
@@ -42,6 +44,21 @@ void storage_set_gate(storage_t *st, storage_gate_t *g)
     st->gate = g;
 }
 
+int storage_calib_generation(storage_t *st, uint64_t *gen)
+{
+    if (!st || !st->gate) return -ENOTSUP;
+    *gen = atomic_load(&st->gate->calib_gen);
+    return 0;
+}
+
+void stg_gate_committed(storage_t *st)
+{
+    /* counted after the commit, so a reader that read the counter before its read either saw
+     * the new rows or will find its entry older than the counter */
+    if (st->gate && st->calib_dirty) atomic_fetch_add(&st->gate->calib_gen, 1);
+    st->calib_dirty = 0;
+}
+
 int stg_gate_enter(storage_t *st)
 {
     storage_gate_t *g = st->gate;
@@ -65,6 +82,7 @@ int stg_gate_enter(storage_t *st)
 void stg_gate_leave(storage_t *st)
 {
     storage_gate_t *g = st->gate;
+    st->calib_dirty = 0; /* committed (counted already) or rolled back */
     if (!g || !st->gate_held) return;
     st->gate_held = 0;
     pthread_mutex_lock(&g->mu);

@@ -103,12 +103,15 @@ struct storage {
     void *clock_ctx;
     storage_gate_t *gate; /* shared with the process's other handles, or NULL (storage_gate.c) */
     int gate_held;        /* this handle is in a write transaction through the gate */
+    int calib_dirty;      /* this write transaction stored a calibration (storage_gate.c) */
 };
 
 /* The write gate around BEGIN IMMEDIATE .. COMMIT / ROLLBACK (no-ops without a gate): enter
  * returns 0 or -EDEADLK when this thread holds the gate through another handle. */
 int stg_gate_enter(storage_t *st);
 void stg_gate_leave(storage_t *st);
+/* After COMMIT succeeded: counts a calibration change when the transaction stored one. */
+void stg_gate_committed(storage_t *st);
 
 /* The cached statement id, prepared on first use; 0 or -EIO/-ENOMEM. Give it back with
  * stg_reset once its rows are read (before the next use or the end of the transaction). */
