@@ -1,12 +1,15 @@
 /* test_api.c: the API's route table and its OpenAPI document: the document is valid JSON, OpenAPI
  * 3.1, and describes exactly the routes the router has (every route documented, nothing documented
  * that is not routed, each with responses); the router matches integer path arguments and tells a
- * wrong method (405) from an unknown path (404). */
+ * wrong method (405) from an unknown path (404); the calibration reply cache answers only for the
+ * pixel and generation it holds and keeps within its byte bound. */
 #include <ctype.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <jansson.h>
 
+#include "api_calib_cache.h"
 #include "api_int.h"
 #include "check.h"
 
@@ -102,9 +105,37 @@ static void test_router(void)
     CHECK(strcmp(api_route_allow("/api/scans", allow, sizeof allow), "GET, POST") == 0);
 }
 
+static void test_calib_cache(void)
+{
+    size_t len = 0, entries, bytes;
+    uint64_t hits, misses;
+    api_calib_cache_t *c = api_calib_cache_new(8, 100);
+    CHECK(c != NULL);
+    CHECK(api_calib_cache_get(c, 1, 2, 3, 0, &len) == NULL); /* empty */
+    api_calib_cache_put(c, 1, 2, 3, 5, "{\"a\":1}", 7);
+    char *t = api_calib_cache_get(c, 1, 2, 3, 5, &len);
+    CHECK(t && len == 7 && strcmp(t, "{\"a\":1}") == 0);
+    free(t);
+    CHECK(api_calib_cache_get(c, 1, 2, 3, 6, &len) == NULL); /* a calibration was stored since */
+    CHECK(api_calib_cache_get(c, 1, 3, 2, 5, &len) == NULL); /* another pixel */
+    api_calib_cache_put(c, 1, 2, 3, 4, "old", 3); /* an older reader's text does not replace it */
+    t = api_calib_cache_get(c, 1, 2, 3, 5, &len);
+    CHECK(t && strcmp(t, "{\"a\":1}") == 0);
+    free(t);
+    char big[101];
+    memset(big, 'x', 100);
+    big[100] = 0;
+    api_calib_cache_put(c, 7, 7, 7, 5, big, 100); /* 107 bytes in all: over the bound, skipped */
+    CHECK(api_calib_cache_get(c, 7, 7, 7, 5, &len) == NULL);
+    api_calib_cache_stats(c, &hits, &misses, &entries, &bytes);
+    CHECK(hits == 2 && misses == 4 && entries == 1 && bytes == 7);
+    api_calib_cache_free(c);
+}
+
 int main(void)
 {
     test_openapi();
     test_router();
+    test_calib_cache();
     CHECK_DONE();
 }
