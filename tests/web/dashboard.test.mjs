@@ -304,6 +304,20 @@ async function run(base, page, api) {
     check(await text('shown-r') === `r = ${best.r}`, 'the map shown is the recommended one');
     check(await text('map-status') === best.status, 'the fit status matches the API',
         `${await text('map-status')} vs ${best.status}`);
+    // the note under the model selection names the map shown, also when another r is chosen
+    check((await text('selection-note')).includes(`are r = ${best.r}, the recommended r`),
+        'the selection note: the maps shown are the recommended r', await text('selection-note'));
+    const other = res.fits.find((f) => f.r !== best.r && f.S);
+    await page.locator('[data-testid="r-select"]').selectOption(String(other.r));
+    await page.locator('[data-testid="shown-r"]', { hasText: new RegExp(`^r = ${other.r}$`) })
+        .waitFor({ timeout: WAIT });
+    const note2 = await text('selection-note');
+    check(note2.includes(`are r = ${other.r};`) &&
+        note2.includes(`is the recommended r = ${best.r}`),
+        'after choosing another r the note names it and the recommended one', note2);
+    await page.locator('[data-testid="r-select"]').selectOption(String(best.r));
+    await page.locator('[data-testid="shown-r"]', { hasText: new RegExp(`^r = ${best.r}$`) })
+        .waitFor({ timeout: WAIT });
     const F = Number(await text('ftest-F')), p = Number(await text('ftest-p'));
     check(near(F, res.ftest.F, 1e-5), 'the F statistic matches the API', `${F} vs ${res.ftest.F}`);
     check(near(p, res.ftest.p_value, 1e-3), 'the p-value matches the API',
