@@ -466,6 +466,23 @@ async function run(base, page, api) {
     check(await page.locator(`tr[data-scan-id="${longId}"] button`).count() === 0,
         'a cancelled scan has no Cancel button');
     await page.screenshot({ path: '/tmp/ipsd-dashboard-scans.png' });
+
+    // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box
+    await page.setViewportSize({ width: 390, height: 844 });
+    const views = [['#/scans', `tr[data-scan-id="${scan.id}"]`],
+        [`#/scans/${scan.id}`, 'table.list tbody tr'],
+        [`#/fits/${fitId}`, '[data-testid="sweep-table"] tbody tr'],
+        ['#/calibrations', 'table.list tbody tr'],
+        [`#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`,
+            '[data-testid="current-why"]']];
+    for (const [view, ready] of views) {
+        await page.goto(`${base}/${view}`);
+        await page.locator(ready).first().waitFor({ timeout: WAIT });
+        const w = await page.evaluate(() => [document.documentElement.scrollWidth,
+            document.documentElement.clientWidth]);
+        check(w[0] <= w[1], `${view} at 390 px: no sideways scrolling`, `page ${w[0]} px wide`);
+    }
+    await page.setViewportSize({ width: 1280, height: 800 });
 }
 
 // ---- main ----
