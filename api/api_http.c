@@ -7,6 +7,7 @@
  * which is why the daemon allows suspend/resume. */
 #include <arpa/inet.h>
 #include <errno.h>
+#include <stdarg.h>
 #include <netinet/in.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -47,7 +48,7 @@ static int token_ok(const char *want, const char *header)
  * MHD_http_unescape decodes every %XX. */
 static int hex_digit(char c)
 {
-    return c >= '0' && c <= '9' ? c - '0'
+    return c >= '0' && c <= '9'   ? c - '0'
            : c >= 'a' && c <= 'f' ? c - 'a' + 10
            : c >= 'A' && c <= 'F' ? c - 'A' + 10
                                   : -1;
@@ -254,6 +255,25 @@ static void raise_fd_limit(const srv_config_t *cfg)
     setrlimit(RLIMIT_NOFILE, &rl);
 }
 
+/* libmicrohttpd's error log (MHD_OPTION_EXTERNAL_LOGGER): to stderr with ipsd's prefix, except
+ * the reports of a client that went away mid-reply ("Failed to send ... The socket is no longer
+ * available for sending" when a dashboard tab with an event stream closes): a closed tab is
+ * normal, and a log full of them hides what matters. */
+static void http_log(void *cls, const char *fmt, va_list ap)
+{
+    (void)cls;
+    char line[512];
+    vsnprintf(line, sizeof line, fmt, ap);
+    if (strncmp(line, "Failed to send", 14) == 0 &&
+        (strstr(line, "no longer available") || strstr(line, "reset by peer") ||
+         strstr(line, "Broken pipe")))
+        return;
+    size_t n = strlen(line);
+    while (n && line[n - 1] == '\n')
+        line[--n] = 0;
+    fprintf(stderr, "ipsd: http: %s\n", line);
+}
+
 static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
 {
     const srv_config_t *cfg = srv_config(srv);
@@ -278,13 +298,15 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
     unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_AUTO | MHD_ALLOW_SUSPEND_RESUME |
                      MHD_USE_ERROR_LOG | (ss.ss_family == AF_INET6 ? MHD_USE_IPv6 : 0);
     h->d = MHD_start_daemon(
-        flags, (uint16_t)cfg->port, NULL, NULL, on_request, h, MHD_OPTION_SOCK_ADDR,
-        (struct sockaddr *)&ss, MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->http_threads,
-        MHD_OPTION_NOTIFY_COMPLETED, on_completed, h, MHD_OPTION_NOTIFY_CONNECTION,
-        api_conns_notify, h->conns, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
-        MHD_OPTION_CONNECTION_LIMIT, (unsigned)cfg->max_connections,
-        MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)cfg->max_per_client,
-        MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL, MHD_OPTION_END);
+        flags, (uint16_t)cfg->port, NULL, NULL, on_request, h,
+        /* the logger must come first, or MHD logs the options before it on its own */
+        MHD_OPTION_EXTERNAL_LOGGER, http_log, NULL, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
+        MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->http_threads, MHD_OPTION_NOTIFY_COMPLETED,
+        on_completed, h, MHD_OPTION_NOTIFY_CONNECTION, api_conns_notify, h->conns,
+        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60, MHD_OPTION_CONNECTION_LIMIT,
+        (unsigned)cfg->max_connections, MHD_OPTION_PER_IP_CONNECTION_LIMIT,
+        (unsigned)cfg->max_per_client, MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL,
+        MHD_OPTION_END);
     if (!h->d) {
         api_conns_close(h->conns);
         api_calib_cache_free(h->calib_cache);

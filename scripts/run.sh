@@ -4,7 +4,9 @@
 # paper's raster: 5 x 5 pixels in 0.6 um steps, 9 x 9 sub-frames, 12 frames per point), then the
 # automatic fit of that pixel. Prints the dashboard's URL and how to follow the job with curl, and
 # keeps ipsd in the foreground until Ctrl-C (a graceful stop: a scan still running resumes at the
-# next start).
+# next start). It says when the scan and its fit end and what the fit found
+# (scripts/run_follow.py). At the next start it queues no second scan of the same pixel: it follows
+# the scan still running, or shows the pixel's calibration (IPSD_NEW_SCAN=1 queues a new scan).
 #   scripts/run.sh [ipsd options...]   e.g. --workers 4, --token FILE
 #   scripts/run.sh --fit-only          the former main job: `ips fit` of the reference scan as a table
 # Environment: IPSD_LISTEN (default 127.0.0.1:8080), IPSD_POI (default 128,128), IPSD_BUILD (the
@@ -56,36 +58,61 @@ if [[ -z $sensor ]]; then
     sensor=$(curl -sf "${auth[@]}" -H 'Content-Type: application/json' "$base/api/sensors" \
         -d '{"model": "SIM-PAPER", "serial": "bench-1"}' | python3 -c 'import json,sys; print(json.load(sys.stdin)["id"])')
 fi
-answer=$(curl -s "${auth[@]}" -H 'Content-Type: application/json' "$base/api/scans" \
-    -d '{"sensor_id": '"$sensor"', "poi": {"col": '"${poi%,*}"', "row": '"${poi#*,}"'}, "scene": "paperlike"}')
-read -r scan job < <(python3 -c 'import json,sys; d=json.load(sys.stdin); print(d["scan"]["id"], d["job"]["id"])' <<<"$answer") || {
-    echo "run.sh: the scan was refused: $answer" >&2
-    kill -TERM $pid
-    wait $pid
-    exit 1
-}
+col=${poi%,*}
+row=${poi#*,}
+# one scan per pixel: a scan of it still queued or running (resumed after a restart) is followed,
+# a pixel already calibrated is shown; IPSD_NEW_SCAN=1 queues a new scan anyway
+read -r picked scan_or_calib job_or_scan < <(python3 scripts/run_follow.py pick "$base" "$sensor" "$col" "$row")
+if [[ ${IPSD_NEW_SCAN:-0} == 1 || $picked == none ]]; then
+    answer=$(curl -s "${auth[@]}" -H 'Content-Type: application/json' "$base/api/scans" \
+        -d '{"sensor_id": '"$sensor"', "poi": {"col": '"$col"', "row": '"$row"'}, "scene": "paperlike"}')
+    read -r scan job < <(python3 -c 'import json,sys; d=json.load(sys.stdin); print(d["scan"]["id"], d["job"]["id"])' <<<"$answer") || {
+        echo "run.sh: the scan was refused: $answer" >&2
+        kill -TERM $pid
+        wait $pid
+        exit 1
+    }
+    what="Queued scan $scan (job $job) of pixel ($poi) of sensor $sensor; when it is done, the fit of
+that pixel is queued automatically and stored as its calibration."
+elif [[ $picked == calibrated ]]; then
+    scan=$job_or_scan
+    job=
+    what="Pixel ($poi) of sensor $sensor is calibrated already (calibration $scan_or_calib, from scan
+$scan): no new scan queued (IPSD_NEW_SCAN=1 scripts/run.sh queues one)."
+else
+    scan=$picked
+    job=$scan_or_calib
+    what="Scan $scan (job $job) of pixel ($poi) of sensor $sensor was queued before and goes on; when
+it is done, the fit of that pixel is queued automatically and stored as its calibration."
+fi
 
 cat <<EOT
 
 ipsd is running ($base, database var/ipsd.db, simulated bench).
-Queued scan $scan (job $job) of pixel ($poi) of sensor $sensor; when it is done, the fit of
-that pixel is queued automatically and stored as its calibration.
+$what
 
   Dashboard:        $base/
-  Follow the job:   curl -s $base/api/jobs/$job
-  Live progress:    curl -N $base/api/events?job=$job
   The scan:         curl -s $base/api/scans/$scan
-  Its fit jobs:     curl -s '$base/api/jobs?kind=fit&scan=$scan'
-  The calibration:  curl -s $base/api/sensors/$sensor/pixels/${poi%,*}/${poi#*,}/calibration
-  ... as CSV:       curl -s '$base/api/sensors/$sensor/pixels/${poi%,*}/${poi#*,}/calibration?format=csv'
+  Its jobs:         curl -s '$base/api/jobs?scan=$scan'
+  Live progress:    curl -N $base/api/events
+  The calibration:  curl -s $base/api/sensors/$sensor/pixels/$col/$row/calibration
+  ... as CSV:       curl -s '$base/api/sensors/$sensor/pixels/$col/$row/calibration?format=csv'
   The pixel's raster for ips fit:
                     curl -s $base/api/scans/$scan/pixels/0/0 > pixel.json && $build/cli/ips fit pixel.json --table
   The API:          curl -s $base/api/openapi.json   (docs/api.md)
 
-Ctrl-C stops ipsd gracefully.
+Ctrl-C stops ipsd gracefully.${job:+ Progress below.}
 EOT
+# says how the scan goes, when it ends, and what its fit found
+follower=
+if [[ -n $job ]]; then
+    python3 scripts/run_follow.py follow "$base" "$scan" "$job" "$sensor" "$col" "$row" &
+    follower=$!
+fi
+trap 'kill -TERM $pid 2>/dev/null; [[ -n $follower ]] && kill $follower 2>/dev/null' INT TERM
 status=0
 while kill -0 $pid 2>/dev/null; do
     wait $pid && status=0 || status=$?
 done
+[[ -n $follower ]] && kill $follower 2>/dev/null
 exit $status

@@ -82,20 +82,34 @@ export function formBody(form) {
     return body;
 }
 
-// Shows err (an ApiError or Error) in the form's error box and marks the input of its field.
+// The API's message in words: the field's JSON name (raster.step_um) replaced by the label of
+// its input (Step (µm)), or the label put first when the message does not name it.
+export function inWords(message, field, label) {
+    if (!field || !label) return message;
+    return message.includes(field) ? message.split(field).join(label) : `${label}: ${message}`;
+}
+
+// Shows err (an ApiError or Error) at the form: when it names a field of the form, in words
+// right under that field's input (which is marked invalid and focused), and in the form's
+// error box (role=alert) either way; the box keeps the field's JSON name in data-error-field.
 export function showError(form, err) {
     clearError(form);
     const box = form.querySelector('.form-error');
     const field = err.field || null;
-    fill(box, h('strong', {}, 'Error: '), err.message,
-        field ? h('span', { class: 'field' }, ` (field: ${field})`) : null);
+    const input = field && form.querySelector(`[data-field="${CSS.escape(field)}"]`);
+    const label = input?.closest('label')?.querySelector('.lbl')?.textContent.trim() || null;
+    const text = inWords(err.message, input ? field : null, label);
+    fill(box, h('strong', {}, 'Error: '), text,
+        field && !input ? h('span', { class: 'field' }, ` (field: ${field})`) : null);
     box.dataset.errorField = field || '';
     box.dataset.errorCode = err.code || '';
     box.hidden = false;
-    const input = field && form.querySelector(`[data-field="${CSS.escape(field)}"]`);
     if (input) {
+        const at = h('small', { class: 'field-error', id: `${box.id}-at`,
+            'data-testid': 'field-error' }, text);
+        input.insertAdjacentElement('afterend', at);
         input.setAttribute('aria-invalid', 'true');
-        input.setAttribute('aria-describedby', box.id);
+        input.setAttribute('aria-describedby', at.id);
         input.focus();
     }
 }
@@ -106,6 +120,7 @@ export function clearError(form) {
         box.hidden = true;
         fill(box);
     }
+    for (const el of form.querySelectorAll('.field-error')) el.remove();
     for (const el of form.querySelectorAll('[aria-invalid]')) {
         el.removeAttribute('aria-invalid');
         el.removeAttribute('aria-describedby');

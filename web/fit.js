@@ -1,5 +1,5 @@
 // fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document): the chosen map S
-// (best BIC r by default, any r selectable) as a heatmap with its colour bar, the interpolated
+// (the recommended r by default, any r selectable) as a heatmap with its colour bar, the interpolated
 // map (from the server, maps.js), the uncertainties S_err, the Wiener-deconvolution baseline next
 // to them, the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, the
 // F-test verdict (paper: reject H0 when p < 0.05), and whether the fit's map is its pixel's current
@@ -21,12 +21,15 @@ function wienerFigure(w, pitch) {
         ` µm: S = ${fmt(v, 5)}`, table: w.nx * w.ny <= 144 });
 }
 
-function selection(res) {
+// The model-selection plots and table; note: the line under them that says which map the maps
+// above show (updated by the view when another r is chosen).
+function selection(res, rec, note) {
     const fits = res.fits, best = res.best_r || {};
     const pts = (k) => fits.map((f) => [f.r, f[k]]);
     const marks = [];
     if (best.aic) marks.push({ x: best.aic, label: 'AIC', cls: 'aic', row: 0 });
     if (best.bic) marks.push({ x: best.bic, label: 'BIC', cls: 'bic', row: 1 });
+    if (rec) marks.push({ x: rec, label: 'recommended', cls: 'rec', row: 2 });
     const xticks = fits.map((f) => f.r);
     const chi = linePlot({ title: 'χ² against r (log scale)', xlabel: 'sub-pixels per axis r',
         ylabel: 'χ²', log: true, xticks, marks,
@@ -40,14 +43,12 @@ function selection(res) {
             'status'].map((t) => h('th', { scope: 'col' }, t)))),
         h('tbody', {}, fits.map((f) => h('tr', { class: [f.r === best.aic ? 'best-aic' : '',
             f.r === best.bic ? 'best-bic' : ''].join(' ').trim() || null },
-        h('td', {}, f.r, f.r === best.aic ? h('span', { class: 'tag aic' }, 'AIC') : null,
+        h('td', {}, f.r, f.r === rec ? h('span', { class: 'tag rec' }, 'rec.') : null,
+            f.r === best.aic ? h('span', { class: 'tag aic' }, 'AIC') : null,
             f.r === best.bic ? h('span', { class: 'tag bic' }, 'BIC') : null),
         h('td', {}, f.params), h('td', {}, fmt(f.chi2, 6)), h('td', {}, fmt(f.chi2_red)),
         h('td', {}, fmt(f.aic, 6)), h('td', {}, fmt(f.bic, 6)), h('td', {}, fmt(f.cond, 3)),
         h('td', {}, f.status)))));
-    const note = h('p', { class: 'muted small' }, `Dashed lines: the best r by AIC ` +
-        `(${best.aic ?? '–'}) and by BIC (${best.bic ?? '–'}); the map above is the BIC ` +
-        'choice, as stored in the calibration.');
     return [h('div', { class: 'plots' }, chi, ic), note, table];
 }
 
@@ -140,6 +141,7 @@ export function renderFit(root, id) {
                 `r = ${f.r}${f.r === rec ? ' (recommended)' : ''}` +
                 `${f.r === best.bic ? ' (best BIC)' : ''}${f.r === best.aic ? ' (best AIC)' : ''}`)));
         const facts = h('dl', { class: 'facts' });
+        const note = h('p', { class: 'muted small', 'data-testid': 'selection-note' });
         const maps = h('div', { class: 'maps' });
         const wiener = wienerFigure(res.wiener, pitch);
         const show = () => {
@@ -171,6 +173,11 @@ export function renderFit(root, id) {
                 h('dd', {}, `${res.N ?? '–'} of ${res.n_points ?? '–'}`),
                 h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
                     `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`));
+            fill(note, `Dashed lines: the best r by AIC (${best.aic ?? '–'}), by BIC ` +
+                `(${best.bic ?? '–'}) and the recommended r (${rec ?? '–'}). The maps above ` +
+                `are r = ${f.r}` + (f.r === rec ? ', the recommended r: the map the fit offers ' +
+                'as its pixel\'s calibration.' : `; the map the fit offers as its pixel's ` +
+                `calibration is the recommended r = ${rec ?? '–'}.`));
             fill(maps, f.S ? mapFigures(f.S, f.S_err, f.r, pitch,
                 `/api/fits/${fit.id}/interp?r=${f.r}`) : h('p', { class: 'muted' },
                 `The r = ${f.r} fit has no map (${f.status}).`), wiener);
@@ -207,7 +214,7 @@ export function renderFit(root, id) {
                     'downward). Point at a map, or focus it and use the arrow keys, for values.'),
                 maps),
             h('section', { class: 'panel', 'aria-labelledby': 'sel-h' },
-                h('h3', { id: 'sel-h' }, 'Model selection'), fits.length ? selection(res)
+                h('h3', { id: 'sel-h' }, 'Model selection'), fits.length ? selection(res, rec, note)
                     : h('p', { class: 'muted' }, 'No sweep in this fit.')));
         show();
     })().catch((err) => fill(root, failure(err)));

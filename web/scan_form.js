@@ -2,7 +2,8 @@
 // optics (wavelength and NA, or a spot radius), raster, scene, exposure and seed. Every default
 // and bound comes from the server's rules (rules.js, the served OpenAPI document), never from
 // this file: the optics and raster are filled in with the server's defaults, the exposure and
-// seed shown as placeholders (empty inputs are not sent, so the server's defaults apply).
+// seed shown as placeholders (empty inputs are not sent, so the server's defaults apply). The
+// pixel of interest is preset to the chosen sensor's centre.
 import { post } from './api.js';
 import { errorBox, field, fmt, h, onSubmit } from './dom.js';
 import { choices, ruleAttrs } from './rules.js';
@@ -64,6 +65,23 @@ export function buildScanForm(rule, sensorSelect, onQueued) {
         int('Seed', 'seed', { placeholder: true })),
     err,
     h('button', { type: 'submit', class: 'primary' }, 'Start scan'));
+    // the pixel of interest starts at the chosen sensor's centre pixel; a value typed in stays
+    // (only an empty field, or the centre this form put there, follows the sensor)
+    const presetPoi = () => {
+        const o = sensorSelect.selectedOptions[0];
+        if (!o || !o.dataset.cols) return;
+        const centre = { 'poi.col': Math.floor(o.dataset.cols / 2),
+            'poi.row': Math.floor(o.dataset.rows / 2) };
+        for (const [f, v] of Object.entries(centre)) {
+            const el = form.querySelector(`input[data-field="${f}"]`);
+            if (el.value === '' || el.value === el.dataset.preset) {
+                el.value = String(v);
+                el.dataset.preset = String(v);
+            }
+        }
+    };
+    sensorSelect.addEventListener('change', presetPoi);
+    presetPoi();
     onSubmit(form, async (body) => onQueued(await post('/api/scans', body)));
     return form;
 }

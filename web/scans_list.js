@@ -37,6 +37,7 @@ export function renderScans(root, ctx) {
             buildSensorForm(sensorRule, async (s) => {
                 await loadSensors();
                 sensorSelect.value = String(s.id);
+                sensorSelect.dispatchEvent(new Event('change'));
             }),
             buildScanForm(scanRule, sensorSelect, async (reply) => {
                 await loadScans();
@@ -51,10 +52,12 @@ export function renderScans(root, ctx) {
         fill(sensorSelect,
             h('option', { value: '' }, sensors.length ? 'Choose a sensor'
                 : 'No sensor yet: create one'),
-            sensors.map((s) => h('option', { value: s.id },
+            sensors.map((s) => h('option', { value: s.id, dataset: { cols: s.n_cols,
+                rows: s.n_rows } },
                 `${sensorName(s)} (${s.n_cols}×${s.n_rows}, ${fmt(s.pitch_um)} µm)`)));
         if (keep && sensors.some((s) => String(s.id) === keep)) sensorSelect.value = keep;
         else if (sensors.length) sensorSelect.value = String(sensors[sensors.length - 1].id);
+        sensorSelect.dispatchEvent(new Event('change')); // the scan form presets the POI
     }
 
     async function loadScans() {

@@ -226,7 +226,12 @@ async function run(base, page, api) {
     check(sensor && sensor.n_cols === 64 && sensor.n_rows === 48,
         'the sensor typed into the form is stored (64 x 48)', JSON.stringify(sensor));
 
-    // the scan form: a bad request first (even raster area), then a good one
+    // the scan form: the POI starts at the chosen sensor's centre pixel (64 x 48: (32, 24))
+    check(await form.getByLabel('Column').inputValue() === '32' &&
+        await form.getByLabel('Row', { exact: true }).inputValue() === '24',
+    'the POI is preset to the sensor\'s centre', `${await form.getByLabel('Column')
+        .inputValue()}, ${await form.getByLabel('Row', { exact: true }).inputValue()}`);
+    // a bad request first (even raster area), then a good one
     await typeInto(form.getByLabel('Column'), 10);
     await typeInto(form.getByLabel('Row', { exact: true }), 12);
     await typeInto(form.getByLabel('Area (pixels, odd)'), 4);
@@ -241,13 +246,22 @@ async function run(base, page, api) {
         optics: { wavelength_nm: 550, na: 0.25 },
         raster: { area_px: 4, step_um: 0.5, sub_px: 3, frames: 2 }, scene: 'paperlike' });
     const shown = await errBox.textContent();
-    check(bad.status === 422 && shown.includes(bad.body.error.message) &&
-        shown.includes(bad.body.error.field),
-    'a bad request shows the API\'s error message and field next to the form',
+    // the API's message in words: its JSON field name replaced by the input's label
+    const words = bad.body.error.message.split(bad.body.error.field).join('Area (pixels, odd)');
+    check(bad.status === 422 && bad.body.error.field === 'raster.area_px' &&
+        bad.body.error.message.includes('raster.area_px') && shown.includes(words) &&
+        !shown.includes('raster.area_px'),
+    'a bad request shows the API\'s error in words at the form',
     `page: "${shown}", API: ${JSON.stringify(bad.body)}`);
     const areaInput = form.locator('input[data-field="raster.area_px"]');
-    check(await areaInput.getAttribute('aria-invalid') === 'true',
-        'the offending input is marked invalid');
+    const atField = form.locator('[data-testid="field-error"]');
+    check(await areaInput.getAttribute('aria-invalid') === 'true' &&
+        (await atField.textContent()) === words &&
+        await areaInput.getAttribute('aria-describedby') === await atField.getAttribute('id') &&
+        await atField.evaluate((el, inp) => el.previousElementSibling === inp,
+            await areaInput.elementHandle()),
+    'the offending input is marked invalid, with the error right under it',
+    await atField.textContent());
     check((await api('GET', '/api/scans')).body.total === 0, 'the bad request stored no scan');
 
     await typeInto(form.getByLabel('Area (pixels, odd)'), 1);
@@ -256,7 +270,8 @@ async function run(base, page, api) {
     const scan = await until(async () => (await api('GET', '/api/scans')).body.items[0],
         'the scan to be queued');
     await page.locator(`tr[data-scan-id="${scan.id}"]`).waitFor({ timeout: WAIT });
-    check(await errBox.isHidden(), 'the error box clears on a good request');
+    check(await errBox.isHidden() && await atField.count() === 0,
+        'the error box and the field\'s error clear on a good request');
     check(scan && scan.poi.col === 10 && scan.poi.row === 12 && scan.raster.area_px === 1 &&
         scan.raster.frames === 2, 'the scan typed into the form is queued', JSON.stringify(scan));
     const total = scan.raster.points_total;
@@ -304,6 +319,20 @@ async function run(base, page, api) {
     check(await text('shown-r') === `r = ${best.r}`, 'the map shown is the recommended one');
     check(await text('map-status') === best.status, 'the fit status matches the API',
         `${await text('map-status')} vs ${best.status}`);
+    // the note under the model selection names the map shown, also when another r is chosen
+    check((await text('selection-note')).includes(`are r = ${best.r}, the recommended r`),
+        'the selection note: the maps shown are the recommended r', await text('selection-note'));
+    const other = res.fits.find((f) => f.r !== best.r && f.S);
+    await page.locator('[data-testid="r-select"]').selectOption(String(other.r));
+    await page.locator('[data-testid="shown-r"]', { hasText: new RegExp(`^r = ${other.r}$`) })
+        .waitFor({ timeout: WAIT });
+    const note2 = await text('selection-note');
+    check(note2.includes(`are r = ${other.r};`) &&
+        note2.includes(`is the recommended r = ${best.r}`),
+        'after choosing another r the note names it and the recommended one', note2);
+    await page.locator('[data-testid="r-select"]').selectOption(String(best.r));
+    await page.locator('[data-testid="shown-r"]', { hasText: new RegExp(`^r = ${best.r}$`) })
+        .waitFor({ timeout: WAIT });
     const F = Number(await text('ftest-F')), p = Number(await text('ftest-p'));
     check(near(F, res.ftest.F, 1e-5), 'the F statistic matches the API', `${F} vs ${res.ftest.F}`);
     check(near(p, res.ftest.p_value, 1e-3), 'the p-value matches the API',
@@ -452,6 +481,23 @@ async function run(base, page, api) {
     check(await page.locator(`tr[data-scan-id="${longId}"] button`).count() === 0,
         'a cancelled scan has no Cancel button');
     await page.screenshot({ path: '/tmp/ipsd-dashboard-scans.png' });
+
+    // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box
+    await page.setViewportSize({ width: 390, height: 844 });
+    const views = [['#/scans', `tr[data-scan-id="${scan.id}"]`],
+        [`#/scans/${scan.id}`, 'table.list tbody tr'],
+        [`#/fits/${fitId}`, '[data-testid="sweep-table"] tbody tr'],
+        ['#/calibrations', 'table.list tbody tr'],
+        [`#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`,
+            '[data-testid="current-why"]']];
+    for (const [view, ready] of views) {
+        await page.goto(`${base}/${view}`);
+        await page.locator(ready).first().waitFor({ timeout: WAIT });
+        const w = await page.evaluate(() => [document.documentElement.scrollWidth,
+            document.documentElement.clientWidth]);
+        check(w[0] <= w[1], `${view} at 390 px: no sideways scrolling`, `page ${w[0]} px wide`);
+    }
+    await page.setViewportSize({ width: 1280, height: 800 });
 }
 
 // ---- main ----
