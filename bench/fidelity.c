@@ -5,8 +5,11 @@
  * (fit/recommend.h), the best r in hindsight, and the Wiener baseline, then a summary per raster
  * (instrument/fidelity.h). --tune measures a grid of the rule's two settings instead.
  * A benchmark: it prints, it never fails on numbers.
- * Usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max R] [--seeds N] [--sigma MODEL]
- * (the fits' noise model, default shot+read: the physically consistent one, numerics.md). */
+ * Usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max R] [--seeds N] [--first-seed S]
+ * [--raster I] [--scene NAME] [--sigma MODEL] [--dump FILE] (the fits' noise model, default
+ * shot+read: the physically consistent one, numerics.md; seeds S..S+N-1, 1..3 by default, the
+ * seeds the rule was chosen on: --first-seed 4 gives held-out ones; --dump writes every fit of
+ * every case for studying rules offline). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
