@@ -5,8 +5,11 @@
  * (fit/recommend.h), the best r in hindsight, and the Wiener baseline, then a summary per raster
  * (instrument/fidelity.h). --tune measures a grid of the rule's two settings instead.
  * A benchmark: it prints, it never fails on numbers.
- * Usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max R] [--seeds N] [--sigma MODEL]
- * (the fits' noise model, default shot+read: the physically consistent one, numerics.md). */
+ * Usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max R] [--seeds N] [--first-seed S]
+ * [--raster I] [--scene NAME] [--sigma MODEL] [--dump FILE] (the fits' noise model, default
+ * shot+read: the physically consistent one, numerics.md; seeds S..S+N-1, 1..3 by default, the
+ * seeds the rule was chosen on: --first-seed 4 gives held-out ones; --dump writes every fit of
+ * every case for studying rules offline). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -62,7 +65,9 @@ struct tally {
 };
 
 struct run {
-    int quick, tune, r_max, seeds;
+    int quick, tune, r_max, seeds, first_seed, raster; /* raster: index + 1, 0 all */
+    const char *scene;                                  /* NULL: every family */
+    FILE *dump;
     fit_noise_t noise;
     fit_recommend_opts_t rules[FID_MAX_RULES];
     int n_rules;
@@ -70,7 +75,7 @@ struct run {
 
 static int parse(int argc, char **argv, struct run *u)
 {
-    *u = (struct run){.r_max = 10, .seeds = 3, .noise = FIT_NOISE_SHOT_READ};
+    *u = (struct run){.r_max = 10, .seeds = 3, .first_seed = 1, .noise = FIT_NOISE_SHOT_READ};
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--quick") == 0) u->quick = 1;
         else if (strcmp(argv[i], "--tune") == 0) u->tune = 1;
@@ -83,9 +88,26 @@ static int parse(int argc, char **argv, struct run *u)
         else if (strcmp(argv[i], "--seeds") == 0 && i + 1 < argc &&
                  parse_int(argv[i + 1], &u->seeds) == 0 && u->seeds >= 1)
             i++;
+        else if (strcmp(argv[i], "--first-seed") == 0 && i + 1 < argc &&
+                 parse_int(argv[i + 1], &u->first_seed) == 0 && u->first_seed >= 1)
+            i++;
+        else if (strcmp(argv[i], "--raster") == 0 && i + 1 < argc &&
+                 parse_int(argv[i + 1], &u->raster) == 0 && u->raster >= 1 &&
+                 u->raster <= (int)N_RASTERS)
+            i++;
+        else if (strcmp(argv[i], "--scene") == 0 && i + 1 < argc)
+            u->scene = argv[++i];
+        else if (strcmp(argv[i], "--dump") == 0 && i + 1 < argc && !u->dump &&
+                 (u->dump = fopen(argv[i + 1], "w")) != NULL)
+            i++;
         else {
             fprintf(stderr, "usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max 1..%d] "
-                            "[--seeds N] [--sigma paper|shot+read]\n", FID_R_MAX);
+                            "[--seeds N] [--first-seed S] [--raster 1..%zu] [--scene NAME] "
+                            "[--sigma paper|shot+read] [--dump FILE]\n"
+                            "  seeds S..S+N-1 (default 1..3); --raster: 9x9, 13x13, 19x19, "
+                            "51x51 full; --dump: every fit's map, S_err and chi2 and the "
+                            "case's rms by r, as text, for studying rules offline\n",
+                    FID_R_MAX, N_RASTERS);
             return 2;
         }
     }
@@ -98,10 +120,31 @@ static int parse(int argc, char **argv, struct run *u)
         static const double w[] = {0, 1, 1.5, 2, 3};
         for (size_t a = 0; a < sizeof f / sizeof f[0]; a++)
             for (size_t b = 0; b < sizeof w / sizeof w[0]; b++)
-                if ((f[a] == 0.25 || w[b] == 2 || w[b] == 0) && u->n_rules < FID_MAX_RULES)
-                    u->rules[u->n_rules++] = (fit_recommend_opts_t){f[a], w[b], 1.5, w[b] > 0 ? 2 : 0, 0.5};
+                if (f[a] == 0.25 || w[b] == 2 || w[b] == 0)
+                    if (u->n_rules < FID_MAX_RULES) {
+                        fit_recommend_opts_t o = fit_recommend_opts_default();
+                        o.noise_to_contrast = f[a];
+                        o.noise_weight = w[b];
+                        if (w[b] <= 0) o.escape_misfit = 0;
+                        u->rules[u->n_rules++] = o;
+                    }
     }
     return 0;
+}
+
+/* --dump: one line per fit of the sweep ("F r flags n_used params chi2 chi2_red cv_chi2
+ * S[r*r] S_err[r*r]"), then the case line from main ("C scene raster flux seed rms[1..r_max]"). */
+static void dump_sweep(const fit_sweep_t *sw, void *ctx)
+{
+    FILE *fp = ctx;
+    for (int r = sw->r_min; r <= sw->r_max; r++) {
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        fprintf(fp, "F %d %u %zu %d %.9g %.9g %.9g", r, f->flags, f->n_used, f->params, f->chi2,
+                f->chi2_red, f->cv_chi2);
+        for (int j = 0; f->S && j < r * r; j++) fprintf(fp, " %.9g", f->S[j]);
+        for (int j = 0; f->S && j < r * r; j++) fprintf(fp, " %.9g", f->S_err[j]);
+        fprintf(fp, "\n");
+    }
 }
 
 static void print_case(const fid_case_t *c, const char *raster, const fid_result_t *f, int r_max)
@@ -207,12 +250,17 @@ int main(int argc, char **argv)
     for (size_t ri = 0; ri < N_RASTERS; ri++)
         for (size_t si = 0; si < N_SCENES; si++)
             for (size_t fi = 0; fi < (u.quick ? 1 : N_FLUXES); fi++)
-                for (int seed = 1; seed <= u.seeds; seed++) {
+                for (int seed = u.first_seed; seed < u.first_seed + u.seeds; seed++) {
+                    if ((u.raster && (int)ri + 1 != u.raster) ||
+                        (u.scene && strcmp(u.scene, scenes[si]) != 0))
+                        continue;
                     fid_case_t c = {.scene = scenes[si], .grid = rasters[ri].grid,
                                     .step_um = rasters[ri].step, .area_px = 5,
                                     .flux_scale = fluxes[fi], .seed = (unsigned long)seed,
                                     .noise = u.noise, .rules = u.rules,
-                                    .n_rules = u.n_rules};
+                                    .n_rules = u.n_rules,
+                                    .on_sweep = u.dump ? dump_sweep : NULL,
+                                    .on_sweep_ctx = u.dump};
                     fid_result_t f;
                     err_t err;
                     if (fid_run(&c, u.r_max, &f, &err)) {
@@ -221,6 +269,12 @@ int main(int argc, char **argv)
                         continue;
                     }
                     print_case(&c, rasters[ri].name, &f, u.r_max);
+                    if (u.dump) {
+                        fprintf(u.dump, "C %s %zu %g %d", c.scene, ri, c.flux_scale, seed);
+                        for (int r = 1; r <= u.r_max; r++) fprintf(u.dump, " %.9g", f.rms[r]);
+                        fprintf(u.dump, "\n");
+                        fflush(u.dump);
+                    }
                     tally_case(&t[ri], &f, u.n_rules);
                     tally_case(&ts[si], &f, u.n_rules);
                     if (ratio(&f, f.r_rec[0]) > OK_RATIO)
@@ -229,5 +283,6 @@ int main(int argc, char **argv)
                 }
     print_summary(t, ts, &u);
     printf("\ntotal %.1f s\n", clock_mono_s() - t0);
+    if (u.dump) fclose(u.dump);
     return 0;
 }

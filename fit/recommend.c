@@ -8,8 +8,8 @@
 fit_recommend_opts_t fit_recommend_opts_default(void)
 {
     return (fit_recommend_opts_t){.noise_to_contrast = 0.25, .noise_weight = 2,
-                                  .coarse_misfit = 1.5,
-                                  .escape_misfit = 2, .escape_noise_to_contrast = 0.5};
+                                  .coarse_misfit = 1.5, .escape_misfit = 1.7,
+                                  .escape_noise_to_contrast = 0.5, .escape_error_ratio = 2};
 }
 
 void fit_map_noise_contrast(const fit_result_t *f, double *noise, double *contrast)
@@ -111,18 +111,28 @@ static int refine(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double s
     return r_best;
 }
 
-/* Step 4 (recommend.h): r_cv + 1 when r_cv misfits the points beyond their scatter and r_cv + 1
- * does not, fits them better, and is not noise-dominated. */
+/* Step 4 (recommend.h): r_cv + 1 when r_cv misfits the points by escape_misfit times more than
+ * r_cv + 1 does (and than their scatter), r_cv + 1 fits them better, is not noise-dominated
+ * (noise at most escape_noise_to_contrast of its contrast) and its expected error is at most
+ * escape_error_ratio times r_cv's. The misfit is measured against r_cv + 1's own reduced chi2,
+ * not only against the scatter: the scatter is the smallest reduced chi2 of the sweep and carries
+ * the finest fits' own bias (paper-like 9 x 9: scatter^2 1.3-1.8 from r = 7, where r = 6 misfits
+ * 1.8-1.95 times more and r = 7 is the better map). The error ratio keeps a checkerboard out:
+ * a 19 x 19 paper-like scan (seed 9) had r = 9 pass the other tests with noise 11 times r = 8's,
+ * expected error 0.29 against 0.042, map error 5.3x. */
 static int escape_misfit(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double scale,
                          int r_cv)
 {
     if (o->escape_misfit <= 0 || r_cv + 1 > sw->r_max) return 0;
     const fit_result_t *f0 = &sw->fits[r_cv - sw->r_min], *f1 = f0 + 1;
-    double lim = o->escape_misfit * scale * scale;
     fit_recommend_opts_t relaxed = *o;
     relaxed.noise_to_contrast = o->escape_noise_to_contrast;
-    return f0->chi2_red > lim && f1->chi2_red <= lim && f1->chi2 <= f0->chi2 &&
-           admissible(f1, &relaxed, scale);
+    if (!(f0->chi2_red > o->escape_misfit * fmax(f1->chi2_red, scale * scale)) ||
+        !(f1->chi2 <= f0->chi2) || !admissible(f1, &relaxed, scale))
+        return 0;
+    double e0 = fit_map_expected_error(f0, scale, o->noise_weight, NULL, NULL);
+    double e1 = fit_map_expected_error(f1, scale, o->noise_weight, NULL, NULL);
+    return !isfinite(e0) || (o->escape_error_ratio > 0 && e1 <= o->escape_error_ratio * e0);
 }
 
 void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
@@ -159,10 +169,11 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
     if (escaped)
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d: r = %d, the best leave-one-out predictor among maps with noise "
-                     "at most %g of contrast, misfits the points (reduced chi2 %.3g, scatter "
-                     "%.3g); r = %d fits them, noise %.2g against contrast %.2g",
+                     "at most %g of contrast, misfits the points (reduced chi2 %.3g against "
+                     "%.3g for r = %d, scatter %.3g); r = %d fits them, noise %.2g against "
+                     "contrast %.2g",
                      out->r, r_cv, o.noise_to_contrast, sw->fits[r_cv - sw->r_min].chi2_red,
-                     scale * scale, out->r, noise * scale, contrast);
+                     f->chi2_red, out->r, scale * scale, out->r, noise * scale, contrast);
     else if (out->r == r_cv)
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d predicts left-out spot positions best (leave-one-out chi2/N %.3g) "

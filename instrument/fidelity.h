@@ -12,6 +12,7 @@
 #include <stddef.h>
 
 #include "base/err.h"
+#include "fit/model.h"
 #include "fit/noise.h"
 #include "fit/recommend.h"
 #include "fit/region.h"
@@ -33,6 +34,9 @@ typedef struct fid_case {
     int n_rules;
     fit_region_t region; /* the points fitted (fit/region.h; inside): the full raster keeps
                             every point of the raster, the fit takes the region's */
+    /* called with the finished sweep before it is freed (NULL: none); the bench's --dump */
+    void (*on_sweep)(const fit_sweep_t *sw, void *ctx);
+    void *on_sweep_ctx;
 } fid_case_t;
 
 typedef struct fid_result {

@@ -5,7 +5,8 @@
  * the argmin of the published AIC / BIC of tests/data/paperlike_scan.json; the admissibility rule
  * on maps built by hand (a map whose noise exceeds a quarter of its contrast is never recommended,
  * r = 1 always may be, flagged fits never); the expected map error of step 3 against the analytic
- * within-sub-pixel variance of a linear truth, and step 3 on a tilt built by hand. */
+ * within-sub-pixel variance of a linear truth, step 3 on a tilt built by hand, and step 4's
+ * misfit ratio and expected-error bound on a sweep built by hand. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -222,6 +223,52 @@ static void test_refine(void)
     CHECK(rec.r == 2);
 }
 
+/* Step 4 on a sweep built by hand (tilt g = 0.2, 100 points, no noise but r = 3's): r = 2 is
+ * r_cv and step 3 keeps it (r = 3's noise, 0.4 of its contrast g sqrt(2/27), is over the 0.25
+ * bound); r = 2 misfits the points (reduced chi2 4 against r = 3's 1, the scatter) by more than
+ * 1.7 times, so step 4 moves to r = 3. Its expected error sqrt(2 n^2 + (g^2/9 - 4 n^2)/12) is
+ * 1.18 times r = 2's g/(2 sqrt 12): with escape_error_ratio 1.1 it stays at r = 2, and with r = 2
+ * misfitting only 1.5 times r = 3 it stays too. */
+static void test_escape(void)
+{
+    const double g = 0.2, n3 = 0.4 * g * sqrt(2.0 / 27);
+    fit_result_t f[3];
+    double S2[4], S3[9], E2[4] = {0}, E3[9], one = 1, zero = 0;
+    memset(f, 0, sizeof f);
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 2; i++) S2[j * 2 + i] = 1 + g * ((i + 0.5) / 2 - 0.5);
+    for (int j = 0; j < 3; j++)
+        for (int i = 0; i < 3; i++) S3[j * 3 + i] = 1 + g * ((i + 0.5) / 3 - 0.5), E3[j * 3 + i] = n3;
+    const double red[3] = {10, 4, 1}, cv[3] = {1000, 300, 400};
+    for (int k = 0; k < 3; k++) {
+        f[k].r = k + 1;
+        f[k].params = (k + 1) * (k + 1) + 1;
+        f[k].n_used = 100;
+        f[k].chi2_red = red[k];
+        f[k].chi2 = red[k] * (100 - f[k].params);
+        f[k].cv_chi2 = cv[k];
+    }
+    f[0].S = &one, f[0].S_err = &zero;
+    f[1].S = S2, f[1].S_err = E2;
+    f[2].S = S3, f[2].S_err = E3;
+    double e2 = fit_map_expected_error(&f[1], 1, 2, NULL, NULL);
+    double e3 = fit_map_expected_error(&f[2], 1, 2, NULL, NULL);
+    CHECK(fabs(e2 - g / 2 / sqrt(12.0)) < 1e-12);
+    CHECK(fabs(e3 - sqrt(2 * n3 * n3 + (g * g / 9 - 4 * n3 * n3) / 12)) < 1e-12);
+    fit_sweep_t sw = {.r_min = 1, .r_max = 3, .fits = f};
+    fit_recommendation_t rec;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 3);
+    CHECK(strstr(rec.reason, "misfits the points") != NULL);
+    fit_recommend_opts_t o = fit_recommend_opts_default();
+    o.escape_error_ratio = 1.1; /* below e3 / e2 = 1.18: a noisier r + 1 than allowed */
+    fit_recommend(&sw, &o, &rec);
+    CHECK(rec.r == 2);
+    f[1].chi2_red = 1.5, f[1].chi2 = 1.5 * 95; /* misfits 1.5 times r = 3 only: below 1.7 */
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 2);
+}
+
 int main(void)
 {
     ref_scan_t ref;
@@ -231,6 +278,7 @@ int main(void)
     test_rule();
     test_expected_error();
     test_refine();
+    test_escape();
     ref_scan_free(&ref);
     CHECK_DONE();
 }
