@@ -18,6 +18,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -51,14 +52,33 @@ struct cheb {
     double cosm[MAX_ORDER][MAX_ORDER];  /* cos(pi j (k + 1/2) / m): the DCT */
 };
 
-struct segment {
-    double sa, sb, cq, cp;              /* ends in E; prefix integrals of Q and P at sa */
-    double Cq[MAX_ORDER + 1], Cp[MAX_ORDER + 1]; /* antiderivative coefficients (in E units) */
+/* A sweep's segments are stored flat, SEG_STRIDE(m) doubles each: [sa, sb, cq, cp, Cq[0..m],
+ * Cp[0..m]]: the ends in E, the prefix integrals of Q and P at sa, and the antiderivative
+ * coefficients (in E units). Flat and sized by the order in use, so that a cached sweep costs
+ * 38 doubles per segment at order 16, not MAX_ORDER's. */
+#define SEG_STRIDE(m) (4 + 2 * ((m) + 1))
+#define SEG_CQ 4
+#define SEG_CP(m) (5 + (m))
+
+/* One sweep: the segments built so far for the line at scaled distance w, and where the next one
+ * starts (E, with the prefix integrals cq, cp there), so that it can be extended. Segments are
+ * never cut short at the farthest target: a sweep's segments depend only on w and the options,
+ * so extending a cached sweep gives exactly the segments a fresh one would have. */
+struct sweep {
+    double w, E, cq, cp;
+    int nseg, cap;
+    double *seg;
 };
 
-struct sweep {
-    int nseg, cap;
-    struct segment *seg;
+/* The cross-call cache (design.h): sweeps by w in an open-addressing table. */
+struct fit_design_cache {
+    int order;              /* the options the cached sweeps were built with (order 0: none yet) */
+    double seg_dv, seg_ds;
+    size_t bytes, budget;   /* segment memory held, and the most it may hold */
+    size_t n, cap;          /* sweeps held */
+    struct sweep *sw;
+    size_t *slot, nslot;    /* index + 1 into sw, 0 empty; nslot a power of two */
+    fit_design_cache_stats_t st;
 };
 
 /* Antiderivative (zero at t = -1) of sum_j c_j T_j, j < m, scaled by the half-length h. */
@@ -77,29 +97,39 @@ static void antiderivative(const double *c, int m, double h, double *C)
     for (int j = 0; j <= m; j++) C[j] *= h;
 }
 
-/* Fills sw with segments covering E in [1, emax] for the line at scaled distance w > 0.
- * Returns the number of radial evaluations, or (size_t)-1 when out of memory. */
-static size_t sweep_build(const struct cheb *ch, const fit_design_opts_t *o, double w, double emax,
-                          struct sweep *sw)
+/* Starts sw afresh for the line at scaled distance w > 0 (keeps its buffer). */
+static void sweep_reset(struct sweep *sw, double w)
 {
-    int m = ch->m;
-    size_t evals = 0;
-    double E = 1, cq = 0, cp = 0, ratio = exp(o->seg_ds);
+    sw->w = w;
+    sw->E = 1;
+    sw->cq = sw->cp = 0;
     sw->nseg = 0;
+}
+
+/* Appends segments to sw until they cover E up to emax. *added_bytes (may be NULL) grows by the
+ * memory newly allocated. Returns the number of radial evaluations, or (size_t)-1 when out of
+ * memory. */
+static size_t sweep_extend(const struct cheb *ch, const fit_design_opts_t *o, struct sweep *sw,
+                           double emax, size_t *added_bytes)
+{
+    int m = ch->m, stride = SEG_STRIDE(m);
+    size_t evals = 0;
+    double w = sw->w, E = sw->E, cq = sw->cq, cp = sw->cp, ratio = exp(o->seg_ds);
     while (E < emax) {
-        double next = E * ratio < emax ? E * ratio : emax;
+        double next = E * ratio;
         /* v = w (E + 1/E)/2 may grow by at most seg_dv: solve E' + 1/E' = 2 vnext / w */
         double vnext = w * 0.5 * (E + 1 / E) + o->seg_dv, c = vnext / w;
         if (w * 0.5 * (next + 1 / next) > vnext) next = c + sqrt((c - 1) * (c + 1));
-        if (!(next > E)) next = emax; /* rounding guard */
+        if (!(next > E)) next = E * ratio > E ? E * ratio : emax; /* rounding guard */
         if (sw->nseg == sw->cap) {
             int cap = sw->cap ? 2 * sw->cap : 16;
-            struct segment *ns = realloc(sw->seg, sizeof *ns * (size_t)cap);
+            double *ns = realloc(sw->seg, sizeof(double) * (size_t)stride * (size_t)cap);
             if (!ns) return (size_t)-1;
+            if (added_bytes) *added_bytes += sizeof(double) * (size_t)stride * (size_t)(cap - sw->cap);
             sw->seg = ns;
             sw->cap = cap;
         }
-        struct segment *g = &sw->seg[sw->nseg++];
+        double *g = sw->seg + (size_t)stride * (size_t)sw->nseg++;
         double mid = 0.5 * (next + E), h = 0.5 * (next - E), fq[MAX_ORDER], fp[MAX_ORDER];
         for (int k = 0; k < m; k++) {
             double x = mid + h * ch->t[k], x2 = x * x + 1.0, q, p;
@@ -120,34 +150,47 @@ static size_t sweep_build(const struct cheb *ch, const fit_design_opts_t *o, dou
         }
         c1[0] /= 2;
         c2[0] /= 2;
-        antiderivative(c1, m, h, g->Cq);
-        antiderivative(c2, m, h, g->Cp);
-        g->sa = E;
-        g->sb = next;
-        g->cq = cq;
-        g->cp = cp;
+        double *Cq = g + SEG_CQ, *Cp = g + SEG_CP(m);
+        antiderivative(c1, m, h, Cq);
+        antiderivative(c2, m, h, Cp);
+        g[0] = E;
+        g[1] = next;
+        g[2] = cq;
+        g[3] = cp;
         for (int j = 0; j <= m; j++) { /* T_j(1) = 1 */
-            cq += g->Cq[j];
-            cp += g->Cp[j];
+            cq += Cq[j];
+            cp += Cp[j];
         }
         E = next;
     }
+    sw->E = E;
+    sw->cq = cq;
+    sw->cp = cp;
     return evals;
+}
+
+/* The segment holding E = s (the last one with sa <= s: branch-free halving) and s's place in
+ * it, t in [-1, 1]. */
+static const double *sweep_find(const struct sweep *sw, int stride, double s, double *t)
+{
+    const double *g = sw->seg;
+    for (int len = sw->nseg; len > 1;) {
+        int half = len / 2;
+        g = g[(size_t)half * stride] <= s ? g + (size_t)half * stride : g;
+        len -= half;
+    }
+    double h = 0.5 * (g[1] - g[0]), tt = h > 0 ? (s - 0.5 * (g[0] + g[1])) / h : 1.0;
+    *t = tt > 1 ? 1 : tt;
+    return g;
 }
 
 /* Prefix integrals of Q (and of P when wp is not NULL) up to E = s (1 <= s <= the sweep's end). */
 static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, double *wp)
 {
-    const struct segment *g = sw->seg; /* the last segment with sa <= s: branch-free halving */
-    for (int len = sw->nseg; len > 1;) {
-        int half = len / 2;
-        g = g[half].sa <= s ? g + half : g;
-        len -= half;
-    }
-    double h = 0.5 * (g->sb - g->sa), t = h > 0 ? (s - 0.5 * (g->sa + g->sb)) / h : 1.0;
-    if (t > 1) t = 1;
-    *wq = g->cq + radial_clenshaw(g->Cq, m, t);
-    if (wp) *wp = g->cp + radial_clenshaw(g->Cp, m, t);
+    double t;
+    const double *g = sweep_find(sw, SEG_STRIDE(m), s, &t);
+    *wq = g[2] + radial_clenshaw(g + SEG_CQ, m, t);
+    if (wp) *wp = g[3] + radial_clenshaw(g + SEG_CP(m), m, t);
 }
 
 /* One target of a sweep: E = s, the node's place in the wedge arrays, what it needs (need[]). */
@@ -165,18 +208,10 @@ static void sweep_eval4(const struct sweep *sw, int m, const struct target *tg, 
     const double *c[4];
     double t[4], t2[4], base[4], b1[4] = {0, 0, 0, 0}, b2[4] = {0, 0, 0, 0};
     for (int l = 0; l < 4; l++) {
-        double s = tg[l].s;
-        const struct segment *g = sw->seg;
-        for (int len = sw->nseg; len > 1;) {
-            int half = len / 2;
-            g = g[half].sa <= s ? g + half : g;
-            len -= half;
-        }
-        double h = 0.5 * (g->sb - g->sa), tt = h > 0 ? (s - 0.5 * (g->sa + g->sb)) / h : 1.0;
-        t[l] = tt > 1 ? 1 : tt;
+        const double *g = sweep_find(sw, SEG_STRIDE(m), tg[l].s, &t[l]);
         t2[l] = 2 * t[l];
-        c[l] = g->Cq;
-        base[l] = g->cq;
+        c[l] = g + SEG_CQ;
+        base[l] = g[2];
     }
     for (int k = m; k >= 1; k--)
         for (int l = 0; l < 4; l++) {
@@ -185,6 +220,109 @@ static void sweep_eval4(const struct sweep *sw, int m, const struct target *tg, 
             b1[l] = b0;
         }
     for (int l = 0; l < 4; l++) wq[tg[l].at] = base[l] + (t[l] * b1[l] + (c[l][0] - b2[l]));
+}
+
+/* ---- the cross-call sweep cache ---- */
+
+#define CACHE_BUDGET ((size_t)64 << 20) /* bytes of segments a cache may hold */
+
+fit_design_cache_t *fit_design_cache_new(void)
+{
+    fit_design_cache_t *c = calloc(1, sizeof *c);
+    if (c) c->budget = CACHE_BUDGET;
+    return c;
+}
+
+void fit_design_cache_free(fit_design_cache_t *c)
+{
+    if (!c) return;
+    for (size_t i = 0; i < c->n; i++) free(c->sw[i].seg);
+    free(c->sw);
+    free(c->slot);
+    free(c);
+}
+
+fit_design_cache_stats_t fit_design_cache_stats(const fit_design_cache_t *c)
+{
+    fit_design_cache_stats_t st = {0};
+    if (c) st = c->st, st.sweeps = c->n, st.bytes = c->bytes;
+    return st;
+}
+
+/* The table slot of w (w > 0, so its bits are a fine key; Fibonacci hashing of the bits). */
+static size_t cache_slot(const fit_design_cache_t *c, double w)
+{
+    uint64_t bits;
+    memcpy(&bits, &w, sizeof bits);
+    size_t mask = c->nslot - 1, i = (size_t)((bits * 0x9E3779B97F4A7C15ull) >> 20) & mask;
+    while (c->slot[i] && c->sw[c->slot[i] - 1].w != w) i = (i + 1) & mask;
+    return i;
+}
+
+/* Doubles the table (rehashing every sweep). Returns 0 or -ENOMEM. */
+static int cache_grow(fit_design_cache_t *c)
+{
+    size_t nslot = c->nslot ? 2 * c->nslot : 1024, *old = c->slot, oldn = c->nslot;
+    size_t *slot = calloc(nslot, sizeof *slot);
+    struct sweep *sw = realloc(c->sw, sizeof *sw * nslot / 2);
+    if (!slot || !sw) {
+        free(slot);
+        if (sw) c->sw = sw;
+        return -ENOMEM;
+    }
+    c->sw = sw;
+    c->cap = nslot / 2;
+    c->slot = slot;
+    c->nslot = nslot;
+    for (size_t i = 0; i < oldn; i++)
+        if (old[i]) c->slot[cache_slot(c, c->sw[old[i] - 1].w)] = old[i];
+    free(old);
+    return 0;
+}
+
+/* The sweep for w covering E up to emax: the cache's (built or extended as needed) when there is
+ * a cache for these options with room, else the scratch sweep built afresh. NULL when out of
+ * memory. *evals grows by the radial evaluations done. */
+static const struct sweep *sweep_get(fit_design_cache_t *c, const struct cheb *ch,
+                                     const fit_design_opts_t *o, struct sweep *scratch, double w,
+                                     double emax, size_t *evals)
+{
+    struct sweep *sw = NULL;
+    if (c && c->order == ch->m && c->seg_dv == o->seg_dv && c->seg_ds == o->seg_ds) {
+        size_t i = cache_slot(c, w);
+        if (c->slot[i]) {
+            sw = &c->sw[c->slot[i] - 1];
+            c->st.hits++;
+        } else if (c->bytes < c->budget && (c->n < c->nslot / 2 || cache_grow(c) == 0)) {
+            i = cache_slot(c, w); /* the table may have grown */
+            sw = &c->sw[c->n];
+            *sw = (struct sweep){.seg = NULL};
+            sweep_reset(sw, w);
+            c->slot[i] = ++c->n;
+            c->st.misses++;
+        }
+    }
+    size_t ev;
+    if (sw) {
+        ev = sweep_extend(ch, o, sw, emax, &c->bytes);
+    } else {
+        sweep_reset(scratch, w);
+        ev = sweep_extend(ch, o, scratch, emax, NULL);
+        sw = scratch;
+    }
+    if (ev == (size_t)-1) return NULL;
+    *evals += ev;
+    return sw;
+}
+
+/* Makes the cache serve these options when it serves none yet (it keeps its first options'). */
+static void cache_claim(fit_design_cache_t *c, const fit_design_opts_t *o)
+{
+    if (c && c->order == 0 && cache_grow(c) == 0) {
+        c->order = o->order;
+        c->seg_dv = o->seg_dv;
+        c->seg_ds = o->seg_ds;
+    }
 }
 
 /* ---- the design matrix ---- */
@@ -306,15 +444,14 @@ static int direction_pass(const struct cheb *ch, const fit_design_opts_t *o, str
         }
         g0 = g1;
         if (smax <= 1) continue; /* no targets */
-        size_t ev = sweep_build(ch, o, w, smax, &wk->sw);
-        if (ev == (size_t)-1) return -ENOMEM;
-        *evals += ev;
+        const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, smax, evals);
+        if (!sw) return -ENOMEM;
         size_t t = 0;
-        for (; t + 4 <= nt; t += 4) sweep_eval4(&wk->sw, ch->m, wk->tg + t, wk->wq[dir]);
-        for (; t < nt; t++) sweep_eval(&wk->sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at], NULL);
+        for (; t + 4 <= nt; t += 4) sweep_eval4(sw, ch->m, wk->tg + t, wk->wq[dir]);
+        for (; t < nt; t++) sweep_eval(sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at], NULL);
         for (t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot (rare) */
             if (wk->tg[t].need == 2)
-                sweep_eval(&wk->sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at],
+                sweep_eval(sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at],
                            &wk->wp[dir][wk->tg[t].at]);
     }
     return 0;
@@ -437,6 +574,7 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
         goto out;
     }
     cheb_init(ch, o.order);
+    cache_claim(o.cache, &o);
     for (int i = 0; i <= r; i++) e[i] = pitch * i / r; /* exact at 0 and at pitch */
     wk.near2 = near_distance2(&o, wk.a, e, r);
     for (size_t k0 = 0; k0 < n; k0 += batch) {

@@ -18,11 +18,30 @@
 
 #include "base/err.h"
 
+/* Sweeps kept across calls (design.c): a sweep depends only on the line's scaled distance
+ * w = a |e - x| and the options, so fits that share spot positions and edge lines (every r of a
+ * sweep over r has the lines 0 and pitch, r = 4 has r = 2's, the F-test refits an r of the sweep,
+ * a square raster has the same offsets across as along) build each distinct w once. Results are
+ * the same with or without a cache (segments never depend on which targets asked for them). Not
+ * thread-safe: one cache per thread of work; it serves the options of its first call and is
+ * bypassed by calls with others; it stops growing at 64 MB. */
+typedef struct fit_design_cache fit_design_cache_t;
+
+typedef struct fit_design_cache_stats {
+    size_t sweeps, bytes;  /* sweeps held and their memory */
+    size_t hits, misses;   /* look-ups that found a sweep / that started one */
+} fit_design_cache_stats_t;
+
+fit_design_cache_t *fit_design_cache_new(void); /* NULL when out of memory */
+void fit_design_cache_free(fit_design_cache_t *c);
+fit_design_cache_stats_t fit_design_cache_stats(const fit_design_cache_t *c);
+
 typedef struct fit_design_opts {
     int order;       /* Chebyshev points per sweep segment (the accuracy setting), 2..64 */
     double seg_dv;   /* largest span of a*rho covered by one segment (resolves oscillations) */
     double seg_ds;   /* largest span of the wedge variable s = asinh(tan t) per segment */
     double skip_tol; /* leave out entries bounded below skip_tol * 4 pi / a^2; 0 keeps all */
+    fit_design_cache_t *cache; /* sweeps shared with other calls (NULL: none) */
 } fit_design_opts_t;
 
 typedef struct fit_design_stats {

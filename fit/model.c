@@ -301,6 +301,7 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
             goto out;
         }
         fit_design_opts_t d = fit_design_opts_for_tol(o.design_tol > 0 ? o.design_tol : 1e-12);
+        d.cache = o.design_cache;
         rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, r, p.x, p.y, p.n, &d, A,
                               &out->design, err);
         if (rc) goto out;

@@ -48,6 +48,8 @@ typedef struct fit_options {
     fit_method_t method;
     int nonneg;                /* constrain S_ij >= 0 (Lawson-Hanson NNLS on the linear path) */
     double design_tol;         /* design-matrix accuracy (design.h), default 1e-12 */
+    fit_design_cache_t *design_cache; /* sweeps shared across fits of one scan (design.h); NULL:
+                                         none. The pipeline gives its run one. */
 } fit_options_t;
 
 fit_options_t fit_options_default(void);

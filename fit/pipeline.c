@@ -265,11 +265,16 @@ int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,
     out->sweep.r_max = o.r_max;
     out->region = o.region;
     out->n_region = sel.scan.n;
+    /* one sweep cache for the run's design matrices (design.h): every r and the F-test share
+     * their edge lines' sweeps; without memory for it the fits just build their own */
+    fit_design_cache_t *cache = o.fit.design_cache ? NULL : fit_design_cache_new();
+    if (cache) o.fit.design_cache = cache;
     struct run rn = {.scan = &sel.scan, .whole = scan, .o = &o, .watch = watch, .out = out,
                      .total = o.r_max - o.r_min + 1 + (o.ftest_edges != 0) + (o.wiener != 0) +
                               (o.interp_n != 0) + (o.fit_geometry != 0),
                      .best_aic = INFINITY, .best_bic = INFINITY};
     rc = run_steps(&rn, err);
+    fit_design_cache_free(cache);
     fit_scan_sel_free(&sel);
     free(rn.geo_xy);
     if (rc) {

@@ -86,12 +86,17 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
     if (rc) goto out;
     lapack_int N = (lapack_int)n, M = (lapack_int)mc;
     /* A = W^1/2 X (column-major, as LAPACK wants it), b = W^1/2 y */
-    for (size_t k = 0; k < n; k++) {
-        double sw = sqrt(w[k]);
-        const double *x = X + k * m;
-        for (size_t j = 0; j < mc; j++) q.A[k + j * n] = sw * x[cols ? cols[j] : j];
-        q.b[k] = sw * y[k];
+    for (size_t k = 0; k < n; k++) q.b[k] = sqrt(w[k]); /* W^1/2 for now */
+    for (size_t k0 = 0; k0 < n; k0 += 32) { /* transposed in blocks of 32 rows: each column's
+                                              writes stay contiguous, the rows in cache */
+        size_t k1 = k0 + 32 < n ? k0 + 32 : n;
+        for (size_t j = 0; j < mc; j++) {
+            size_t cj = cols ? cols[j] : j;
+            double *a = q.A + j * n;
+            for (size_t k = k0; k < k1; k++) a[k] = q.b[k] * X[k * m + cj];
+        }
     }
+    for (size_t k = 0; k < n; k++) q.b[k] *= y[k];
     for (size_t j = 0; j < mc; j++) { /* column balancing: A D^-1 */
         double *a = q.A + j * n, ss = 0;
         for (size_t k = 0; k < n; k++) ss += fabs(a[k]);
