@@ -76,16 +76,16 @@ void api_log_request(int fd, struct MHD_Connection *conn, const char *method, co
     clock_gettime(CLOCK_REALTIME, &wall);
     double ms = (double)(now.tv_sec - t0->tv_sec) * 1e3 + (double)(now.tv_nsec - t0->tv_nsec) / 1e6;
     struct tm tm;
-    char when[32], addr[INET6_ADDRSTRLEN + 1], m[24], p[600], size[24], line[800];
+    char when[32], addr[INET6_ADDRSTRLEN + 1], size[24], line[800];
     strftime(when, sizeof when, "%Y-%m-%dT%H:%M:%S", gmtime_r(&wall.tv_sec, &tm));
     client_addr(conn, addr, sizeof addr);
-    api_log_escape(method ? method : "-", m, sizeof m);
-    api_log_escape(path ? path : "-", p, sizeof p);
-    if (bytes >= 0) snprintf(size, sizeof size, "%lld", bytes);
-    else snprintf(size, sizeof size, "-");
+    if (bytes >= 0)
+        snprintf(size, sizeof size, "%lld", bytes);
+    else
+        snprintf(size, sizeof size, "-");
     int len = snprintf(line, sizeof line, "%s.%03ldZ %s %s %s %u %s %.2fms%s\n", when,
-                       wall.tv_nsec / 1000000, addr, m, p, status, size, ms,
-                       aborted ? " aborted" : "");
+                       wall.tv_nsec / 1000000, addr, method ? method : "-", path ? path : "-",
+                       status, size, ms, aborted ? " aborted" : "");
     if (len <= 0) return;
     if ((size_t)len >= sizeof line) len = (int)sizeof line - 1;
     ssize_t w = write(fd, line, (size_t)len);

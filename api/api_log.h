@@ -19,7 +19,8 @@ void api_log_close(int fd); /* closes a file's descriptor (not stderr's); accept
  *   TIME CLIENT METHOD PATH STATUS BYTES MSms[ aborted]
  * TIME UTC ISO 8601 with milliseconds, CLIENT the peer address, PATH percent-encoded where not
  * printable ASCII, STATUS 0 and BYTES '-' when unknown (no reply, a stream), MS the time from
- * the request's headers to the end of its reply; "aborted" when the connection ended early. */
+ * the request's headers to the end of its reply; "aborted" when the connection ended early.
+ * method and path are written as given: pass them through api_log_escape first (NULL: "-"). */
 void api_log_request(int fd, struct MHD_Connection *conn, const char *method, const char *path,
                      unsigned status, long long bytes, const struct timespec *t0, int aborted);
 

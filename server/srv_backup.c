@@ -32,8 +32,10 @@ int srv_backup(srv_t *srv, storage_t *st, char *name, size_t n, storage_backup_i
     strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", gmtime_r(&now, &tm));
     int ret = -EEXIST;
     for (int i = 1; ret == -EEXIST && i <= 100; i++) {
-        if (i == 1) snprintf(name, n, "ipsd-backup-%s.db", stamp);
-        else snprintf(name, n, "ipsd-backup-%s-%d.db", stamp, i);
+        if (i == 1)
+            snprintf(name, n, "ipsd-backup-%s.db", stamp);
+        else
+            snprintf(name, n, "ipsd-backup-%s-%d.db", stamp, i);
         snprintf(path, sizeof path, "%s/%s", cfg->backup_dir, name);
         struct stat sb;
         if (stat(path, &sb) == 0) continue; /* taken: the next suffix */

@@ -31,7 +31,7 @@ void srv_token_hash_line(const char *token, size_t n, char out[SRV_TOKEN_HASH_LI
 
 static int hex_value(char c)
 {
-    return c >= '0' && c <= '9' ? c - '0'
+    return c >= '0' && c <= '9'   ? c - '0'
            : c >= 'a' && c <= 'f' ? c - 'a' + 10
            : c >= 'A' && c <= 'F' ? c - 'A' + 10
                                   : -1;
@@ -48,8 +48,8 @@ static int parse_line(const char *opt, const char *path, int lineno, const char 
                            path, lineno);
     if (n > 7 && strncmp(s, "sha256:", 7) == 0) {
         if (n != 7 + 2 * SRV_TOKEN_DIGEST)
-            return err_set(err, -EINVAL, "%s: %s line %d: sha256: needs 64 hex digits", opt,
-                           path, lineno);
+            return err_set(err, -EINVAL, "%s: %s line %d: sha256: needs 64 hex digits", opt, path,
+                           lineno);
         for (int i = 0; i < SRV_TOKEN_DIGEST; i++) {
             int hi = hex_value(s[7 + 2 * i]), lo = hex_value(s[8 + 2 * i]);
             if (hi < 0 || lo < 0)

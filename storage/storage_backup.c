@@ -82,19 +82,17 @@ static int check_copy(sqlite3 *dst, storage_backup_info_t *info, err_t *err)
     char mode[32], version[32];
     int ret = first_text(dst, "PRAGMA journal_mode=DELETE", mode, sizeof mode, err);
     if (!ret)
-        ret = first_text(dst, "PRAGMA integrity_check", info->integrity, sizeof info->integrity,
-                         err);
+        ret =
+            first_text(dst, "PRAGMA integrity_check", info->integrity, sizeof info->integrity, err);
     if (!ret && strcmp(info->integrity, "ok") != 0)
-        ret = err_set(err, -EIO, "backup: the copy fails its integrity check: %s",
-                      info->integrity);
+        ret = err_set(err, -EIO, "backup: the copy fails its integrity check: %s", info->integrity);
     if (!ret) ret = first_text(dst, "PRAGMA user_version", version, sizeof version, err);
     if (!ret) info->schema_version = atoi(version);
     return ret;
 }
 
-int storage_backup(storage_t *st, const char *dest, int pages_per_step,
-                   storage_backup_step_fn step, void *ctx, storage_backup_info_t *info,
-                   err_t *err)
+int storage_backup(storage_t *st, const char *dest, int pages_per_step, storage_backup_step_fn step,
+                   void *ctx, storage_backup_info_t *info, err_t *err)
 {
     char part[PATH_MAX];
     struct stat sb;
@@ -110,8 +108,9 @@ int storage_backup(storage_t *st, const char *dest, int pages_per_step,
     storage_backup_info_t got = {0};
     sqlite3 *dst = NULL;
     int ret = 0, rc = sqlite3_open_v2(part, &dst, SQLITE_OPEN_READWRITE, NULL);
-    if (rc != SQLITE_OK) ret = err_set(err, -EIO, "backup: opening %s: %s", part,
-                                       dst ? sqlite3_errmsg(dst) : sqlite3_errstr(rc));
+    if (rc != SQLITE_OK)
+        ret = err_set(err, -EIO, "backup: opening %s: %s", part,
+                      dst ? sqlite3_errmsg(dst) : sqlite3_errstr(rc));
     /* the snapshot: a read transaction held over every step (see the top of the file) */
     int in_txn = 0;
     char version[32];
@@ -119,8 +118,9 @@ int storage_backup(storage_t *st, const char *dest, int pages_per_step,
         in_txn = 1; /* BEGIN is deferred: the first read starts the transaction */
         ret = first_text(st->db, "PRAGMA user_version", version, sizeof version, err);
     }
-    if (!ret) ret = copy_pages(st, dst, pages_per_step > 0 ? pages_per_step : BACKUP_PAGES_PER_STEP,
-                               step, ctx, &got.pages, err);
+    if (!ret)
+        ret = copy_pages(st, dst, pages_per_step > 0 ? pages_per_step : BACKUP_PAGES_PER_STEP, step,
+                         ctx, &got.pages, err);
     if (in_txn) stg_rollback(st); /* only read: ends the snapshot */
     if (!ret) ret = check_copy(dst, &got, err);
     if (dst && sqlite3_close(dst) != SQLITE_OK && !ret)
@@ -129,7 +129,8 @@ int storage_backup(storage_t *st, const char *dest, int pages_per_step,
     /* link, not rename: never replaces a file that appeared meanwhile; rename where the file
      * system has no hard links */
     if (!ret && link(part, dest) != 0 &&
-        !((errno == EPERM || errno == ENOTSUP) && stat(dest, &sb) != 0 && rename(part, dest) == 0)) {
+        !((errno == EPERM || errno == ENOTSUP) && stat(dest, &sb) != 0 &&
+          rename(part, dest) == 0)) {
         int e = errno;
         ret = err_set(err, -e, "backup: cannot make %s: %s", dest, strerror(e));
     }
@@ -139,9 +140,12 @@ int storage_backup(storage_t *st, const char *dest, int pages_per_step,
         char dir[PATH_MAX];
         snprintf(dir, sizeof dir, "%s", dest);
         char *slash = strrchr(dir, '/');
-        if (slash == dir) slash[1] = 0;
-        else if (slash) *slash = 0;
-        else snprintf(dir, sizeof dir, ".");
+        if (slash == dir)
+            slash[1] = 0;
+        else if (slash)
+            *slash = 0;
+        else
+            snprintf(dir, sizeof dir, ".");
         ret = sync_path(dir, 1, err);
     }
     if (!ret) {
