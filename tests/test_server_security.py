@@ -39,6 +39,15 @@ def test(c, t, argv, daemons):
     r = subprocess.run([exe, "--hash-token"], input=READER + "\n", capture_output=True,
                        text=True, timeout=ipsd_http.DEADLINE_S)
     c.eq((r.returncode, r.stdout.strip()), (0, sha_line(READER)), "ipsd --hash-token")
+    # docs/operations.md lists every flag of ipsd --help (its flag table is kept in step)
+    usage = subprocess.run([exe, "--help"], capture_output=True, text=True,
+                           timeout=ipsd_http.DEADLINE_S).stdout
+    ops = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "operations.md")
+    with open(ops) as f:
+        documented = set(re.findall(r"^\| `(--[a-z-]+)", f.read(), re.M))
+    flags = set(re.findall(r"^  (--[a-z-]+)", usage, re.M))
+    c.ok(len(flags) > 20 and flags <= documented,
+         "docs/operations.md lists every flag; missing: %s" % sorted(flags - documented))
     r = subprocess.run([exe, "--hash-token"], input="two words\n", capture_output=True,
                        text=True, timeout=ipsd_http.DEADLINE_S)
     c.eq(r.returncode, 2, "--hash-token refuses a token with a space")
