@@ -34,9 +34,15 @@ static int add_sensor(storage_t *st, int i)
     memset(model, 'M', 200); /* long rows: the database spans many pages */
     snprintf(model + 200, sizeof model - 200, "-%d", i);
     snprintf(serial, sizeof serial, "s%d", i);
-    storage_sensor_t s = {.model = model, .serial = serial, .n_cols = 64, .n_rows = 64,
-                          .pitch_um = 3.0, .gain_e_per_dn = 1.0, .read_noise_e = 2.0,
-                          .bias_dn = 100, .full_scale_dn = 4095};
+    storage_sensor_t s = {.model = model,
+                          .serial = serial,
+                          .n_cols = 64,
+                          .n_rows = 64,
+                          .pitch_um = 3.0,
+                          .gain_e_per_dn = 1.0,
+                          .read_noise_e = 2.0,
+                          .bias_dn = 100,
+                          .full_scale_dn = 4095};
     int64_t id;
     return storage_sensor_create(st, &s, &id, NULL);
 }
