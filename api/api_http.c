@@ -153,13 +153,13 @@ static int check_request(api_req_t *q, const char *method, const char *url)
         }
         return -1;
     }
-    int need = write                                   ? SRV_TOKEN_WRITE
-               : cfg->reads_closed && !open_read(url) ? SRV_TOKEN_READ
-                                                       : SRV_TOKEN_NONE;
-    int have = need && cfg->n_tokens ? bearer_level(cfg, MHD_lookup_connection_value(
-                                                             q->conn, MHD_HEADER_KIND,
-                                                             MHD_HTTP_HEADER_AUTHORIZATION))
-                                     : need;
+    /* what the request needs and what its token grants (no tokens configured: all open) */
+    int need = SRV_TOKEN_NONE;
+    if (write) need = SRV_TOKEN_WRITE;
+    else if (cfg->reads_closed && !open_read(url)) need = SRV_TOKEN_READ;
+    const char *auth =
+        MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION);
+    int have = need && cfg->n_tokens ? bearer_level(cfg, auth) : need;
     if (have < need && have == SRV_TOKEN_NONE) {
         api_error(q, 401, "unauthorized", NULL, "%s %s needs 'Authorization: Bearer <token>'%s",
                   method, url, need == SRV_TOKEN_READ ? " (a read or write token)" : "");
