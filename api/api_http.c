@@ -4,7 +4,13 @@
  * requests are refused before their body is read; JSON bodies are then accumulated up to
  * --max-body (a larger chunked body is read and dropped, then refused with 413); the handler runs
  * on the final callback. Connections of event streams are suspended while they wait (api_sse.c),
- * which is why the daemon allows suspend/resume. */
+ * which is why the daemon allows suspend/resume.
+ *
+ * Access: writes need a write token when --token is given; with --read-token, reads under /api
+ * (but /api/health and /api/openapi.json) need a read or write token (server/srv_token.h: only
+ * digests are kept, compared in constant time). CORS is off unless --cors-origin names the one
+ * origin allowed: then its requests get Access-Control-Allow-Origin and its preflight OPTIONS
+ * requests are answered. Every request ends with a line in the request log (api_log.h). */
 #include <arpa/inet.h>
 #include <errno.h>
 #include <stdarg.h>
@@ -20,6 +26,8 @@
 #include "api_calib_cache.h"
 #include "api_conn.h"
 #include "api_int.h"
+#include "api_log.h"
+#include "server/srv_token.h"
 
 typedef struct api_http {
     srv_t *srv;
@@ -27,18 +35,57 @@ typedef struct api_http {
     api_conns_t *conns;  /* open connections and their request deadlines */
     api_calib_cache_t *calib_cache; /* replies of current calibrations (api_calib_cache.h) */
     MHD_socket quiesced; /* the listening socket after quiesce, closed after the stop */
+    int log_fd;          /* the request log (api_log.h), -1 off */
 } api_http_t;
 
-/* Compares the bearer token in constant time (no early exit on the first difference). */
-static int token_ok(const char *want, const char *header)
+/* What the Authorization header's bearer token grants (SRV_TOKEN_*): its SHA-256 digest is
+ * compared with every configured one in constant time (srv_token_level). */
+static int bearer_level(const srv_config_t *cfg, const char *header)
 {
-    if (!header || strncasecmp(header, "Bearer ", 7) != 0) return 0;
-    const char *got = header + 7;
-    size_t n = strlen(want), m = strlen(got);
-    unsigned char diff = (unsigned char)(n != m);
-    for (size_t i = 0; i < n; i++)
-        diff |= (unsigned char)(want[i] ^ (i < m ? got[i] : 0));
-    return diff == 0;
+    if (!header || strncasecmp(header, "Bearer ", 7) != 0) return SRV_TOKEN_NONE;
+    const char *tok = header + 7;
+    while (*tok == ' ')
+        tok++;
+    return srv_token_level(cfg, tok, strlen(tok));
+}
+
+/* Reads that stay open with --read-token: liveness checks and the API's description. */
+static int open_read(const char *url)
+{
+    return strcmp(url, "/api/health") == 0 || strcmp(url, "/api/openapi.json") == 0;
+}
+
+/* The request's Origin when CORS is on and it is the allowed one (or any, for "*"), else NULL. */
+static const char *cors_origin(api_req_t *q)
+{
+    const char *allowed = srv_config(q->srv)->cors_origin;
+    if (!allowed[0]) return NULL;
+    const char *origin = MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, "Origin");
+    if (!origin) return NULL;
+    return strcmp(allowed, "*") == 0 || strcmp(allowed, origin) == 0 ? allowed : NULL;
+}
+
+/* A CORS preflight (OPTIONS with Access-Control-Request-Method), answered 204 with what the
+ * path allows; only when CORS is on. */
+static void preflight(api_req_t *q, const char *url)
+{
+    char allow[64];
+    int api = strncmp(url, "/api/", 5) == 0;
+    if (api && !api_route_allow(url, allow, sizeof allow)[0]) {
+        api_error(q, 404, "not_found", NULL, "no such resource: %s", url);
+        return;
+    }
+    if (!(q->resp = MHD_create_response_from_buffer(0, NULL, MHD_RESPMEM_PERSISTENT))) return;
+    q->status = 204;
+    q->resp_bytes = 0;
+    if (!api) snprintf(allow, sizeof allow, "GET, HEAD");
+    MHD_add_response_header(q->resp, MHD_HTTP_HEADER_ALLOW, allow);
+    if (cors_origin(q)) {
+        MHD_add_response_header(q->resp, "Access-Control-Allow-Methods", allow);
+        MHD_add_response_header(q->resp, "Access-Control-Allow-Headers",
+                                "Authorization, Content-Type");
+        MHD_add_response_header(q->resp, "Access-Control-Max-Age", "600");
+    }
 }
 
 /* libmicrohttpd's unescape of the URL path and of query arguments, except that %00 stays as
@@ -87,6 +134,11 @@ static int check_request(api_req_t *q, const char *method, const char *url)
 {
     const srv_config_t *cfg = srv_config(q->srv);
     int path_known = 0, write = strcmp(method, "GET") && strcmp(method, "HEAD");
+    if (cfg->cors_origin[0] && strcmp(method, "OPTIONS") == 0 &&
+        MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, "Access-Control-Request-Method")) {
+        preflight(q, url); /* before the token: a preflight never carries one */
+        return -1;
+    }
     if (strncmp(url, "/api/", 5) != 0 && strcmp(url, "/api") != 0) {
         if (!write) return 0; /* static files */
         api_error(q, 405, "method_not_allowed", NULL, "%s is not allowed on %s", method, url);
@@ -104,11 +156,22 @@ static int check_request(api_req_t *q, const char *method, const char *url)
         }
         return -1;
     }
-    if (write && cfg->token &&
-        !token_ok(cfg->token, MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND,
-                                                          MHD_HTTP_HEADER_AUTHORIZATION))) {
-        api_error(q, 401, "unauthorized", NULL, "%s needs 'Authorization: Bearer <token>'", method);
+    /* what the request needs and what its token grants (no tokens configured: all open) */
+    int need = SRV_TOKEN_NONE;
+    if (write) need = SRV_TOKEN_WRITE;
+    else if (cfg->reads_closed && !open_read(url)) need = SRV_TOKEN_READ;
+    const char *auth =
+        MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION);
+    int have = need && cfg->n_tokens ? bearer_level(cfg, auth) : need;
+    if (have < need && have == SRV_TOKEN_NONE) {
+        api_error(q, 401, "unauthorized", NULL, "%s %s needs 'Authorization: Bearer <token>'%s",
+                  method, url, need == SRV_TOKEN_READ ? " (a read or write token)" : "");
         if (q->resp) MHD_add_response_header(q->resp, MHD_HTTP_HEADER_WWW_AUTHENTICATE, "Bearer");
+        return -1;
+    }
+    if (have < need) {
+        api_error(q, 403, "forbidden", NULL, "%s %s needs a write token; this one may only read",
+                  method, url);
         return -1;
     }
     if (write && srv_stopping(q->srv)) {
@@ -169,6 +232,11 @@ static enum MHD_Result send_reply(api_req_t *q)
     }
     if (!q->resp) api_error(q, 500, "internal", NULL, "no reply");
     if (!q->resp) return MHD_NO;
+    const char *origin = cors_origin(q);
+    if (origin) {
+        MHD_add_response_header(q->resp, "Access-Control-Allow-Origin", origin);
+        MHD_add_response_header(q->resp, "Vary", "Origin");
+    }
     enum MHD_Result r = MHD_queue_response(q->conn, q->status, q->resp);
     MHD_destroy_response(q->resp);
     q->resp = NULL;
@@ -189,6 +257,15 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
         q->conns = h->conns;
         q->calib_cache = h->calib_cache;
         q->conn = conn;
+        q->resp_bytes = -1;
+        clock_gettime(CLOCK_MONOTONIC, &q->t0);
+        if (h->log_fd >= 0) { /* the request's text may be gone by its completion: a copy */
+            char m[24], p[600];
+            api_log_escape(method, m, sizeof m);
+            api_log_escape(url, p, sizeof p);
+            q->log_method = strdup(m);
+            q->log_path = strdup(p);
+        }
         *con_cls = q;
         if (check_request(q, method, url)) return send_reply(q);
         return MHD_YES;
@@ -217,8 +294,13 @@ static void on_completed(void *cls, struct MHD_Connection *conn, void **con_cls,
     api_conn_answering(conn, 0); /* the next request's deadline starts now */
     api_req_t *q = *con_cls;
     if (!q) return;
+    if (h->log_fd >= 0)
+        api_log_request(h->log_fd, conn, q->log_method, q->log_path, q->status, q->resp_bytes,
+                        &q->t0, code != MHD_REQUEST_TERMINATED_COMPLETED_OK);
     if (q->st) srv_db_put(h->srv, q->st);
     if (q->resp) MHD_destroy_response(q->resp);
+    free(q->log_method);
+    free(q->log_path);
     free(q->body);
     free(q);
     *con_cls = NULL;
@@ -284,13 +366,19 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
     if (!h) return err_set(err, -ENOMEM, "out of memory");
     h->srv = srv;
     h->quiesced = MHD_INVALID_SOCKET;
+    if ((ret = api_log_open(cfg->access_log, &h->log_fd, err))) {
+        free(h);
+        return ret;
+    }
     if (!(h->conns = api_conns_open(cfg->request_timeout_s))) {
+        api_log_close(h->log_fd);
         free(h);
         return err_set(err, -ENOMEM, "out of memory starting the connection tracker");
     }
     /* 4096 pixels, 32 MiB: a sensor's worth of typical (r <= 8, ~4 KB) maps */
     if (!(h->calib_cache = api_calib_cache_new(4096, (size_t)32 << 20))) {
         api_conns_close(h->conns);
+        api_log_close(h->log_fd);
         free(h);
         return err_set(err, -ENOMEM, "out of memory starting the calibration cache");
     }
@@ -310,6 +398,7 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
     if (!h->d) {
         api_conns_close(h->conns);
         api_calib_cache_free(h->calib_cache);
+        api_log_close(h->log_fd);
         free(h);
         return err_set(err, -EADDRINUSE,
                        "cannot listen on %s port %d (in use, or not an "
@@ -337,6 +426,7 @@ static void http_stop(void *handle)
     api_conns_close(h->conns);
     api_calib_cache_free(h->calib_cache);
     if (h->quiesced != MHD_INVALID_SOCKET) close(h->quiesced);
+    api_log_close(h->log_fd);
     free(h);
 }
 

@@ -7,6 +7,7 @@
 #include <microhttpd.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <time.h>
 
 #include "api/api.h"
 #include "server/srv.h"
@@ -42,6 +43,10 @@ struct api_req {
     storage_t *st;   /* borrowed by api_db, given back when the reply is queued */
     unsigned status; /* the reply */
     struct MHD_Response *resp;
+    long long resp_bytes;  /* the reply body's size for the request log, -1 unknown (a stream) */
+    struct timespec t0;    /* CLOCK_MONOTONIC at the first callback (request log) */
+    char *log_method;      /* method and path as the request log writes them (api_log.h) */
+    char *log_path;
 };
 
 /* ---- routing (api_router.c) ---- */
@@ -148,6 +153,7 @@ void api_h_jobs_list(api_req_t *q);
 void api_h_job_get(api_req_t *q);
 void api_h_job_cancel(api_req_t *q);
 void api_h_events(api_req_t *q);
+void api_h_backup(api_req_t *q);
 /* GET / and static files of the web directory (not under /api/). */
 void api_h_static(api_req_t *q, const char *path);
 

@@ -22,6 +22,7 @@ void api_reply_text(api_req_t *q, unsigned status, const char *ctype, char *buf,
         return;
     }
     q->status = status;
+    q->resp_bytes = (long long)len;
     MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CONTENT_TYPE, ctype);
     MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
 }

@@ -35,6 +35,7 @@ static const api_route_t routes[] = {
     {"GET", "/api/jobs/{id}", api_h_job_get, 0},
     {"POST", "/api/jobs/{id}/cancel", api_h_job_cancel, 0},
     {"GET", "/api/events", api_h_events, 0},
+    {"POST", "/api/backup", api_h_backup, 0},
 };
 #define N_ROUTES (sizeof routes / sizeof routes[0])
 

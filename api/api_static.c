@@ -77,5 +77,6 @@ void api_h_static(api_req_t *q, const char *url)
         return;
     }
     q->status = 200;
+    q->resp_bytes = (long long)sb.st_size;
     MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CONTENT_TYPE, content_type(real));
 }

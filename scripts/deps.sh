@@ -11,6 +11,7 @@ IPSD_PACKAGES=(
     libopenblas-serial-dev libgfortran-12-dev  # their archives: ips links LAPACK statically
     libsqlite3-dev sqlite3                  # storage/ (and the sqlite3 shell, tests/docs use it)
     libmicrohttpd-dev                       # api/
+    nettle-dev                              # server/: SHA-256 of the bearer tokens
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
     curl wrk python3                        # HTTP tests, load benchmark, test scripts
     python3-numpy python3-scipy             # bench/numpy_peer.py (the NumPy peer of the fit)

@@ -66,14 +66,11 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
     *out = NULL;
     if (!srv) return err_set(err, -ENOMEM, "out of memory");
     srv->cfg = *cfg;
-    srv->cfg.token = NULL;
     srv->lock_fd = -1;
     pthread_mutex_init(&srv->mu, NULL);
     pthread_cond_init(&srv->cv, NULL);
     int ret = 0;
-    if (cfg->token && !(srv->cfg.token = strdup(cfg->token))) ret = -ENOMEM;
-    if (ret ||
-        (ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
+    if ((ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
                                    &srv->failpoints, err)) ||
         (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
         (ret = storage_gate_new(&srv->gate)) ||
@@ -134,7 +131,7 @@ void srv_close(srv_t *srv)
     storage_gate_free(srv->gate);
     pthread_cond_destroy(&srv->cv);
     pthread_mutex_destroy(&srv->mu);
-    free(srv->cfg.token);
+    srv_config_free(&srv->cfg);
     srv_failpoints_close(srv->failpoints);
     if (srv->lock_fd >= 0) close(srv->lock_fd); /* releases the flock */
     free(srv);

@@ -22,7 +22,7 @@
 
 typedef struct srv srv_t;
 
-/* Opens the server on a copy of cfg (the token string is copied too). *out is the caller's
+/* Opens the server on a copy of cfg. *out is the caller's
  * (srv_close). Returns 0 or a negative errno with err: the database cannot be opened or migrated,
  * or the bench cannot run (-ENODEV: no camera). */
 int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err);
@@ -59,5 +59,14 @@ int srv_fit_submit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t
 /* Cancels a queued or running job (a running scan stops after the point in flight; its scan is
  * cancelled with it). *changed = 0 when the job had already ended. -ENOENT unknown job. */
 int srv_job_cancel(srv_t *srv, storage_t *st, int64_t job_id, int *changed, err_t *err);
+
+/* An online backup of the database into --backup-dir (storage_backup, on st: the caller's
+ * handle, not in a transaction): a new file ipsd-backup-YYYYMMDDTHHMMSSZ.db (-N before .db when
+ * that name is taken), its base name into name (n bytes), what was written into info. Writers
+ * go on meanwhile; the copy is the database as it was when the backup began. One backup at a
+ * time: -EBUSY while another runs; -ENOTSUP without --backup-dir; -ESHUTDOWN when stopping
+ * (a backup in progress stops too); -ENOSPC, -EIO. */
+int srv_backup(srv_t *srv, storage_t *st, char *name, size_t n, storage_backup_info_t *info,
+               err_t *err);
 
 #endif

@@ -11,6 +11,7 @@
 
 #include "base/opts.h"
 #include "base/parse.h"
+#include "server/srv_token.h"
 
 #ifndef IPSD_WEB_DIR
 #define IPSD_WEB_DIR "web"
@@ -25,8 +26,20 @@ static const char usage[] =
     "                       camera (fails at start when none is found)\n"
     "  --workers N          fit worker threads (default 2)\n"
     "  --http-threads N     HTTP thread pool size (default 2)\n"
-    "  --token FILE         writes (POST, DELETE) need 'Authorization: Bearer TOKEN', TOKEN the\n"
-    "                       file's content without surrounding whitespace\n"
+    "  --token FILE         writes (POST, DELETE) need 'Authorization: Bearer TOKEN', TOKEN one\n"
+    "                       of the file's lines: a token, or sha256:HEX of one (see --hash-token);\n"
+    "                       blank and # lines skipped; may be given more than once\n"
+    "  --read-token FILE    reads under /api (but /api/health and /api/openapi.json) need a read\n"
+    "                       token of FILE or a write token (needs --token); default: reads open\n"
+    "  --hash-token         print the sha256:HEX line of the token read from stdin, and exit\n"
+    "  --access-log FILE    one line per request (time, client, method, path, status, bytes,\n"
+    "                       ms) appended to FILE; '-' stderr (default), 'off' none\n"
+    "  --cors-origin ORIGIN allow cross-origin requests from ORIGIN (e.g. https://lab.example:8443,\n"
+    "                       or *); default: no CORS headers, browsers refuse other origins\n"
+    "  --backup-dir DIR     POST /api/backup writes online backups of the database into DIR\n"
+    "                       (default: none, the endpoint answers 409)\n"
+    "  --backup OUT         back the database (--db) up to the new file OUT while any ipsd may\n"
+    "                       keep running on it, check it, print what was written, and exit\n"
     "  --web DIR            static files of the dashboard (default the source tree's web/)\n"
     "  --max-body BYTES     largest request body (default 4194304); larger ones get 413\n"
     "  --max-scan-bytes B   largest scan accepted, in bytes of frames it would store (default\n"
@@ -71,8 +84,8 @@ srv_config_t srv_config_default(void)
 void srv_config_free(srv_config_t *cfg)
 {
     if (!cfg) return;
-    free(cfg->token);
-    cfg->token = NULL;
+    explicit_bzero(cfg->tokens, sizeof cfg->tokens);
+    cfg->n_tokens = 0;
 }
 
 /* A whole decimal integer in lo..hi. */
@@ -100,39 +113,29 @@ static int parse_listen(const char *text, srv_config_t *cfg, err_t *err)
     return 0;
 }
 
-/* Reads the token file: its content with surrounding whitespace removed, not empty. */
-static int read_token(const char *path, srv_config_t *cfg, err_t *err)
-{
-    FILE *f = fopen(path, "r");
-    if (!f) return err_set(err, -errno, "--token: cannot read %s: %s", path, strerror(errno));
-    char buf[1024];
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    int more = fgetc(f) != EOF;
-    fclose(f);
-    if (more) return err_set(err, -EINVAL, "--token: %s is longer than 1023 bytes", path);
-    buf[n] = 0;
-    char *s = buf, *e = buf + n;
-    while (*s && strchr(" \t\r\n", *s))
-        s++;
-    while (e > s && strchr(" \t\r\n", e[-1]))
-        *--e = 0;
-    if (!*s) return err_set(err, -EINVAL, "--token: %s is empty", path);
-    for (char *p = s; *p; p++)
-        if ((unsigned char)*p < 0x21 || (unsigned char)*p > 0x7e)
-            return err_set(err, -EINVAL,
-                           "--token: %s holds whitespace or non-ASCII inside the "
-                           "token",
-                           path);
-    free(cfg->token);
-    cfg->token = strdup(s);
-    return cfg->token ? 0 : err_set(err, -ENOMEM, "out of memory");
-}
-
-/* A path option into a fixed buffer. */
+/* A path option into a fixed buffer ("" only for --access-log -, stderr). */
 static int copy_path(const char *opt, const char *text, char *dst, size_t n, err_t *err)
 {
-    if (!*text || strlen(text) >= n) return err_set(err, -EINVAL, "--%s: bad path", opt);
+    if ((!*text && strcmp(opt, "access-log")) || strlen(text) >= n)
+        return err_set(err, -EINVAL, "--%s: bad path", opt);
     memcpy(dst, text, strlen(text) + 1);
+    return 0;
+}
+
+/* --cors-origin: "*" or an origin as browsers send it, SCHEME://HOST[:PORT] without a path;
+ * it is echoed in a header, so only printable ASCII without spaces or commas. */
+static int parse_origin(const char *text, srv_config_t *cfg, err_t *err)
+{
+    const char *sep = strstr(text, "://");
+    int ok = strlen(text) < sizeof cfg->cors_origin &&
+             (strcmp(text, "*") == 0 || (sep && sep > text && sep[3] && !strchr(sep + 3, '/')));
+    for (const char *p = text; ok && *p; p++)
+        ok = (unsigned char)*p > 0x20 && (unsigned char)*p < 0x7f && *p != ',';
+    if (!ok)
+        return err_set(err, -EINVAL,
+                       "--cors-origin: need * or SCHEME://HOST[:PORT] without a path (got '%s')",
+                       text);
+    snprintf(cfg->cors_origin, sizeof cfg->cors_origin, "%s", text);
     return 0;
 }
 
@@ -143,6 +146,12 @@ enum {
     O_WORKERS,
     O_HTTP,
     O_TOKEN,
+    O_READTOKEN,
+    O_HASHTOKEN,
+    O_ACCESSLOG,
+    O_CORS,
+    O_BACKUPDIR,
+    O_BACKUP,
     O_WEB,
     O_MAXBODY,
     O_MAXSCAN,
@@ -163,6 +172,12 @@ static const struct option opts[] = {
     {"workers", required_argument, NULL, O_WORKERS},
     {"http-threads", required_argument, NULL, O_HTTP},
     {"token", required_argument, NULL, O_TOKEN},
+    {"read-token", required_argument, NULL, O_READTOKEN},
+    {"hash-token", no_argument, NULL, O_HASHTOKEN},
+    {"access-log", required_argument, NULL, O_ACCESSLOG},
+    {"cors-origin", required_argument, NULL, O_CORS},
+    {"backup-dir", required_argument, NULL, O_BACKUPDIR},
+    {"backup", required_argument, NULL, O_BACKUP},
     {"web", required_argument, NULL, O_WEB},
     {"max-body", required_argument, NULL, O_MAXBODY},
     {"max-scan-bytes", required_argument, NULL, O_MAXSCAN},
@@ -192,7 +207,22 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
     case O_PORTFILE:
         return copy_path("port-file", arg, cfg->port_file, sizeof cfg->port_file, err);
     case O_TOKEN:
-        return read_token(arg, cfg, err);
+        return srv_token_load("--token", arg, SRV_TOKEN_WRITE, cfg, err);
+    case O_READTOKEN:
+        cfg->reads_closed = 1;
+        return srv_token_load("--read-token", arg, SRV_TOKEN_READ, cfg, err);
+    case O_HASHTOKEN:
+        cfg->hash_token = 1;
+        return 0;
+    case O_ACCESSLOG:
+        return copy_path("access-log", strcmp(arg, "-") ? arg : "", cfg->access_log,
+                         sizeof cfg->access_log, err);
+    case O_CORS:
+        return parse_origin(arg, cfg, err);
+    case O_BACKUPDIR:
+        return copy_path("backup-dir", arg, cfg->backup_dir, sizeof cfg->backup_dir, err);
+    case O_BACKUP:
+        return copy_path("backup", arg, cfg->backup_out, sizeof cfg->backup_out, err);
     case O_BENCH:
         if (strcmp(arg, "sim") && strcmp(arg, "libcamera"))
             return err_set(err, -EINVAL, "--bench must be sim or libcamera (got '%s')", arg);
@@ -259,5 +289,10 @@ int srv_config_parse(int argc, char **argv, srv_config_t *cfg, err_t *err)
     if (ret == 1) fputs(usage, stdout);
     if (ret) return ret;
     if (first < argc) return err_set(err, -EINVAL, "unexpected argument '%s'", argv[first]);
+    int writes = 0;
+    for (int i = 0; i < cfg->n_tokens; i++)
+        writes += cfg->tokens[i].level == SRV_TOKEN_WRITE;
+    if (cfg->reads_closed && !writes)
+        return err_set(err, -EINVAL, "--read-token needs --token (else writes would stay open)");
     return 0;
 }

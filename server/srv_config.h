@@ -1,5 +1,6 @@
 /* srv_config.h: ipsd's configuration: the command line (listen address, database, bench, worker
- * counts, token file, web directory, body limit) parsed and checked into one plain struct. */
+ * counts, token files, web directory, limits, logs, CORS, backups) parsed and checked into one
+ * plain struct (no pointers: it is copied by value). */
 #ifndef IPSD_SERVER_SRV_CONFIG_H
 #define IPSD_SERVER_SRV_CONFIG_H
 
@@ -8,6 +9,17 @@
 #include "base/err.h"
 
 #define SRV_PATH_MAX 4096
+#define SRV_TOKENS_MAX 64   /* bearer tokens of all token files together */
+#define SRV_TOKEN_DIGEST 32 /* SHA-256 */
+
+/* What a bearer token grants (srv_token.h). */
+enum { SRV_TOKEN_NONE = 0, SRV_TOKEN_READ = 1, SRV_TOKEN_WRITE = 2 };
+
+/* A bearer token, kept only as its SHA-256 digest (srv_token.h). */
+typedef struct srv_token {
+    unsigned char sha256[SRV_TOKEN_DIGEST];
+    int level; /* SRV_TOKEN_READ or SRV_TOKEN_WRITE */
+} srv_token_t;
 
 typedef struct srv_config {
     char host[64];                /* numeric IPv4 or IPv6 address to bind ("127.0.0.1") */
@@ -16,7 +28,14 @@ typedef struct srv_config {
     char bench[16];               /* "sim" or "libcamera" */
     int workers;                  /* fit worker threads (2) */
     int http_threads;             /* HTTP thread pool size (2) */
-    char *token;                  /* bearer token for writes, NULL: writes open (owned) */
+    srv_token_t tokens[SRV_TOKENS_MAX]; /* --token (write) and --read-token (read) digests */
+    int n_tokens;                 /* 0: writes open */
+    int reads_closed;             /* --read-token given: reads under /api need a token too */
+    char access_log[SRV_PATH_MAX]; /* request log: "" stderr (default), "off", or a file */
+    char cors_origin[256];        /* --cors-origin: the one origin allowed, "" CORS off */
+    char backup_dir[SRV_PATH_MAX]; /* where POST /api/backup writes, "" backups off */
+    char backup_out[SRV_PATH_MAX]; /* --backup OUT: back the database up to OUT and exit */
+    int hash_token;               /* --hash-token: print the hash line of stdin's token, exit */
     char web_dir[SRV_PATH_MAX];   /* static files of the dashboard */
     char port_file[SRV_PATH_MAX]; /* where to write the bound port, "" for nowhere */
     size_t max_body;              /* request body limit in bytes (4 MiB) */
@@ -34,10 +53,11 @@ srv_config_t srv_config_default(void);
 
 /* Parses argv (argv[0] is the program). Returns 0; 1 after printing --help to stdout (the caller
  * exits 0); or -EINVAL with err naming the bad option (the caller prints it and exits 2).
- * The token file (--token) is read here: its content, whitespace trimmed, must not be empty. */
+ * The token files (--token, --read-token) are read here into digests (srv_token.h); a file
+ * without a token is refused, and so is --read-token without --token. */
 int srv_config_parse(int argc, char **argv, srv_config_t *cfg, err_t *err);
 
-/* Releases what cfg owns (the token); accepts NULL. */
+/* Wipes the token digests; accepts NULL. (cfg owns no memory.) */
 void srv_config_free(srv_config_t *cfg);
 
 /* The usage text. Static. */

@@ -22,7 +22,7 @@ typedef struct srv_worker {
 typedef struct srv_failpoints srv_failpoints_t; /* test hooks, srv_failpoint.h */
 
 struct srv {
-    srv_config_t cfg; /* a copy; cfg.token is owned */
+    srv_config_t cfg; /* a copy (its token digests wiped by srv_close) */
     srv_dbpool_t *pool;
     storage_gate_t *gate; /* every handle's writes, first come first served (storage.h) */
     srv_events_t *events;
@@ -34,6 +34,7 @@ struct srv {
     int n_workers, stopped;
     int lock_fd; /* flock on DB-ipsd.lock: one ipsd per database, -1 when not held */
     srv_failpoints_t *failpoints; /* armed test hooks (IPSD_FAILPOINTS), NULL: none */
+    atomic_int backup_running;    /* a POST /api/backup is copying (srv_backup.c) */
 };
 
 /* A worker's life: claims jobs of kind in queue order and runs each with run, waiting for
@@ -67,5 +68,10 @@ void srv_worker_end(srv_worker_t *w);
 void *srv_scanner_main(void *arg);
 void *srv_fitter_main(void *arg);
 
+
+/* The one-shot modes of ipsd (srv_tools.c): --hash-token (reads stdin) and --backup OUT.
+ * Each returns the process exit code: 0, 1 (failed), 2 (bad input). */
+int srv_tool_hash_token(void);
+int srv_tool_backup(const srv_config_t *cfg);
 
 #endif

@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "srv_int.h"
 
 /* Writes the bound port to cfg->port_file (written to FILE.tmp, then renamed: a reader never
  * sees a half-written number). */
@@ -99,6 +100,11 @@ int srv_main(int argc, char **argv, const srv_frontend_t *fe)
         if (rc > 0) return 0;
         fprintf(stderr, "ipsd: %s\n", err.msg);
         return 2;
+    }
+    if (cfg.hash_token || cfg.backup_out[0]) { /* one-shot modes, no server */
+        rc = cfg.hash_token ? srv_tool_hash_token() : srv_tool_backup(&cfg);
+        srv_config_free(&cfg);
+        return rc;
     }
     /* before any thread exists: every thread inherits the mask. The default disposition first:
      * a shell starts background jobs with SIGINT ignored, and an ignored signal is discarded

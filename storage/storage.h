@@ -396,4 +396,31 @@ int storage_calib_search(storage_t *st, const storage_calib_filter_t *f, int lim
 void storage_calib_free(storage_calib_t *c);
 void storage_calib_list_free(storage_calib_list_t *l);
 
+/* ---- online backup (storage_backup.c) ----------------------------------------------------- */
+
+/* What a backup wrote. */
+typedef struct storage_backup_info {
+    int64_t bytes;       /* size of the backup file */
+    int pages;           /* database pages copied */
+    int schema_version;  /* the copy's user_version */
+    char integrity[256]; /* "ok", or the first problem PRAGMA integrity_check found */
+} storage_backup_info_t;
+
+/* Called between the steps of a backup with the pages left and the total; a nonzero return
+ * stops the backup (-ECANCELED). */
+typedef int (*storage_backup_step_fn)(void *ctx, int remaining, int total);
+
+/* Copies the database of st, as it was when the backup began, to the new file dest with SQLite's
+ * online backup API, pages_per_step pages at a time (<= 0: 256). st holds one read transaction
+ * throughout (a WAL snapshot): other connections and processes keep writing meanwhile and their
+ * writes are not in the copy (nor do they restart it); only checkpoints cannot go past the
+ * snapshot until it ends. The copy is written as dest.part, switched to journal_mode DELETE (one
+ * self-contained file), checked (PRAGMA integrity_check), synced and renamed to dest, so dest
+ * exists only complete. step (NULL: none) runs between steps, with st's connection idle.
+ * -EEXIST when dest or dest.part exists, -ECANCELED when step stopped it, -EIO when the copy
+ * failed its integrity check (dest is then not made), -ENOSPC, -EIO; info is filled on success. */
+int storage_backup(storage_t *st, const char *dest, int pages_per_step,
+                   storage_backup_step_fn step, void *ctx, storage_backup_info_t *info,
+                   err_t *err);
+
 #endif

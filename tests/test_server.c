@@ -23,6 +23,7 @@
 #include "instrument/sim.h"
 #include "server/srv.h"
 #include "server/srv_config.h"
+#include "server/srv_token.h"
 #include "server/srv_events.h"
 #include "server/srv_fit.h"
 #include "server/srv_params.h"
@@ -458,7 +459,9 @@ static void test_config(void)
     srv_config_t c;
     err_t err = {{0}};
     CHECK(parse(&c, &err, 1) == 0 && c.port == 8080 && strcmp(c.host, "127.0.0.1") == 0);
-    CHECK(c.workers == 2 && c.max_body == 4u << 20 && !c.token && strcmp(c.bench, "sim") == 0);
+    CHECK(c.workers == 2 && c.max_body == 4u << 20 && c.n_tokens == 0 && !c.reads_closed &&
+          strcmp(c.bench, "sim") == 0);
+    CHECK(!c.cors_origin[0] && !c.access_log[0] && !c.backup_dir[0] && !c.backup_out[0]);
     CHECK(parse(&c, &err, 5, "--listen", "[::1]:9000", "--workers", "3") == 0);
     CHECK(strcmp(c.host, "::1") == 0 && c.port == 9000 && c.workers == 3);
     CHECK(parse(&c, &err, 3, "--listen", "127.0.0.1:70000") == -EINVAL && strstr(err.msg, "port"));
@@ -471,8 +474,59 @@ static void test_config(void)
     FILE *f = fopen(path, "w");
     fputs("\n  abc-123 \n", f);
     fclose(f);
-    CHECK(parse(&c, &err, 3, "--token", path) == 0 && c.token && strcmp(c.token, "abc-123") == 0);
+    /* the digest of "abc-123" by another implementation: printf abc-123 | sha256sum */
+    static const char abc_sha[] =
+        "sha256:5942d94f524882e0f29bf0a1e5a6dcc952eea1c0c21dd3588a3fc7db9716db0c";
+    CHECK(parse(&c, &err, 3, "--token", path) == 0 && c.n_tokens == 1 &&
+          c.tokens[0].level == SRV_TOKEN_WRITE);
+    char line[SRV_TOKEN_HASH_LINE];
+    srv_token_hash_line("abc-123", 7, line);
+    CHECK(strcmp(line, abc_sha) == 0);
+    CHECK(srv_token_level(&c, "abc-123", 7) == SRV_TOKEN_WRITE);
+    CHECK(srv_token_level(&c, "abc-12", 6) == SRV_TOKEN_NONE);
+    CHECK(srv_token_level(&c, "abc-1234", 8) == SRV_TOKEN_NONE);
     srv_config_free(&c);
+    CHECK(c.n_tokens == 0 && srv_token_level(&c, "abc-123", 7) == SRV_TOKEN_NONE);
+    /* several lines: a comment, the hash line of abc-123 (upper-case hex), a plain token */
+    char rpath[600];
+    snprintf(rpath, sizeof rpath, "%s/read-token", tmpdir);
+    f = fopen(rpath, "w");
+    fputs("# lab readers\nSHA256:x\n", f);
+    fclose(f);
+    CHECK(parse(&c, &err, 5, "--token", path, "--read-token", rpath) == 0 && c.n_tokens == 2 &&
+          c.reads_closed); /* "SHA256:x" is not the prefix (case matters): a plain token */
+    f = fopen(rpath, "w");
+    fprintf(f, "# lab readers\n\n  sha256:5942D94F524882E0F29BF0A1E5A6DCC952EEA1C0C21DD3588A3FC7DB9716DB0C\n"
+               "reader-2\n");
+    fclose(f);
+    CHECK(parse(&c, &err, 3, "--read-token", rpath) == -EINVAL && strstr(err.msg, "--token"));
+    f = fopen(path, "w");
+    fputs("writer-1\n", f);
+    fclose(f);
+    CHECK(parse(&c, &err, 5, "--token", path, "--read-token", rpath) == 0 && c.n_tokens == 3);
+    CHECK(srv_token_level(&c, "abc-123", 7) == SRV_TOKEN_READ);
+    CHECK(srv_token_level(&c, "reader-2", 8) == SRV_TOKEN_READ);
+    CHECK(srv_token_level(&c, "writer-1", 8) == SRV_TOKEN_WRITE);
+    CHECK(srv_token_level(&c, "sha256:5942d94f524882e0f29bf0a1e5a6dcc952eea1c0c21dd3588a3fc7db97"
+                              "16db0c", 71) == SRV_TOKEN_NONE); /* the hash is not a token */
+    f = fopen(rpath, "w");
+    fputs("sha256:5942d94f\n", f);
+    fclose(f);
+    CHECK(parse(&c, &err, 5, "--token", path, "--read-token", rpath) == -EINVAL &&
+          strstr(err.msg, "line 1") && strstr(err.msg, "64 hex"));
+    f = fopen(rpath, "w");
+    fputs("two words\n", f);
+    fclose(f);
+    CHECK(parse(&c, &err, 5, "--token", path, "--read-token", rpath) == -EINVAL &&
+          strstr(err.msg, "whitespace"));
+    unlink(rpath);
+    CHECK(parse(&c, &err, 3, "--cors-origin", "https://lab.example:8443") == 0 &&
+          strcmp(c.cors_origin, "https://lab.example:8443") == 0);
+    CHECK(parse(&c, &err, 3, "--cors-origin", "https://lab.example/x") == -EINVAL &&
+          strstr(err.msg, "cors-origin"));
+    CHECK(parse(&c, &err, 3, "--cors-origin", "a\r\nX: y") == -EINVAL);
+    CHECK(parse(&c, &err, 3, "--access-log", "-") == 0 && !c.access_log[0]);
+    CHECK(parse(&c, &err, 3, "--access-log", "off") == 0 && strcmp(c.access_log, "off") == 0);
     f = fopen(path, "w");
     fputs(" \n", f);
     fclose(f);

@@ -35,6 +35,7 @@ rm -f "${TMPDIR:-/tmp}/tsort.$$"
 
 # (1b) exactly the documented calls (docs/schema.md, "The code"): keep the two in step
 want='storage.c storage_gate.c
+storage_backup.c storage.c
 storage.c storage_sql.c
 storage_calib.c storage.c
 storage_calib.c storage_sensor.c

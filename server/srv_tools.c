@@ -1,0 +1,57 @@
+/* srv_tools.c: ipsd's one-shot modes, run instead of the server: --hash-token prints the line a
+ * token file may hold instead of the token (srv_token.h), --backup OUT makes an online backup of
+ * --db (storage_backup) that may run while an ipsd serves the same database. */
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "server/srv_token.h"
+#include "srv_int.h"
+
+int srv_tool_hash_token(void)
+{
+    char buf[1024];
+    size_t n = fread(buf, 1, sizeof buf - 1, stdin);
+    buf[n] = 0;
+    char *s = buf, *e = buf + strcspn(buf, "\n"); /* the first line */
+    while (*s == ' ' || *s == '\t' || *s == '\r')
+        s++;
+    while (e > s && (e[-1] == ' ' || e[-1] == '\t' || e[-1] == '\r'))
+        e--;
+    int ok = e > s && n < sizeof buf - 1;
+    for (const char *p = s; ok && p < e; p++)
+        ok = (unsigned char)*p > 0x20 && (unsigned char)*p < 0x7f;
+    char line[SRV_TOKEN_HASH_LINE];
+    if (ok) srv_token_hash_line(s, (size_t)(e - s), line);
+    explicit_bzero(buf, sizeof buf);
+    if (!ok) {
+        fprintf(stderr, "ipsd: --hash-token: stdin's first line must be a token: 1..1022 "
+                        "printable ASCII characters without spaces\n");
+        return 2;
+    }
+    printf("%s\n", line);
+    return 0;
+}
+
+int srv_tool_backup(const srv_config_t *cfg)
+{
+    struct stat sb;
+    if (stat(cfg->db_path, &sb) != 0) { /* storage_open would create an empty one */
+        fprintf(stderr, "ipsd: --backup: no database %s: %s\n", cfg->db_path, strerror(errno));
+        return 2;
+    }
+    storage_t *st = NULL;
+    storage_backup_info_t info;
+    err_t err = {{0}};
+    int ret = storage_open(cfg->db_path, &st, &err);
+    if (!ret) ret = storage_backup(st, cfg->backup_out, 0, NULL, NULL, &info, &err);
+    storage_close(st);
+    if (ret) {
+        fprintf(stderr, "ipsd: %s\n", err.msg); /* "backup: ..." */
+        return ret == -EEXIST ? 2 : 1;
+    }
+    printf("%s: %lld bytes, %d pages, schema %d, integrity %s\n", cfg->backup_out,
+           (long long)info.bytes, info.pages, info.schema_version, info.integrity);
+    return 0;
+}
