@@ -170,7 +170,9 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
     if (ret == 0) ret = srv_fit_run(&in.sf.scan, &p, &hooks, &out, &err);
     /* cancelled meanwhile? then the result is dropped */
     if (ret == 0) ret = storage_job_heartbeat(w->st, job->id, 0.99, 0, &err);
+    if (ret == 0) ret = srv_failpoint(w, "fit.before_store", &err); /* test hook */
     if (ret == 0) ret = store(w->st, job->id, &p, &in, &out, &err);
+    if (ret == 0) ret = srv_failpoint(w, "fit.after_store", &err); /* test hook */
     if (ret == 0) ret = storage_job_finish(w->st, job->id, STORAGE_DONE, NULL, &err);
     if (ret == -ECANCELED) {
         stopped(w->st, job->id);
