@@ -17,12 +17,14 @@
 #include <stddef.h>
 
 #include "base/err.h"
+#include "fit/stop.h"
 
 typedef struct fit_design_opts {
     int order;       /* Chebyshev points per sweep segment (the accuracy setting), 2..64 */
     double seg_dv;   /* largest span of a*rho covered by one segment (resolves oscillations) */
     double seg_ds;   /* largest span of the wedge variable s = asinh(tan t) per segment */
     double skip_tol; /* leave out entries bounded below skip_tol * 4 pi / a^2; 0 keeps all */
+    fit_stop_t stop; /* polled before each batch of rows: -ECANCELED (stop.h); zero: never */
 } fit_design_opts_t;
 
 typedef struct fit_design_stats {

@@ -48,6 +48,8 @@ typedef struct fit_options {
     fit_method_t method;
     int nonneg;                /* constrain S_ij >= 0 (Lawson-Hanson NNLS on the linear path) */
     double design_tol;         /* design-matrix accuracy (design.h), default 1e-12 */
+    fit_stop_t stop;           /* polled inside the long loops (stop.h): a fit stopped there
+                                  returns -ECANCELED; zero (the default): never */
 } fit_options_t;
 
 fit_options_t fit_options_default(void);

@@ -7,8 +7,9 @@
  * or done with everything, never a fit the job does not name. The map becomes the pixel's
  * calibration when the job says so (the automatic fit of a scan, a request with "promote": true,
  * an upload with a target pixel).
- * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) when it is
- * cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
+ * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) and inside
+ * their long loops (fit/stop.h: the worker's stop flag, which a cancel and the shutdown set
+ * directly) when it is cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
  * by a crash is requeued at the next start and simply runs again: it had stored nothing. */
 #include <errno.h>
 #include <math.h>
@@ -151,6 +152,14 @@ static void on_progress(double fraction, void *user)
     if (srv_failpoint(fw->w, "fit.step", NULL)) atomic_store(&fw->w->stop, 1); /* test hook */
 }
 
+/* Inside the fit's long loops: the test hook fit.poll (a hold there is a fit held mid-step; it
+ * ends, stopping the fit, when the job is cancelled or ipsd stops). */
+static int on_poll(void *user)
+{
+    struct fit_watch *fw = user;
+    return fw->w->srv->failpoints && srv_failpoint(fw->w, "fit.poll", NULL) != 0;
+}
+
 /* After a stopped fit: cancelled by the user (nothing to do), else the shutdown (or a cancel
  * meant for a previous job): the job goes back to the queue and runs again. */
 static void stopped(storage_t *st, int64_t id)
@@ -166,7 +175,8 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
     srv_fit_out_t out = {0};
     err_t err = {{0}};
     struct fit_watch fw = {.w = w, .job = job, .last_beat = clock_mono_s()};
-    srv_fit_hooks_t hooks = {.stop = &w->stop, .progress = on_progress, .user = &fw};
+    srv_fit_hooks_t hooks = {.stop = &w->stop, .poll = on_poll, .progress = on_progress,
+                             .user = &fw};
     srv_worker_begin(w, job->id);
     srv_publish_job(w->srv, job, "fit", 0, NAN);
     int ret = srv_fit_params_parse(job->params, &p, &err);
