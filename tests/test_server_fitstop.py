@@ -6,8 +6,10 @@ ended (progress 0). The hold ends only through the worker's stop flag, so the jo
 that the stop set by the cancel (or by SIGTERM) unwinds the fit from inside its loop: the job is
 cancelled with nothing stored and the worker takes the next job; at SIGTERM ipsd exits 0 and the
 job goes back to the queue, then runs to done at the next start. The latency is measured in
-bench (the report), not asserted here."""
+bench (the report), not asserted here. Then the fit request's limits: --max-fit-points (413
+naming scan.x_um) and --max-fit-r (422 naming r_max, ftest_r or geometry_r)."""
 import math
+import subprocess
 import sys
 
 import ipsd_http
@@ -57,8 +59,27 @@ def test(c, t, argv, daemons):
     d.start("--workers", "1")
     c.ok(d.wait_job(job, "done"), "it runs again to done")
     c.eq(db.val("SELECT count(*) FROM fits"), 2, "and stores its one fit")
-    db.close()
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+
+    # the limits of a fit request (--max-fit-points, --max-fit-r): 413 / 422 naming the field
+    d.start("--workers", "1", "--max-fit-points", "100", "--max-fit-r", "4")
+    c.error(d.post("/api/fits", upload_body(101, 4)), 413, "scan.x_um", "101 points over 100")
+    c.error(d.post("/api/fits", upload_body(100, 5)), 422, "r_max", "r_max 5 over 4")
+    b = upload_body(100, 4)
+    b.update(ftest="top", ftest_r=5)
+    c.error(d.post("/api/fits", b), 422, "ftest_r", "ftest_r 5 over 4")
+    b = upload_body(100, 4)
+    b.update(fit_geometry=True, geometry_r=5)
+    c.error(d.post("/api/fits", b), 422, "geometry_r", "geometry_r 5 over 4")
+    r = d.post("/api/fits", upload_body(100, 4))
+    c.status(r, 202, "100 points at r_max 4: at the limits, accepted")
+    c.ok(d.wait_job(r.json()["job"]["id"], "done"), "and fitted")
+    c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+    for flag, bad in (("--max-fit-points", "0"), ("--max-fit-r", "33")):
+        p = subprocess.run([argv[1], "--db", d.db, flag, bad], stderr=subprocess.PIPE,
+                           stdout=subprocess.DEVNULL, text=True, timeout=ipsd_http.DEADLINE_S)
+        c.ok(p.returncode == 2 and flag in p.stderr, "%s %s refused: %r" % (flag, bad, p.stderr))
+    db.close()
 
 
 if __name__ == "__main__":
