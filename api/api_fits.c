@@ -79,6 +79,18 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         return -1;
     }
     p->geometry_r = (int)geometry_r;
+    /* ipsd's cap on r (--max-fit-r): with the points' cap it bounds a fit's memory */
+    long long cap = srv_config(q->srv)->max_fit_r;
+    int has_ftest = ftest && !json_is_null(ftest);
+    const char *over = r_max > cap                 ? "r_max"
+                       : ftest_r > cap && has_ftest ? "ftest_r"
+                       : geometry_r > cap           ? "geometry_r"
+                                                    : NULL;
+    if (over) {
+        api_error(q, 422, "out_of_range", over,
+                  "%s is more than ipsd's limit of %lld (--max-fit-r)", over, cap);
+        return -1;
+    }
     if (r_min > r_max) {
         api_error(q, 422, "out_of_range", "r_min", "r_min (%lld) must not exceed r_max (%lld)",
                   r_min, r_max);
@@ -198,6 +210,12 @@ static int read_upload(api_req_t *q, json_t *o, double *pitch)
     }
     int ret = srv_upload_check(scan, pitch, &n, &field, &err);
     if (ret == 0 && n == 0) ret = err_set(&err, -EINVAL, "the scan has no points");
+    int cap = srv_config(q->srv)->max_fit_points;
+    if (ret == 0 && n > (size_t)cap) { /* the points' cap (--max-fit-points): bounds its memory */
+        api_error(q, 413, "payload_too_large", "scan.x_um",
+                  "scan: %zu points is more than ipsd's limit of %d (--max-fit-points)", n, cap);
+        return -1;
+    }
     char path[64];
     snprintf(path, sizeof path, "scan.%s", field ? field : "x_um");
     if (ret) api_error(q, ret == -ENOMEM ? 500 : 422, "invalid", path, "scan: %s", err.msg);

@@ -578,6 +578,7 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
     for (int i = 0; i <= r; i++) e[i] = pitch * i / r; /* exact at 0 and at pitch */
     wk.near2 = near_distance2(&o, wk.a, e, r);
     for (size_t k0 = 0; k0 < n; k0 += batch) {
+        if (fit_stop_now(&o.stop) && (rc = err_set(err, -ECANCELED, "fit stopped"))) goto out;
         int nb = (int)(n - k0 < batch ? n - k0 : batch);
         wk.x = x + k0;
         wk.y = y + k0;

@@ -17,6 +17,7 @@
 #include <stddef.h>
 
 #include "base/err.h"
+#include "fit/stop.h"
 
 /* Sweeps kept across calls (design.c): a sweep depends only on the line's scaled distance
  * w = a |e - x| and the options, so fits that share spot positions and edge lines (every r of a
@@ -42,6 +43,7 @@ typedef struct fit_design_opts {
     double seg_ds;   /* largest span of the wedge variable s = asinh(tan t) per segment */
     double skip_tol; /* leave out entries bounded below skip_tol * 4 pi / a^2; 0 keeps all */
     fit_design_cache_t *cache; /* sweeps shared with other calls (NULL: none) */
+    fit_stop_t stop; /* polled before each batch of rows: -ECANCELED (stop.h); zero: never */
 } fit_design_opts_t;
 
 typedef struct fit_design_stats {

@@ -85,6 +85,7 @@ static int chi2_h0(const fit_scan_t *scan, const fit_result_t *h1, int r, unsign
     }
     fit_design_opts_t d = fit_design_opts_for_tol(o->design_tol > 0 ? o->design_tol : 1e-12);
     d.cache = o->design_cache; /* the sweep's sweeps at this r: only the assembly is left */
+    d.stop = o->stop;
     rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, r, xs, xs + nn, n, &d, A, NULL, err);
     free(xs);
     if (rc) goto out;

@@ -90,6 +90,7 @@ static int geo_init(const fit_scan_t *scan, int r, const fit_options_t *o, struc
         g->n++;
     }
     g->dopt = fit_design_opts_for_tol(o->design_tol > 0 ? o->design_tol : 1e-12);
+    g->dopt.stop = o->stop; /* every residual builds a design matrix: it polls the stop */
     double R = scan->spot_radius_um;
     g->c[0] = 1.25 * R, g->h[0] = 0.75 * R; /* R in [R/2, 2R] */
     g->c[1] = g->c[2] = 0, g->h[1] = g->h[2] = scan->pitch_um; /* |dx|, |dy| <= pitch */

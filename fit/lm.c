@@ -14,12 +14,18 @@
 struct lm_data {
     const double *A, *sigma, *y;
     size_t n, m;
+    const fit_stop_t *stop;
+    int stopped; /* the stop answered: the driver was ended by lm_f's error */
 };
 
 /* residuals f_k = (I0 (A S)_k - y_k) / sigma_k; parameters x = (S_1..S_m, I0) */
 static int lm_f(const gsl_vector *x, void *vd, gsl_vector *f)
 {
-    const struct lm_data *d = vd;
+    struct lm_data *d = vd;
+    if (d->stop && fit_stop_now(d->stop)) { /* ends the driver: GSL passes the error up */
+        d->stopped = 1;
+        return GSL_EBADFUNC;
+    }
     double I0 = gsl_vector_get(x, d->m);
     for (size_t k = 0; k < d->n; k++) {
         double as = 0;
@@ -46,10 +52,31 @@ static int lm_df(const gsl_vector *x, void *vd, gsl_matrix *J)
     return GSL_SUCCESS;
 }
 
-int lm_fit(const double *A, const double *sigma, const double *y, size_t n, size_t m, double *S,
-           double *I0, lm_result_t *res)
+/* gsl_multifit_nlinear_driver's loop (GSL 2.x, multifit_nlinear/fdf.c: iterate, fail when the
+ * first iteration makes no progress, test for convergence, at most LM_MAX_ITER), which also ends
+ * when the stop answered. GSL's driver ignores an iteration's error, so a residual function that
+ * refuses to run does not end it: each further iteration still factors the Jacobian. */
+static int drive(gsl_multifit_nlinear_workspace *ws, const struct lm_data *d, int *info)
 {
-    struct lm_data d = {A, sigma, y, n, m};
+    int st = GSL_CONTINUE;
+    for (size_t iter = 0; st == GSL_CONTINUE && iter < LM_MAX_ITER && !d->stopped;) {
+        st = gsl_multifit_nlinear_iterate(ws);
+        if (st == GSL_ENOPROG && iter == 0) {
+            *info = st;
+            return GSL_EMAXITER;
+        }
+        ++iter;
+        st = gsl_multifit_nlinear_test(1e-12, 1e-12, 1e-15, info, ws);
+        if (st == GSL_ETOLF || st == GSL_ETOLX || st == GSL_ETOLG) st = GSL_SUCCESS;
+        if (iter >= LM_MAX_ITER && st != GSL_SUCCESS) st = GSL_EMAXITER;
+    }
+    return st;
+}
+
+int lm_fit(const double *A, const double *sigma, const double *y, size_t n, size_t m, double *S,
+           double *I0, const fit_stop_t *stop, lm_result_t *res)
+{
+    struct lm_data d = {A, sigma, y, n, m, stop, 0};
     gsl_multifit_nlinear_parameters par = gsl_multifit_nlinear_default_parameters();
     par.trs = gsl_multifit_nlinear_trs_lm;
     par.solver = gsl_multifit_nlinear_solver_svd;
@@ -66,10 +93,14 @@ int lm_fit(const double *A, const double *sigma, const double *y, size_t n, size
     gsl_multifit_nlinear_fdf fdf = {.f = lm_f, .df = lm_df, .n = n, .p = m + 1, .params = &d};
     int info = 0;
     if (gsl_multifit_nlinear_init(x0, &fdf, ws) != GSL_SUCCESS) {
-        rc = -EDOM;
+        rc = d.stopped ? -ECANCELED : -EDOM;
         goto out;
     }
-    int st = gsl_multifit_nlinear_driver(LM_MAX_ITER, 1e-12, 1e-12, 1e-15, NULL, NULL, &info, ws);
+    int st = drive(ws, &d, &info);
+    if (d.stopped) {
+        rc = -ECANCELED;
+        goto out;
+    }
     if (st != GSL_SUCCESS && st != GSL_EMAXITER && st != GSL_ENOPROG) {
         rc = -EDOM;
         goto out;

@@ -5,6 +5,8 @@
 
 #include <stddef.h>
 
+#include "fit/stop.h"
+
 typedef struct lm_result {
     double chi2;
     int iterations;
@@ -13,8 +15,10 @@ typedef struct lm_result {
 
 /* A: n x m row-major design matrix, y: measured signal minus bias, sigma: uncertainties.
  * S (m) and *I0 hold the start on entry (the paper starts from S = 1) and the result on exit.
- * Returns 0, -ENOMEM, or -EDOM when GSL reports a failure other than non-convergence. */
+ * stop (may be NULL) is polled at every evaluation of the residuals (each iteration's).
+ * Returns 0, -ENOMEM, -ECANCELED (stopped), or -EDOM when GSL reports a failure other than
+ * non-convergence. */
 int lm_fit(const double *A, const double *sigma, const double *y, size_t n, size_t m, double *S,
-           double *I0, lm_result_t *res);
+           double *I0, const fit_stop_t *stop, lm_result_t *res);
 
 #endif

@@ -157,7 +157,7 @@ static int run_lm(const double *A, const struct points *p, size_t m, const fit_o
     double I0 = den > 0 ? num / den : 1;
     for (size_t j = 0; j < m; j++) S[j] = 1;
     lm_result_t lm;
-    int rc = lm_fit(A, p->sigma, p->d, p->n, m, S, &I0, &lm);
+    int rc = lm_fit(A, p->sigma, p->d, p->n, m, S, &I0, &opts->stop, &lm);
     if (rc == 0) {
         res->lm_chi2 = lm.chi2;
         res->lm_iterations = lm.iterations;
@@ -207,6 +207,10 @@ static int solve(const double *A, const struct points *p, int r, const fit_optio
     if (!T || !cov || !hat) goto out;
     wls_result_t w;
     if ((rc = wls_solve_hat(A, p->w, p->d, n, m, opts->nonneg, T, cov, hat, &w))) goto out;
+    if (fit_stop_now(&opts->stop)) { /* the solve is one LAPACK call: polled after it */
+        rc = -ECANCELED;
+        goto out;
+    }
     res->chi2 = w.chi2;
     res->cond = w.rcond > 0 ? 1 / w.rcond : INFINITY;
     res->cv_chi2 = loo_chi2(A, p, m, T, hat);
@@ -302,6 +306,7 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
         }
         fit_design_opts_t d = fit_design_opts_for_tol(o.design_tol > 0 ? o.design_tol : 1e-12);
         d.cache = o.design_cache;
+        d.stop = o.stop;
         rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, r, p.x, p.y, p.n, &d, A,
                               &out->design, err);
         if (rc) goto out;
@@ -314,6 +319,7 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
 out:
     if (rc == -ENOMEM) err_set(err, rc, "out of memory fitting r = %d", r);
     else if (rc == -EDOM) err_set(err, rc, "the linear algebra failed for r = %d", r);
+    else if (rc == -ECANCELED) err_set(err, rc, "fit stopped (r = %d)", r);
     if (rc) fit_result_free(out);
     points_free(&p);
     free(A);

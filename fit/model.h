@@ -50,6 +50,8 @@ typedef struct fit_options {
     double design_tol;         /* design-matrix accuracy (design.h), default 1e-12 */
     fit_design_cache_t *design_cache; /* sweeps shared across fits of one scan (design.h); NULL:
                                          none. The pipeline gives its run one. */
+    fit_stop_t stop;           /* polled inside the long loops (stop.h): a fit stopped there
+                                  returns -ECANCELED; zero (the default): never */
 } fit_options_t;
 
 fit_options_t fit_options_default(void);

@@ -1,7 +1,7 @@
 /* pipeline.c: the fit job as one call (pipeline.h): the sweep over r and the choice of the best r
  * (section IV: AIC = N ln(chi2/N) + 2p, BIC = N ln(chi2/N) + p ln N, the smallest among the fits
  * that have a map), then the F-test, the Wiener baseline and the interpolated best-AIC map, with
- * the watch consulted before and told after every step. The F-test reuses the sweep's fit at
+ * the watch consulted before and told after every step (and its poll inside the steps' loops). The F-test reuses the sweep's fit at
  * ftest_r as its H1 when the sweep has it and fitted it by the linear path, which is how H1 must
  * be fitted (model.h); otherwise it fits its own. With fit_geometry, the geometry fit
  * (geometry.h) runs first and, when it can be used, every later step sees the scan with the
@@ -198,7 +198,8 @@ static void interp_step(struct run *rn)
     out->interp_r = r;
 }
 
-/* Runs an optional part as one step, timed into its fit_part_t. */
+/* Runs an optional part as one step, timed into its fit_part_t. A part stopped inside (its rc
+ * -ECANCELED) stops the run: it is not a failed part. */
 static int part_step(struct run *rn, fit_step_kind_t kind, int r, fit_part_t *p,
                      void (*body)(struct run *), err_t *err)
 {
@@ -209,6 +210,8 @@ static int part_step(struct run *rn, fit_step_kind_t kind, int r, fit_part_t *p,
     double t = clock_mono_ms();
     body(rn);
     p->ms = clock_mono_ms() - t;
+    if (p->rc == -ECANCELED)
+        return err_set(err, -ECANCELED, "fit stopped during the %s", fit_step_name(kind));
     step_end(rn, &step);
     return 0;
 }
@@ -256,6 +259,8 @@ int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,
     fit_gsl_policy();
     memset(out, 0, sizeof *out);
     fit_pipeline_opts_t o = opts ? *opts : fit_pipeline_opts_default();
+    if (watch && watch->poll) /* every step's long loops poll the watch (stop.h) */
+        o.fit.stop = (fit_stop_t){.poll = watch->poll, .arg = watch->params};
     int rc = check_opts(scan, &o, err);
     if (rc) return rc;
     double t0 = clock_mono_ms();

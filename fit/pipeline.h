@@ -6,7 +6,11 @@
  * Watching a run follows GSL's driver callback (gsl_multifit_nlinear_driver's
  * `callback(iter, params, w)`): a progress function is called after every step with the steps
  * done and the steps in all and which step it was, and a stop function is consulted before every
- * step (the first one included); a stop returns -ECANCELED and keeps nothing.
+ * step (the first one included); a stop returns -ECANCELED and keeps nothing. A step can take
+ * seconds (r = 32 of a large scan, an LM fit), so a poll function, when given, is also called
+ * inside the steps' long loops (stop.h: each batch of design-matrix rows, after each solve, each
+ * LM iteration of the paper's fit and of the geometry fit): a nonzero answer there stops the run
+ * the same way, within a fraction of one step.
  *
  * The scan given is the whole raster. The sweep and the F-test fit its points in the options'
  * region (region.h, by default the paper's: inside the pixel); the Wiener baseline deconvolves
@@ -81,6 +85,9 @@ typedef struct fit_watch {
     /* Before each step: nonzero stops the run (-ECANCELED). */
     int (*stop)(const fit_step_t *next, void *params);
     void *params;
+    /* Inside the steps' long loops (stop.h): nonzero stops the run (-ECANCELED). Keep it cheap
+     * (an atomic load): it runs many times per step. NULL: only the stop above. */
+    int (*poll)(void *params);
 } fit_watch_t;
 
 /* The outcome of an optional part. */

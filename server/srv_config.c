@@ -52,6 +52,10 @@ static const char usage[] =
     "  --port-file FILE     write the bound port number to FILE once listening\n"
     "  --heartbeat S        seconds between event-stream heartbeats (default 15)\n"
     "  --max-attempts N     a job interrupted by N crashes fails instead of running again (3)\n"
+    "  --max-fit-points N   largest uploaded scan file a fit takes, in points (default 10000);\n"
+    "                       more get 413\n"
+    "  --max-fit-r N        largest r_max / ftest_r / geometry_r a fit may ask for, 1..32\n"
+    "                       (default 32); more get 422\n"
     "SIGINT / SIGTERM stop gracefully: running scans resume at the next start.\n";
 
 const char *srv_config_usage(void)
@@ -71,7 +75,9 @@ srv_config_t srv_config_default(void)
                       .request_timeout_s = 60,
                       .max_subscribers = 256,
                       .heartbeat_s = 15,
-                      .max_attempts = 3};
+                      .max_attempts = 3,
+                      .max_fit_points = 10000,
+                      .max_fit_r = 32};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
     snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
     snprintf(c.bench, sizeof c.bench, "sim");
@@ -159,6 +165,8 @@ enum {
     O_PERCLIENT,
     O_REQTIMEOUT,
     O_MAXSUBS,
+    O_MAXFITPTS,
+    O_MAXFITR,
     O_PORTFILE,
     O_HEARTBEAT,
     O_ATTEMPTS,
@@ -185,6 +193,8 @@ static const struct option opts[] = {
     {"max-per-client", required_argument, NULL, O_PERCLIENT},
     {"request-timeout", required_argument, NULL, O_REQTIMEOUT},
     {"max-subscribers", required_argument, NULL, O_MAXSUBS},
+    {"max-fit-points", required_argument, NULL, O_MAXFITPTS},
+    {"max-fit-r", required_argument, NULL, O_MAXFITR},
     {"port-file", required_argument, NULL, O_PORTFILE},
     {"heartbeat", required_argument, NULL, O_HEARTBEAT},
     {"max-attempts", required_argument, NULL, O_ATTEMPTS},
@@ -244,7 +254,9 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
     case O_MAXCONN:
     case O_PERCLIENT:
     case O_REQTIMEOUT:
-    case O_MAXSUBS: {
+    case O_MAXSUBS:
+    case O_MAXFITPTS:
+    case O_MAXFITR: {
         static const struct {
             int opt;
             const char *name;
@@ -252,6 +264,8 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
         } lim[] = {{O_MAXCONN, "max-connections", 16, 1000000},
                    {O_PERCLIENT, "max-per-client", 1, 1000000},
                    {O_REQTIMEOUT, "request-timeout", 1, 86400},
+                   {O_MAXFITPTS, "max-fit-points", 1, 10000000},
+                   {O_MAXFITR, "max-fit-r", 1, 32},
                    {O_MAXSUBS, "max-subscribers", 1, 1000000}};
         size_t i = 0;
         while (lim[i].opt != c)
@@ -260,7 +274,7 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--%s must be %lld..%lld (got '%s')", lim[i].name,
                            lim[i].lo, lim[i].hi, arg);
         int *field[] = {&cfg->max_connections, &cfg->max_per_client, &cfg->request_timeout_s,
-                        &cfg->max_subscribers};
+                        &cfg->max_fit_points, &cfg->max_fit_r, &cfg->max_subscribers};
         *field[i] = (int)v;
         return 0;
     }

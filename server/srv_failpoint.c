@@ -1,12 +1,14 @@
 /* srv_failpoint.c: the workers' test hooks (see srv_failpoint.h): the IPSD_FAILPOINTS parser, hit
- * counting, and the hold. A hold polls (every HOLD_POLL_MS) for its release file and the worker's
- * stop flag: the flag is a plain atomic that a cancel or the shutdown sets without a wake-up, and
- * a hold is test-only, so a short poll is simpler than a second signalling path. */
+ * counting, the hold and the crash. A hold polls (every HOLD_POLL_MS) for its release file and
+ * the worker's stop flag: the flag is a plain atomic that a cancel or the shutdown sets without
+ * a wake-up, and a hold is test-only, so a short poll is simpler than a second signalling path.
+ * A crash raises SIGKILL: what kill -9 does, at a point a test names instead of a random one. */
 #include "srv_failpoint.h"
 
 #include <errno.h>
 #include <limits.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,11 +20,11 @@
 #define MAX_TERMS 16
 #define HOLD_POLL_MS 2
 
-enum fp_action { FP_OFF, FP_HOLD, FP_ERROR };
+enum fp_action { FP_OFF, FP_HOLD, FP_ERROR, FP_CRASH }; /* by precedence: a crash wins */
 
 /* One NAME=ACTION[@N] term and the hits of its point so far. */
 struct fp_term {
-    char name[16];
+    char name[32];
     enum fp_action action;
     long long at; /* the hit it fires on, 0: every hit */
     long long hits;
@@ -36,7 +38,8 @@ struct srv_failpoints {
 };
 
 /* The points the workers have (a misspelt name must not arm nothing silently). */
-static const char *const POINTS[] = {"scan.setup", "scan.point", "fit.step"};
+static const char *const POINTS[] = {"scan.setup", "scan.point", "fit.step", "fit.before_store",
+                                     "fit.after_store", "fit.poll"};
 
 static int parse_term(char *text, struct fp_term *t, err_t *err)
 {
@@ -49,15 +52,18 @@ static int parse_term(char *text, struct fp_term *t, err_t *err)
     for (size_t i = 0; i < sizeof POINTS / sizeof *POINTS; i++) known |= !strcmp(text, POINTS[i]);
     if (!known)
         return err_set(err, -EINVAL,
-                       "IPSD_FAILPOINTS: unknown point '%s' (scan.setup, scan.point, fit.step)",
+                       "IPSD_FAILPOINTS: unknown point '%s' (scan.setup, scan.point, fit.step, "
+                       "fit.before_store, fit.after_store, fit.poll)",
                        text);
     snprintf(t->name, sizeof t->name, "%s", text);
     if (!strcmp(action, "hold")) t->action = FP_HOLD;
     else if (!strcmp(action, "error")) t->action = FP_ERROR;
+    else if (!strcmp(action, "crash")) t->action = FP_CRASH;
     else if (!strcmp(action, "off")) t->action = FP_OFF;
     else
-        return err_set(err, -EINVAL, "IPSD_FAILPOINTS: %s: unknown action '%s' (hold, error, off)",
-                       text, action);
+        return err_set(err, -EINVAL,
+                       "IPSD_FAILPOINTS: %s: unknown action '%s' (hold, error, crash, off)", text,
+                       action);
     if (at && (parse_ll(at, &t->at) || t->at < 1))
         return err_set(err, -EINVAL, "IPSD_FAILPOINTS: %s: '@%s' is not a hit number >= 1", text,
                        at);
@@ -161,13 +167,21 @@ int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err)
         struct fp_term *t = &fp->terms[i];
         if (strcmp(t->name, name) != 0) continue;
         t->hits++;
-        /* of the terms that fire on this hit, an error wins over a hold */
+        /* of the terms that fire on this hit, a crash wins over an error, an error over a hold */
         if ((t->at == 0 || t->hits == t->at) && t->action > fire) {
             fire = t->action;
             hit = t->hits;
         }
     }
     pthread_mutex_unlock(&fp->mu);
+    if (fire == FP_CRASH) {
+        /* a crash as kill -9 makes it: no cleanup, nothing flushed, no transaction ended (stderr
+         * is unbuffered, so the line is out before) */
+        fprintf(stderr, "ipsd: failpoint %s: crashing in job %lld at hit %lld (SIGKILL)\n", name,
+                (long long)atomic_load(&w->job), hit);
+        raise(SIGKILL);
+        _exit(137); /* not reached */
+    }
     if (fire == FP_HOLD) return hold(fp, w, name, hit);
     if (fire == FP_ERROR) {
         fprintf(stderr, "ipsd: failpoint %s: error in job %lld at hit %lld\n", name,

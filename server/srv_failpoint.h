@@ -8,8 +8,11 @@
  *
  * Points: scan.setup (after the scan's setup is taken or made, before its raster), scan.point
  * (after a raster point is stored and published), fit.step (after each step of a fit: each r,
- * the F-test, the Wiener baseline). ACTION: hold (block the worker there), error (the point
- * fails: -EIO) or off. @N: only the N-th hit of that point since ipsd started, counted over all
+ * the F-test, the Wiener baseline), fit.before_store (a fit computed, before the transaction that
+ * stores it), fit.after_store (after that transaction committed, before the job's end is
+ * published), fit.poll (inside a fit's long loops, where it polls its stop: each batch of
+ * design-matrix rows, after each solve, each LM iteration). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
+ * process kills itself with SIGKILL there: a kill -9 at a known point) or off. @N: only the N-th hit of that point since ipsd started, counted over all
  * jobs; without it, every hit. Several terms may name one point.
  *
  * A hold writes "ipsd: failpoint NAME: holding job ID at hit N" to stderr and creates

@@ -1,5 +1,6 @@
 /* srv_fit.c: the fit a fit job runs (see srv_fit.h): the fit pipeline of fit/pipeline.h, the one
- * `ips fit` runs, watched through the job's stop flag and progress, and what is the server's own:
+ * `ips fit` runs, watched through the job's stop flag (before each step and inside its long
+ * loops) and progress, and what is the server's own:
  * the result document (json/fitjson.h, failed parts as {"error": "..."}) and the recommended map
  * that becomes the calibration. */
 #include "server/srv_fit.h"
@@ -29,6 +30,15 @@ static int watch_stop(const fit_step_t *next, void *params)
     (void)next;
     const srv_fit_hooks_t *h = params;
     return h->stop && atomic_load(h->stop);
+}
+
+/* Inside the fit's long loops (fit/stop.h): the stop flag a cancel or the shutdown sets directly,
+ * so a fit stops within a fraction of one r; then the caller's poll. */
+static int watch_poll(void *params)
+{
+    const srv_fit_hooks_t *h = params;
+    if (h->stop && atomic_load_explicit(h->stop, memory_order_relaxed)) return 1;
+    return h->poll && h->poll(h->user);
 }
 
 static void watch_progress(int done, int total, const fit_step_t *step, void *params)
@@ -102,7 +112,8 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
                               .ftest_edges = p->ftest_edges, .ftest_r = p->ftest_r,
                               .wiener = p->wiener, .region = p->region,
                               .fit_geometry = p->fit_geometry, .geometry_r = p->geometry_r};
-    fit_watch_t watch = {.stop = watch_stop, .progress = watch_progress, .params = (void *)hooks};
+    fit_watch_t watch = {.stop = watch_stop, .progress = watch_progress, .params = (void *)hooks,
+                         .poll = watch_poll};
     fit_pipeline_t pl;
     double t0 = clock_mono_ms();
     int ret = fit_pipeline_run(scan, &po, hooks ? &watch : NULL, &pl, err);

@@ -28,7 +28,8 @@ typedef struct srv_fit_out {
  * read before every step (each r, the F-test, Wiener), progress (may be NULL) is told the fraction
  * of the steps done after each. */
 typedef struct srv_fit_hooks {
-    const atomic_int *stop;
+    const atomic_int *stop; /* read before each step and inside the fit's long loops */
+    int (*poll)(void *user); /* also inside those loops (a test hook; may be NULL): nonzero stops */
     void (*progress)(double fraction, void *user);
     void *user;
 } srv_fit_hooks_t;

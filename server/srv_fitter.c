@@ -2,12 +2,15 @@
  * needs (the pixel's response over all of a finished scan's stored points, srv_pixel_scan, or the
  * uploaded scan file; the fit selects its region's points, the Wiener baseline takes them all),
  * runs it (srv_fit_run) and stores the fit with the map it offers to that sensor pixel (the
- * recommended map), linked to the job, in one transaction (storage_fit_store); the map becomes
- * the pixel's calibration when the job says so (the automatic fit of a scan, a request with
- * "promote": true, an upload with a target pixel).
- * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) when it is
- * cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
- * by a crash is requeued at the next start and simply runs again. */
+ * recommended map), linked to the job, and the job's end (done) in one transaction
+ * (storage_fit_store_done): a crash leaves the job running with nothing stored (it runs again)
+ * or done with everything, never a fit the job does not name. The map becomes the pixel's
+ * calibration when the job says so (the automatic fit of a scan, a request with "promote": true,
+ * an upload with a target pixel).
+ * A fit stops between its steps (each r of the sweep, the F-test, the Wiener baseline) and inside
+ * their long loops (fit/stop.h: the worker's stop flag, which a cancel and the shutdown set
+ * directly) when it is cancelled or ipsd stops; stopped by the shutdown, it goes back to the queue. A fit interrupted
+ * by a crash is requeued at the next start and simply runs again: it had stored nothing. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -87,8 +90,9 @@ static void provenance(const srv_fit_params_t *p, storage_calib_t *c)
     c->reason = strdup(text);
 }
 
-/* Stores the fit, with the map it offers when it has one and a sensor pixel to go to; the map
- * becomes that pixel's calibration when the job asks (p->promote). */
+/* Stores the fit, with the map it offers when it has one and a sensor pixel to go to, and ends
+ * the job as done; the map becomes that pixel's calibration when the job asks (p->promote).
+ * -ECANCELED, storing nothing, when the job was cancelled meanwhile. */
 static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struct fit_input *in,
                  srv_fit_out_t *out, err_t *err)
 {
@@ -115,7 +119,8 @@ static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struc
         c->noise_model = f.noise_model;
         provenance(p, c);
     }
-    int ret = storage_fit_store(st, &f, with_calib ? c : NULL, p->promote, job_id, NULL, NULL, err);
+    int ret = storage_fit_store_done(st, &f, with_calib ? c : NULL, p->promote, job_id, NULL, NULL,
+                                     err);
     free(c->reason);
     c->reason = NULL;
     free(result);
@@ -147,6 +152,14 @@ static void on_progress(double fraction, void *user)
     if (srv_failpoint(fw->w, "fit.step", NULL)) atomic_store(&fw->w->stop, 1); /* test hook */
 }
 
+/* Inside the fit's long loops: the test hook fit.poll (a hold there is a fit held mid-step; it
+ * ends, stopping the fit, when the job is cancelled or ipsd stops). */
+static int on_poll(void *user)
+{
+    struct fit_watch *fw = user;
+    return fw->w->srv->failpoints && srv_failpoint(fw->w, "fit.poll", NULL) != 0;
+}
+
 /* After a stopped fit: cancelled by the user (nothing to do), else the shutdown (or a cancel
  * meant for a previous job): the job goes back to the queue and runs again. */
 static void stopped(storage_t *st, int64_t id)
@@ -162,16 +175,17 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
     srv_fit_out_t out = {0};
     err_t err = {{0}};
     struct fit_watch fw = {.w = w, .job = job, .last_beat = clock_mono_s()};
-    srv_fit_hooks_t hooks = {.stop = &w->stop, .progress = on_progress, .user = &fw};
+    srv_fit_hooks_t hooks = {.stop = &w->stop, .poll = on_poll, .progress = on_progress,
+                             .user = &fw};
     srv_worker_begin(w, job->id);
     srv_publish_job(w->srv, job, "fit", 0, NAN);
     int ret = srv_fit_params_parse(job->params, &p, &err);
     if (ret == 0) ret = load_input(w->st, &p, &in, &err);
     if (ret == 0) ret = srv_fit_run(&in.sf.scan, &p, &hooks, &out, &err);
-    /* cancelled meanwhile? then the result is dropped */
-    if (ret == 0) ret = storage_job_heartbeat(w->st, job->id, 0.99, 0, &err);
+    if (ret == 0) ret = srv_failpoint(w, "fit.before_store", &err); /* test hook */
+    /* the fit and the job's done in one transaction (cancelled meanwhile: nothing stored) */
     if (ret == 0) ret = store(w->st, job->id, &p, &in, &out, &err);
-    if (ret == 0) ret = storage_job_finish(w->st, job->id, STORAGE_DONE, NULL, &err);
+    if (ret == 0) srv_failpoint(w, "fit.after_store", NULL); /* test hook: the job is done */
     if (ret == -ECANCELED) {
         stopped(w->st, job->id);
     } else if (ret) {

@@ -349,6 +349,14 @@ typedef struct storage_calib_list {
 int storage_fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
                       int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id,
                       err_t *err);
+/* storage_fit_store of a fit job's result (job_id > 0) that also ends the job as done, in the
+ * same transaction: a crash leaves either nothing (the job is still running and runs again at
+ * the next start) or the fit, its map, its calibration and the job's `done` together, so a job
+ * never stores two fits. The job must be running: -ECANCELED (cancelled meanwhile) / -ESTALE /
+ * -ENOENT as storage_job_finish, and then nothing is stored. */
+int storage_fit_store_done(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                           int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id,
+                           err_t *err);
 /* storage_fit_store with promote = 1 (the fit's map becomes the calibration). */
 int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
                     int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err);

@@ -1,7 +1,7 @@
 /* storage_compose.c: the writes that span tables, each one transaction composed of the per-table
  * steps of the other files (stg_*_insert, stg_job_set_fit, ...): a scan with the job that runs it,
- * a fit with its job link, the map it offers and (when asked) its calibration, and the promotion
- * of a stored fit's map to its pixel's calibration. Nothing calls into this file from storage/,
+ * a fit with its job link (and the job's end), the map it offers and (when asked) its
+ * calibration, and the promotion of a stored fit's map to its pixel's calibration. Nothing calls into this file from storage/,
  * so the table files never call each other both ways (docs/schema.md, "The code"). */
 #include "storage_int.h"
 
@@ -22,13 +22,17 @@ int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *par
     return stg_commit(st, err);
 }
 
-int storage_fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
-                      int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err)
+/* storage_fit_store, and with done the job's end too (storage_fit_store_done). */
+static int fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                     int promote, int64_t job_id, int done, int64_t *fit_id, int64_t *calib_id,
+                     err_t *err)
 {
     int64_t fid = 0, cid = 0;
     if (!st || !fit) return err_set(err, -EINVAL, "fit put: NULL argument");
     int ret = stg_begin_write(st, err);
     if (ret) return ret;
+    /* first the job's end: a job no longer running (cancelled meanwhile) stores nothing */
+    if (done && (ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err))) goto out;
     if ((ret = stg_fit_insert(st, fit, &fid, err))) goto out;
     if (job_id > 0 && (ret = stg_job_set_fit(st, job_id, fid, err))) goto out;
     if (calib) {
@@ -48,6 +52,20 @@ out:
     if (fit_id) *fit_id = fid;
     if (calib_id) *calib_id = cid;
     return 0;
+}
+
+int storage_fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                      int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err)
+{
+    return fit_store(st, fit, calib, promote, job_id, 0, fit_id, calib_id, err);
+}
+
+int storage_fit_store_done(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                           int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id,
+                           err_t *err)
+{
+    if (job_id <= 0) return err_set(err, -EINVAL, "fit store: no job to end");
+    return fit_store(st, fit, calib, promote, job_id, 1, fit_id, calib_id, err);
 }
 
 int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,

@@ -191,6 +191,9 @@ int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_js
                    int64_t scan_id, int64_t *id, err_t *err);
 /* Records the fit a job produced, inside the caller's write transaction (-ENOENT: no job). */
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
+/* storage_job_finish's statement, inside the caller's transaction (or alone). */
+int stg_job_finish(storage_t *st, int64_t id, storage_state_t state, const char *error,
+                   err_t *err);
 
 /* storage_fit.c: checks a fit (its pixel inside the scan's sub-frame) and inserts it, inside the
  * caller's write transaction. */

@@ -219,9 +219,15 @@ int storage_job_heartbeat(storage_t *st, int64_t id, double progress, int points
 int storage_job_finish(storage_t *st, int64_t id, storage_state_t state, const char *error,
                        err_t *err)
 {
+    if (!st) return err_set(err, -EINVAL, "job finish: NULL handle");
+    return stg_job_finish(st, id, state, error, err);
+}
+
+int stg_job_finish(storage_t *st, int64_t id, storage_state_t state, const char *error,
+                   err_t *err)
+{
     sqlite3_stmt *q;
     int ret, rc = SQLITE_OK;
-    if (!st) return err_set(err, -EINVAL, "job finish: NULL handle");
     if (state != STORAGE_DONE && state != STORAGE_FAILED)
         return err_set(err, -EINVAL, "job finish state: need done or failed");
     if ((ret = stg_stmt(st, STG_JOB_FINISH, &q, err))) return ret;

@@ -706,6 +706,50 @@ static void test_fits(void)
     storage_close(st);
 }
 
+/* A fit job's result and its done in one transaction (storage_fit_store_done): a running job
+ * ends done naming its fit; a cancelled job, a job not running and an unknown job store nothing. */
+static void test_fit_store_done(void)
+{
+    storage_t *st = open_db("fitdone.db");
+    int64_t sensor = make_sensor(st, "IMX-FD", "1"), scan = make_running_scan(st, sensor);
+    int64_t run, cancelled, queued, fit_id = 0, calib_id = 0;
+    err_t err = {{0}};
+    storage_job_t j;
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &run, NULL) == 0);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &cancelled, NULL) == 0);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &queued, NULL) == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == run);
+    storage_job_free(&j);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == cancelled);
+    storage_job_free(&j);
+    int changed = 0;
+    CHECK(storage_job_cancel(st, cancelled, &changed, NULL) == 0 && changed);
+    storage_fit_t f = {.scan_id = scan, .noise_model = "paper", .best_r_aic = 1, .best_r_bic = 1,
+                       .f_value = NAN, .p_value = NAN, .result = "{}"};
+    double S[1] = {1.0}, E[1] = {0.5};
+    storage_calib_t c = {.sensor_id = sensor, .pixel_col = 7, .pixel_row = 8, .r = 1, .S = S,
+                         .S_err = E, .I0 = NAN, .chi2_red = NAN, .status = "ok",
+                         .noise_model = "paper", .wavelength_um = NAN, .na = NAN,
+                         .spot_radius_um = NAN};
+    CHECK(storage_fit_store_done(st, &f, &c, 1, cancelled, NULL, NULL, &err) == -ECANCELED);
+    CHECK(storage_fit_store_done(st, &f, &c, 1, queued, NULL, NULL, &err) == -ESTALE);
+    CHECK(storage_fit_store_done(st, &f, &c, 1, 999, NULL, NULL, &err) == -ENOENT);
+    CHECK(storage_fit_store_done(st, &f, &c, 1, 0, NULL, NULL, &err) == -EINVAL);
+    CHECK(raw_int("fitdone.db", "SELECT count(*) FROM fits") == 0);
+    CHECK(raw_int("fitdone.db", "SELECT count(*) FROM fit_maps") == 0);
+    CHECK(raw_int("fitdone.db", "SELECT count(*) FROM calibrations") == 0);
+    CHECK(storage_fit_store_done(st, &f, &c, 1, run, &fit_id, &calib_id, NULL) == 0);
+    CHECK(fit_id > 0 && calib_id > 0);
+    CHECK(storage_job_get(st, run, &j, NULL) == 0);
+    CHECK(j.state == STORAGE_DONE && j.fit_id == fit_id && j.progress == 1);
+    storage_job_free(&j);
+    /* done: a second store (a rerun) is refused and stores nothing */
+    CHECK(storage_fit_store_done(st, &f, &c, 1, run, NULL, NULL, &err) == -ESTALE);
+    CHECK(raw_int("fitdone.db", "SELECT count(*) FROM fits") == 1);
+    CHECK(raw_int("fitdone.db", "SELECT count(*) FROM calibrations") == 1);
+    storage_close(st);
+}
+
 static void check_calib_search(storage_t *st, int64_t a, const int64_t *ids, int64_t t2);
 
 static void test_calibrations(void)
@@ -1140,6 +1184,7 @@ int main(void)
     test_busy();
     test_gate();
     test_fits();
+    test_fit_store_done();
     test_calibrations();
     test_pagination();
     test_migrate_v1();
