@@ -60,6 +60,28 @@ static int requeue_interrupted(srv_t *srv, err_t *err)
     return ret;
 }
 
+/* The storage test hooks (docs/server.md, "Test hooks"): IPSD_STORAGE_FAULT_FILE (while that file
+ * exists, writes fail with the fault it names) and IPSD_MAX_DB_PAGES (PRAGMA max_page_count on
+ * every handle: SQLite itself answers SQLITE_FULL). */
+static int arm_storage_hooks(srv_t *srv, err_t *err)
+{
+    const char *file = getenv("IPSD_STORAGE_FAULT_FILE"), *pages = getenv("IPSD_MAX_DB_PAGES");
+    long long n = 0;
+    if (pages && *pages) {
+        char *end;
+        n = strtoll(pages, &end, 10);
+        if (*end || n < 1)
+            return err_set(err, -EINVAL, "IPSD_MAX_DB_PAGES: '%s' is not a page count >= 1",
+                           pages);
+    }
+    if ((!file || !*file) && n == 0) return 0;
+    if (storage_gate_set_test_faults(srv->gate, file, n))
+        return err_set(err, -EINVAL, "IPSD_STORAGE_FAULT_FILE: path too long");
+    fprintf(stderr, "ipsd: storage test hooks armed:%s%s%s%s\n", file && *file ? " fault file " : "",
+            file && *file ? file : "", n ? " max pages " : "", n ? pages : "");
+    return 0;
+}
+
 int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
 {
     srv_t *srv = calloc(1, sizeof *srv);
@@ -76,7 +98,7 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
         (ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
                                    &srv->failpoints, err)) ||
         (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
-        (ret = storage_gate_new(&srv->gate)) ||
+        (ret = storage_gate_new(&srv->gate)) || (ret = arm_storage_hooks(srv, err)) ||
         (ret = srv_dbpool_open(cfg->db_path, srv->gate, &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||
         (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
@@ -151,6 +173,10 @@ int srv_stopping(const srv_t *srv)
 srv_events_t *srv_events(srv_t *srv)
 {
     return srv->events;
+}
+void srv_storage_health(srv_t *srv, storage_health_t *out)
+{
+    storage_gate_health(srv->gate, out);
 }
 storage_t *srv_db_get(srv_t *srv, err_t *err)
 {

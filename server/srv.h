@@ -41,6 +41,14 @@ const srv_config_t *srv_config(const srv_t *srv);
 int srv_stopping(const srv_t *srv);
 srv_events_t *srv_events(srv_t *srv);
 
+/* The storage's health (storage.h: the last storage fault seen by any handle, cleared by a
+ * write that commits). */
+void srv_storage_health(srv_t *srv, storage_health_t *out);
+
+/* A scan job whose failure the storage refuses to record yet (the scan worker retries it), 0
+ * when none; msg (size bytes, may be NULL) gets its error. */
+int64_t srv_scan_unrecorded(srv_t *srv, char *msg, size_t size);
+
 /* A database handle for the calling thread's request, or NULL with err. Give it back. */
 storage_t *srv_db_get(srv_t *srv, err_t *err);
 void srv_db_put(srv_t *srv, storage_t *st);

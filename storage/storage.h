@@ -47,6 +47,31 @@ int storage_gate_new(storage_gate_t **out); /* 0 or -ENOMEM */
 void storage_gate_free(storage_gate_t *g);
 void storage_set_gate(storage_t *st, storage_gate_t *g);
 
+/* The storage's health as the gate saw it (issue 10, "Storage faults"): every handle sharing the
+ * gate records there a write (or read) that failed because of the storage itself - SQLITE_FULL
+ * (fault -ENOSPC, "full"), SQLITE_READONLY (-EROFS, "read-only"), SQLITE_IOERR / SQLITE_CORRUPT /
+ * SQLITE_CANTOPEN (-EIO, "io-error") - and a write that commits clears it. msg: the last fault's
+ * message (which names the database), kept after it clears; since_ms: when the current fault
+ * began (wall clock), 0 when healthy; faults: how many failed operations so far. */
+typedef struct storage_health {
+    int fault;    /* 0 (ok), -ENOSPC, -EROFS or -EIO */
+    char msg[256];
+    int64_t since_ms;
+    uint64_t faults;
+} storage_health_t;
+void storage_gate_health(storage_gate_t *g, storage_health_t *out);
+/* "ok", "full", "read-only" or "io-error" for a health's fault. */
+const char *storage_fault_name(int fault);
+
+/* Test hooks of the gate (docs/server.md, "Test hooks"), both for storage faults made on purpose:
+ * - fault_file: while that file exists, every write through the gate fails before it begins, with
+ *   the SQLite error its first word names ("full": SQLITE_FULL, "ioerr": SQLITE_IOERR, "readonly":
+ *   SQLITE_READONLY), as SQLite would report it. NULL or "": none. The path is copied.
+ * - max_pages > 0: every handle given the gate afterwards (storage_set_gate) caps the database at
+ *   that many pages (PRAGMA max_page_count), so SQLite itself answers SQLITE_FULL beyond it.
+ * Returns 0 or -ENAMETOOLONG. */
+int storage_gate_set_test_faults(storage_gate_t *g, const char *fault_file, long long max_pages);
+
 /* The schema version this code creates and understands (PRAGMA user_version). */
 int storage_schema_version(void);
 

@@ -103,12 +103,20 @@ struct storage {
     void *clock_ctx;
     storage_gate_t *gate; /* shared with the process's other handles, or NULL (storage_gate.c) */
     int gate_held;        /* this handle is in a write transaction through the gate */
+    sqlite3_int64 changes_at_begin; /* sqlite3_total_changes64 when it began */
 };
 
 /* The write gate around BEGIN IMMEDIATE .. COMMIT / ROLLBACK (no-ops without a gate): enter
  * returns 0 or -EDEADLK when this thread holds the gate through another handle. */
 int stg_gate_enter(storage_t *st);
 void stg_gate_leave(storage_t *st);
+/* The gate's health (storage.h): a storage fault (code -ENOSPC, -EROFS or -EIO, message msg), or
+ * a write that committed. No-ops without a gate. */
+void stg_gate_fault(storage_t *st, int code, const char *msg);
+void stg_gate_ok(storage_t *st);
+/* The test hook's injected fault for a write beginning now: an SQLite result code, SQLITE_OK for
+ * none (storage_gate_set_test_faults). */
+int stg_gate_injected(storage_t *st);
 
 /* The cached statement id, prepared on first use; 0 or -EIO/-ENOMEM. Give it back with
  * stg_reset once its rows are read (before the next use or the end of the transaction). */
