@@ -289,6 +289,21 @@ int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const s
     return 0;
 }
 
+int srv_scan_resume(srv_t *srv, storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err)
+{
+    if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
+    storage_scan_t sc;
+    int ret = storage_scan_resume(st, scan_id, job_id, err);
+    if (ret) return ret;
+    int total = storage_scan_get(st, scan_id, &sc, NULL) == 0 ? sc.points_total : 0;
+    if (total) storage_scan_free(&sc);
+    fprintf(stderr, "ipsd: scan %lld resumed (job %lld queued again)\n", (long long)scan_id,
+            (long long)*job_id);
+    publish_stored(srv, st, *job_id, total);
+    srv_notify_work(srv);
+    return 0;
+}
+
 int srv_fit_submit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t *job_id,
                    err_t *err)
 {

@@ -60,6 +60,11 @@ void srv_db_put(srv_t *srv, storage_t *st);
 int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const srv_scan_params_t *p,
                     int64_t *scan_id, int64_t *job_id, err_t *err);
 
+/* Resumes a failed scan (storage_scan_resume: its stored points kept, its job queued again) and
+ * wakes the scan worker, which continues after the last stored point. -ENOENT, -ESTALE (not
+ * failed), -ESHUTDOWN when stopping. */
+int srv_scan_resume(srv_t *srv, storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err);
+
 /* Queues a fit job (linked to p->scan_id when it has one) and wakes the fit workers. */
 int srv_fit_submit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t *job_id,
                    err_t *err);

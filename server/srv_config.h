@@ -27,6 +27,7 @@ typedef struct srv_config {
     int max_subscribers;          /* open event streams at most (256) */
     int heartbeat_s;              /* SSE comment heartbeat period (15) */
     int max_attempts;             /* a job claimed this often by crashed runs fails (3) */
+    double camera_timeout_s;      /* a frame not delivered within fails the scan (0: camera's) */
 } srv_config_t;
 
 /* The defaults above (web_dir: the source tree's web/ when it exists, else ./web). */

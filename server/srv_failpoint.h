@@ -8,7 +8,9 @@
  *
  * Points: scan.setup (after the scan's setup is taken or made, before its raster), scan.point
  * (after a raster point is stored and published), fit.step (after each step of a fit: each r,
- * the F-test, the Wiener baseline). ACTION: hold (block the worker there), error (the point
+ * the F-test, the Wiener baseline), camera.frame (the simulated camera, before each frame it
+ * captures: hold makes the camera stop answering until its frame timeout, error makes the
+ * capture fail; no held file). ACTION: hold (block the worker there), error (the point
  * fails: -EIO) or off. @N: only the N-th hit of that point since ipsd started, counted over all
  * jobs; without it, every hit. Several terms may name one point.
  *
@@ -29,6 +31,10 @@ int srv_failpoints_open(const char *spec, const char *dir, srv_failpoints_t **ou
 
 /* Frees the failpoints (accepts NULL). */
 void srv_failpoints_close(srv_failpoints_t *fp);
+
+/* The simulated camera's fault switch (sim_config_t.frame_fault; ctx: the srv_t): a hit of
+ * camera.frame, answered SIM_FRAME_OK, SIM_FRAME_HANG (hold) or SIM_FRAME_FAIL (error). */
+int srv_failpoint_frame(void *ctx, unsigned long long frame);
 
 /* The slow path of srv_failpoint. */
 int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err);

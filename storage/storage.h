@@ -190,6 +190,12 @@ int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, in
  * first time; entering done/failed/cancelled stamps finished_ms. -ENOENT for an unknown scan. */
 int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, const char *error,
                            err_t *err);
+/* Resumes a failed scan (issue 10: after a storage or camera fault): the scan and its latest
+ * scan job are queued again in one transaction, keeping every stored point, the setup and the
+ * job's progress (the job's error, end time and attempts are cleared); the scan worker continues
+ * after the last stored point. *job_id: that job. -ENOENT unknown scan; -ESTALE when the scan
+ * or its job is not failed. */
+int storage_scan_resume(storage_t *st, int64_t id, int64_t *job_id, err_t *err);
 void storage_scan_free(storage_scan_t *sc);
 void storage_scan_list_free(storage_scan_list_t *l);
 

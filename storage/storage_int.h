@@ -63,6 +63,8 @@ enum stg_id {
     STG_CALIB_HISTORY,
     STG_CALIB_COUNT,
     STG_CALIB_SEARCH,
+    STG_SCAN_RESUME,
+    STG_JOB_RESUME,
     STG_N
 };
 
