@@ -235,14 +235,17 @@ static int record_failure(struct scan_run *r, int *scan_written, err_t *e)
     return ret == -ECANCELED || ret == -ESTALE || ret == -ENOENT ? 0 : ret;
 }
 
-/* Records the failure, retrying while the storage refuses it: the failure is kept in memory and
+/* Records the failure (why: its error code), retrying while the storage refuses it: the failure is kept in memory and
  * shown by GET /api/health meanwhile. Gives up only when ipsd stops (the job, still running in
  * the database, is requeued at the next start and resumes). */
-static void fail_job(struct scan_run *r)
+static void fail_job(struct scan_run *r, int why)
 {
     err_t e = {{0}};
     int scan_written = 0, pause_ms = RECORD_RETRY_MIN_MS, tries = 1;
     int ret = record_failure(r, &scan_written, &e);
+    /* a full disk: the write-ahead log's space back to the file system, if the database file
+     * can take its pages now */
+    if (why == -ENOSPC) storage_checkpoint(r->st, NULL);
     if (ret == 0) return;
     fprintf(stderr, "ipsd: scan job %lld: cannot record its failure (%s); kept in memory, "
                     "retrying\n",
@@ -251,6 +254,7 @@ static void fail_job(struct scan_run *r)
     while (ret && !atomic_load(&r->srv->stopping)) {
         srv_wait_work(r->srv, pause_ms);
         pause_ms = pause_ms * 2 > RECORD_RETRY_MAX_MS ? RECORD_RETRY_MAX_MS : pause_ms * 2;
+        storage_checkpoint(r->st, NULL);
         ret = record_failure(r, &scan_written, &e);
         tries++;
     }
@@ -282,7 +286,7 @@ static void conclude(struct scan_run *r, int ret)
             storage_job_release(st, id, NULL);
     } else if (ret) {
         fprintf(stderr, "ipsd: scan job %lld failed: %s\n", (long long)id, r->err.msg);
-        fail_job(r);
+        fail_job(r, ret);
     }
     storage_job_t j;
     if (storage_job_get(st, id, &j, NULL) == 0) {

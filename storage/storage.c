@@ -487,6 +487,16 @@ out:
     return 0;
 }
 
+int storage_checkpoint(storage_t *st, err_t *err)
+{
+    if (!st) return err_set(err, -EINVAL, "checkpoint: NULL handle");
+    int busy = 0;
+    int rc = sqlite3_wal_checkpoint_v2(st->db, NULL, SQLITE_CHECKPOINT_TRUNCATE, NULL, NULL);
+    if (rc == SQLITE_BUSY) busy = 1;
+    else if (rc != SQLITE_OK) return stg_error(st, rc, err, "checkpointing the write-ahead log");
+    return busy ? err_set(err, -EBUSY, "checkpointing the write-ahead log: busy") : 0;
+}
+
 void storage_close(storage_t *st)
 {
     if (!st) return;

@@ -81,6 +81,12 @@ int storage_schema_version(void);
  * is refused with -ENOTSUP and left untouched. *out is owned by the caller: storage_close it. */
 int storage_open(const char *path, storage_t **out, err_t *err);
 
+/* Moves the write-ahead log into the database file and truncates the log to nothing (PRAGMA
+ * wal_checkpoint(TRUNCATE)): after a storage fault, the log's space goes back to the file system
+ * once the database file can take its pages. 0, -EBUSY (a reader or writer kept it from
+ * finishing) or the storage error. */
+int storage_checkpoint(storage_t *st, err_t *err);
+
 /* Closes the connection and frees the handle. Accepts NULL; cannot fail. */
 void storage_close(storage_t *st);
 
