@@ -15,7 +15,9 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
     # TIMEOUT (tests/CMakeLists.txt): seconds on a busy 2-core machine, ASan build: flow 31,
     # restart 93, input 20, promote ~25 (optimised: 11, 26, 9, 6.5; hostile 3, flood 8; region: 4
     # fits of a 225-point upload)
-    foreach(t flow:130 restart:380 input:80 promote:120 region:120 hostile:60 flood:200)
+    # storfault (~40 s optimised: three daemons, four 961-point scans each), camfault (~10 s)
+    foreach(t flow:130 restart:380 input:80 promote:120 region:120 hostile:60 flood:200
+              storfault:240 camfault:120)
         string(REPLACE ":" ";" t ${t})
         list(GET t 0 name)
         list(GET t 1 timeout)
