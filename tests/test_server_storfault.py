@@ -51,6 +51,9 @@ def test(c, t, argv, daemons):
         database file; nothing left running."""
         j = d.wait_job(job, "failed")
         c.ok(j is not None, "%s: job %d failed" % (what, job))
+        # (the API may read it failed from memory before the row is written: wait for the row)
+        c.ok(wait_for(lambda: db.val("SELECT state FROM jobs WHERE id = ?", job) == "failed"),
+             "%s: job %d's row says failed" % (what, job))
         err = (j or {}).get("error") or ""
         c.ok(any(w in err for w in words) and d.db in err,
              "%s: the job's error names the fault and the database: %r" % (what, err))
@@ -153,6 +156,11 @@ def test(c, t, argv, daemons):
             c.ok(d.db in h["unrecorded_job"]["error"], "%s: its error names the database: %r"
                  % (what, h["unrecorded_job"]["error"]))
         check_reads(d, scan, what)
+        c.eq(db.val("SELECT state FROM jobs WHERE id = ?", job), "running",
+             "%s: the row cannot be written (still running)" % what)
+        j = d.get("/api/jobs/%d" % job).json()
+        c.ok(j.get("state") == "failed" and d.db in (j.get("error") or ""),
+             "%s: GET /api/jobs/%d reads it failed from memory: %r" % (what, job, j))
         r = d.post("/api/sensors", {"model": "IMX-G", "serial": "refused-" + word})
         c.ok(r.status in (503, 500) and "error" in r.json(),
              "%s: a write request gets the JSON error (%d)" % (what, r.status))
