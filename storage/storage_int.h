@@ -189,6 +189,8 @@ int stg_scan_insert(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t 
 int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err);
 /* Counts one more stored point (the frame's write transaction, storage_frame.c). */
 int stg_scan_add_point(storage_t *st, int64_t id, err_t *err);
+/* Queues a failed scan again (storage_scan_resume): -ESTALE when it is not failed. */
+int stg_scan_resume(storage_t *st, int64_t id, err_t *err);
 /* Cancels a queued or running scan (its job's cancel transaction, storage_job.c). */
 int stg_scan_cancel(storage_t *st, int64_t id, err_t *err);
 
@@ -196,6 +198,9 @@ int stg_scan_cancel(storage_t *st, int64_t id, err_t *err);
 /* Inserts a job inside the caller's write transaction. */
 int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_json,
                    int64_t scan_id, int64_t *id, err_t *err);
+/* Queues the failed latest scan job of scan_id again, keeping its progress (*job_id: it);
+ * -ESTALE when that job is not failed. Inside the caller's write transaction. */
+int stg_job_resume(storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err);
 /* Records the fit a job produced, inside the caller's write transaction (-ENOENT: no job). */
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
 

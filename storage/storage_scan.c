@@ -227,58 +227,24 @@ int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, con
     return 0;
 }
 
-/* Runs a resume statement (?1: the scan); *changed: rows changed, *row_id: the RETURNING id. */
-static int resume_step(storage_t *st, enum stg_id sid, int64_t id, int *changed, int64_t *row_id,
-                       err_t *err)
+int stg_scan_resume(storage_t *st, int64_t id, err_t *err)
 {
+    storage_scan_t sc;
     sqlite3_stmt *q;
     int ret, rc = SQLITE_OK;
-    if ((ret = stg_stmt(st, sid, &q, err))) return ret;
+    if ((ret = stg_scan_load(st, id, &sc, err))) return ret;
+    storage_state_t state = sc.state;
+    storage_scan_free(&sc);
+    if (state != STORAGE_FAILED)
+        return err_set(err, -ESTALE, "scan %lld is %s, not failed: nothing to resume",
+                       (long long)id, storage_state_name(state));
+    if ((ret = stg_stmt(st, STG_SCAN_RESUME, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
     if (rc != SQLITE_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "resuming a scan");
     }
-    if (row_id) {
-        ret = stg_row(st, q, err, "resuming a scan");
-        *changed = ret == 0;
-        if (ret == 0) *row_id = sqlite3_column_int64(q, 0);
-        if (ret == 0 && sqlite3_step(q) != SQLITE_DONE) /* RETURNING ends the update on done */
-            ret = stg_error(st, sqlite3_errcode(st->db), err, "resuming a scan");
-        stg_reset(q);
-        return ret == -ENOENT ? 0 : ret;
-    }
-    ret = stg_run(st, q, err, "resuming a scan");
-    *changed = ret == 0 ? sqlite3_changes(st->db) : 0;
-    return ret;
-}
-
-int storage_scan_resume(storage_t *st, int64_t id, int64_t *job_id, err_t *err)
-{
-    if (!st || !job_id) return err_set(err, -EINVAL, "scan resume: NULL argument");
-    *job_id = 0;
-    storage_scan_t sc;
-    int changed = 0, ret = stg_begin_write(st, err);
-    if (ret) return ret;
-    if ((ret = stg_scan_load(st, id, &sc, err))) goto out;
-    storage_state_t state = sc.state;
-    storage_scan_free(&sc);
-    if (state != STORAGE_FAILED) {
-        ret = err_set(err, -ESTALE, "scan %lld is %s, not failed: nothing to resume",
-                      (long long)id, storage_state_name(state));
-        goto out;
-    }
-    if ((ret = resume_step(st, STG_JOB_RESUME, id, &changed, job_id, err))) goto out;
-    if (!changed) {
-        ret = err_set(err, -ESTALE, "scan %lld: its scan job is not failed", (long long)id);
-        goto out;
-    }
-    ret = resume_step(st, STG_SCAN_RESUME, id, &changed, NULL, err);
-out:
-    if (ret == 0) return stg_commit(st, err);
-    stg_rollback(st);
-    *job_id = 0;
-    return ret;
+    return stg_run(st, q, err, "resuming a scan");
 }
 
 /* ---- the scan's setup (schema 2) ---------------------------------------------------------- */
