@@ -2,6 +2,7 @@
  * (queued or running; 409 when the job has ended). */
 #include <errno.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "api_int.h"
@@ -46,6 +47,17 @@ void api_h_job_get(api_req_t *q)
     if (ret) {
         api_error_rc(q, ret, NULL, err.msg);
         return;
+    }
+    /* a scan job that failed while the storage refuses to record it (docs/server.md, "Storage
+     * faults") reads as failed, with its error, though its row still says running */
+    char unrecorded[256];
+    char *copy;
+    if (j.state == STORAGE_RUNNING &&
+        srv_scan_unrecorded(q->srv, unrecorded, sizeof unrecorded) == id &&
+        (copy = strdup(unrecorded))) {
+        j.state = STORAGE_FAILED;
+        free(j.error);
+        j.error = copy;
     }
     api_reply_json(q, 200, api_enc_job(&j));
     storage_job_free(&j);

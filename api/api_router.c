@@ -20,6 +20,7 @@ static const api_route_t routes[] = {
     {"POST", "/api/scans", api_h_scans_create, 1},
     {"GET", "/api/scans/{id}", api_h_scan_get, 0},
     {"POST", "/api/scans/{id}/cancel", api_h_scan_cancel, 0},
+    {"POST", "/api/scans/{id}/resume", api_h_scan_resume, 0},
     {"GET", "/api/scans/{id}/pixels/{dcol}/{drow}", api_h_scan_pixel, 0},
     {"GET", "/api/scans/{id}/points/{index}", api_h_scan_point, 0},
     {"GET", "/api/scans/{id}/fits", api_h_scan_fits_list, 0},

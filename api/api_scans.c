@@ -291,6 +291,19 @@ void api_h_scan_get(api_req_t *q)
     storage_scan_free(&sc);
 }
 
+void api_h_scan_resume(api_req_t *q)
+{
+    storage_t *st;
+    int64_t id, job = 0;
+    err_t err = {{0}};
+    if (api_arg_id(q, 0, "scan", &id) || !(st = api_db(q))) return;
+    int ret = srv_scan_resume(q->srv, st, id, &job, &err);
+    if (ret)
+        api_error_rc(q, ret, NULL, err.msg);
+    else
+        reply_scan_job(q, st, 202, id, job);
+}
+
 void api_h_scan_cancel(api_req_t *q)
 {
     storage_t *st;

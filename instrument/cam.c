@@ -87,7 +87,7 @@ static const char *table_problem(const struct cam_backend *t, const char *name)
         return "it was built against other cam.h / err.h layouts";
     if (!t->name || strcmp(t->name, name) != 0) return "it provides another backend";
     if (!t->list || !t->open || !t->ops || !t->ops->info || !t->ops->set_exposure ||
-        !t->ops->set_gain || !t->ops->capture)
+        !t->ops->set_gain || !t->ops->capture || !t->ops->set_timeout)
         return "its table lacks an operation";
     return NULL;
 }
@@ -238,6 +238,13 @@ int cam_set_exposure(cam_t *cam, double exposure_us, err_t *err)
 int cam_set_gain(cam_t *cam, double gain, err_t *err)
 {
     return cam->ops->set_gain(cam->impl, gain, err);
+}
+
+int cam_set_timeout(cam_t *cam, double seconds, err_t *err)
+{
+    if (!(seconds >= 0 && seconds < 1e9))
+        return err_set(err, -EINVAL, "camera timeout %g s: need 0 (default) or more", seconds);
+    return cam->ops->set_timeout(cam->impl, seconds, err);
 }
 
 int cam_capture(cam_t *cam, const cam_roi_t *roi, cam_frame_t *frame, err_t *err)

@@ -82,8 +82,15 @@ int cam_set_exposure(cam_t *cam, double exposure_us, err_t *err);
  * error. */
 int cam_set_gain(cam_t *cam, double gain, err_t *err);
 
+/* Bounds how long a capture waits for its frame: a camera that has not delivered a frame within
+ * seconds of being asked (a camera that stopped answering) fails that capture with -ETIMEDOUT and
+ * the camera's message. 0: the backend's default, the exposure time plus 5 s. Returns 0 or
+ * -EINVAL (negative or not finite). */
+int cam_set_timeout(cam_t *cam, double seconds, err_t *err);
+
 /* Captures one frame of roi (NULL: the whole array) into *frame, which the caller releases with
- * cam_frame_free. Returns 0, -EINVAL (ROI outside the array), -EIO (capture failed), -ENOMEM. */
+ * cam_frame_free. Returns 0, -EINVAL (ROI outside the array), -EIO (capture failed),
+ * -ETIMEDOUT (no frame within the timeout, cam_set_timeout), -ENOMEM. */
 int cam_capture(cam_t *cam, const cam_roi_t *roi, cam_frame_t *frame, err_t *err);
 
 /* Releases what the frame owns and zeroes it; accepts NULL. */

@@ -2,7 +2,7 @@
  * table (struct cam_backend): its name, how to list its cameras, how to open one, and the
  * operations on what it opened. cam.c keeps one entry per backend, built in (the simulator's,
  * cam_sim.c) or provided by a module loaded at run time when first asked for (libcamera's,
- * cam_libcamera.cpp): a shared object whose one exported symbol, ipsd_cam_backend_v1(), returns
+ * cam_libcamera.cpp): a shared object whose one exported symbol, ipsd_cam_backend_v2(), returns
  * its table. A module needs nothing from the program that loads it (it is linked with
  * --no-undefined and carries its own copies of err_set and cam_roi_check), so this header is its
  * whole interface, hence the extern "C" for the C++ module.
@@ -21,8 +21,8 @@ extern "C" {
 
 #include "instrument/cam.h" /* C declarations, err.h's included: C linkage for the C++ module */
 
-#define CAM_BACKEND_ABI 1
-#define CAM_BACKEND_ENTRY "ipsd_cam_backend_v1" /* the symbol cam.c looks up in a module */
+#define CAM_BACKEND_ABI 2 /* 2: cam_ops.set_timeout */
+#define CAM_BACKEND_ENTRY "ipsd_cam_backend_v2" /* the symbol cam.c looks up in a module */
 
 /* What can be done with an opened camera (impl: what the backend's open gave). */
 struct cam_ops {
@@ -32,6 +32,8 @@ struct cam_ops {
     int (*set_gain)(void *impl, double gain, err_t *err);
     /* frame arrives zeroed; on error the caller frees what was put in it */
     int (*capture)(void *impl, const cam_roi_t *roi, cam_frame_t *frame, err_t *err);
+    /* bounds the wait for each later frame (cam_set_timeout; 0: the backend's default) */
+    int (*set_timeout)(void *impl, double seconds, err_t *err);
 };
 
 /* A backend (cam.h's semantics for list and open; open gives the state ops works on). */
@@ -51,7 +53,7 @@ struct cam_backend {
 
 /* The entry point of a backend module (cam_libcamera.cpp): its table, static. */
 typedef const struct cam_backend *(*cam_backend_entry_fn)(void);
-const struct cam_backend *ipsd_cam_backend_v1(void);
+const struct cam_backend *ipsd_cam_backend_v2(void);
 
 /* ---- inside the library only (not for modules) ---- */
 

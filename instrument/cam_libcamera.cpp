@@ -1,7 +1,7 @@
 /* cam_libcamera.cpp: the "libcamera" camera backend (cam.h), the only C++ file of ipsd: a narrow
  * shim over libcamera, built as a module of its own (libipscam_libcamera.so) that cam.c loads
  * with dlopen only when the backend is listed or opened, so that ips and ipsd link neither
- * libcamera nor libstdc++. Its one exported symbol is ipsd_cam_backend_v1() (cam_impl.h); it needs
+ * libcamera nor libstdc++. Its one exported symbol is ipsd_cam_backend_v2() (cam_impl.h); it needs
  * nothing from the program that loads it (err_set and cam_roi_check are compiled into it). Every
  * difference between libcamera releases is kept behind the <libcamera/version.h> checks in this
  * file (Debian 12 ships 0.0.3; newer releases build too).
@@ -105,6 +105,7 @@ struct LcCam {
     void *map = MAP_FAILED;
     size_t map_len = 0, map_off = 0;
     double exposure_us = 10000, gain = 1;
+    double timeout_s = 0; /* 0: exposure + 5 s (cam_set_timeout) */
     cam_info_t info{};
     std::mutex mu;
     std::condition_variable cv;
@@ -285,12 +286,19 @@ int run_request(LcCam *c, err_t *err)
     if (c->cam->queueRequest(c->request.get()) < 0)
         return err_set(err, -EIO, "camera %s: cannot queue a request", c->cam->id().c_str());
     std::unique_lock<std::mutex> lock(c->mu);
-    auto limit = std::chrono::microseconds((long long)c->exposure_us) + std::chrono::seconds(5);
+    double limit_s = c->timeout_s > 0 ? c->timeout_s : c->exposure_us * 1e-6 + 5;
+    auto limit = std::chrono::microseconds((long long)(limit_s * 1e6));
     if (!c->cv.wait_for(lock, limit, [c] { return c->done; }))
-        return err_set(err, -EIO, "camera %s: no frame within %g s", c->cam->id().c_str(),
-                       c->exposure_us * 1e-6 + 5);
+        return err_set(err, -ETIMEDOUT, "camera %s: no frame within %g s", c->cam->id().c_str(),
+                       limit_s);
     if (c->request->status() != Request::RequestComplete)
         return err_set(err, -EIO, "camera %s: the request was cancelled", c->cam->id().c_str());
+    return 0;
+}
+
+int lc_set_timeout(void *impl, double seconds, err_t *)
+{
+    static_cast<LcCam *>(impl)->timeout_s = seconds;
     return 0;
 }
 
@@ -329,7 +337,8 @@ int lc_capture(void *impl, const cam_roi_t *roi, cam_frame_t *f, err_t *err)
     return 0;
 }
 
-const struct cam_ops lc_ops = {lc_close, lc_info, lc_set_exposure, lc_set_gain, lc_capture};
+const struct cam_ops lc_ops = {lc_close,    lc_info,    lc_set_exposure,
+                               lc_set_gain, lc_capture, lc_set_timeout};
 
 int lc_list(cam_info_t **infos, size_t *n, err_t *err)
 {
@@ -398,7 +407,7 @@ const struct cam_backend lc_backend = {CAM_BACKEND_HEADER, "libcamera", lc_list,
 
 /* The module's entry point (cam_impl.h), the one symbol it exports. */
 extern "C" __attribute__((visibility("default"))) const struct cam_backend *
-ipsd_cam_backend_v1(void)
+ipsd_cam_backend_v2(void)
 {
     return &lc_backend;
 }

@@ -1,12 +1,15 @@
 /* cam_sim.c: the simulated camera, the "sim" camera backend: what the camera of the simulated
  * bench says about itself, its exposure and gain, and its frames, drawn from the bench's expected
  * image (sim.h "A frame": Poisson charge, full well, read noise, gain, bias, rounding, clipping),
- * with the bench's clock advanced by each frame. The bench (sim.c) knows nothing of cameras. */
+ * with the bench's clock advanced by each frame. The bench (sim.c) knows nothing of cameras.
+ * Its fault switch (sim_config_t.frame_fault) makes it fail, or stop answering: a hang is a real
+ * wait (on the wall clock) that the camera's frame timeout ends, as a real camera's would be. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include <gsl/gsl_randist.h>
 
@@ -87,12 +90,35 @@ static uint16_t draw_dn(sim_t *s, double lambda_e)
     return (uint16_t)(dn < 0 ? 0 : dn > sn->full_scale_dn ? sn->full_scale_dn : dn);
 }
 
+/* The fault switch's answer for the next frame: 0, or the capture's error after a hang (waits
+ * the frame timeout) or a failure. */
+static int fault(sim_t *s, err_t *err)
+{
+    if (!s->cfg.frame_fault) return 0;
+    unsigned long long n = s->stats.frames;
+    int what = s->cfg.frame_fault(s->cfg.frame_fault_ctx, n);
+    if (what == SIM_FRAME_FAIL)
+        return err_set(err, -EIO, "simulated camera: capture of frame %llu failed (fault switch)",
+                       n + 1);
+    if (what != SIM_FRAME_HANG) return 0;
+    double limit = s->timeout_s > 0 ? s->timeout_s : s->exposure_us * 1e-6 + 5;
+    struct timespec until;
+    clock_gettime(CLOCK_MONOTONIC, &until);
+    double end = until.tv_sec + until.tv_nsec * 1e-9 + limit;
+    until.tv_sec = (time_t)end;
+    until.tv_nsec = (long)((end - (double)until.tv_sec) * 1e9);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, NULL) == EINTR) {}
+    return err_set(err, -ETIMEDOUT,
+                   "simulated camera: no frame within %g s (stopped answering at frame %llu)",
+                   limit, n + 1);
+}
+
 int sim_capture(sim_t *s, const cam_roi_t *roi, cam_frame_t *f, err_t *err)
 {
     const scene_sensor_t *sn = &s->cfg.sensor;
     cam_roi_t r;
     int rc = cam_roi_check(roi, sn->cols, sn->rows, &r, err);
-    if (rc) return rc;
+    if (rc || (rc = fault(s, err))) return rc;
     size_t npx = (size_t)r.width * r.height;
     f->roi = r;
     f->dn = malloc(sizeof(uint16_t) * npx);
@@ -153,11 +179,18 @@ static int op_capture(void *impl, const cam_roi_t *roi, cam_frame_t *f, err_t *e
     return sim_capture(impl, roi, f, err);
 }
 
+static int op_set_timeout(void *impl, double seconds, err_t *err)
+{
+    (void)err;
+    ((sim_t *)impl)->timeout_s = seconds;
+    return 0;
+}
+
 /* the handle of cam_open("sim") owns its bench; the one of sim_camera() does not */
-static const struct cam_ops owned_ops = {op_close, op_info, op_set_exposure, op_set_gain,
-                                         op_capture};
-static const struct cam_ops borrowed_ops = {NULL, op_info, op_set_exposure, op_set_gain,
-                                            op_capture};
+static const struct cam_ops owned_ops = {op_close,    op_info,    op_set_exposure,
+                                         op_set_gain, op_capture, op_set_timeout};
+static const struct cam_ops borrowed_ops = {NULL,        op_info,    op_set_exposure,
+                                            op_set_gain, op_capture, op_set_timeout};
 
 static int list(cam_info_t **infos, size_t *n, err_t *err)
 {

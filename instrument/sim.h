@@ -72,7 +72,15 @@ typedef struct sim_config {
     double temperature_c;     /* sensor temperature the frames report (25) */
     unsigned long seed;       /* noise of the frames (1) */
     stage_sim_config_t stage; /* stage_sim_config_default() */
+    /* The camera's fault switch (tests; NULL: none): asked before each frame with the number of
+     * frames this camera captured so far; answers SIM_FRAME_OK, SIM_FRAME_HANG (the camera stops
+     * answering: the capture waits the camera's timeout, cam_set_timeout, then fails with
+     * -ETIMEDOUT) or SIM_FRAME_FAIL (the capture fails at once with -EIO). */
+    int (*frame_fault)(void *ctx, unsigned long long frame);
+    void *frame_fault_ctx;
 } sim_config_t;
+
+enum { SIM_FRAME_OK, SIM_FRAME_HANG, SIM_FRAME_FAIL };
 
 sim_config_t sim_config_default(void);
 

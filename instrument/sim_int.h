@@ -65,6 +65,7 @@ struct sim {
     stage_t *stage;
     double exposure_us, gain; /* the camera's settings (cam_sim.c); sim_expected scales by the
                                  exposure */
+    double timeout_s;         /* the camera's frame timeout (cam_set_timeout), 0: default */
     cam_t *cam;               /* the handle sim_camera gives out (cam_sim.c), made once */
     void (*cam_release)(cam_t *cam); /* how sim_close releases it */
     struct sim_memo memo;

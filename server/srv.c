@@ -60,6 +60,28 @@ static int requeue_interrupted(srv_t *srv, err_t *err)
     return ret;
 }
 
+/* The storage test hooks (docs/server.md, "Test hooks"): IPSD_STORAGE_FAULT_FILE (while that file
+ * exists, writes fail with the fault it names) and IPSD_MAX_DB_PAGES (PRAGMA max_page_count on
+ * every handle: SQLite itself answers SQLITE_FULL). */
+static int arm_storage_hooks(srv_t *srv, err_t *err)
+{
+    const char *file = getenv("IPSD_STORAGE_FAULT_FILE"), *pages = getenv("IPSD_MAX_DB_PAGES");
+    long long n = 0;
+    if (pages && *pages) {
+        char *end;
+        n = strtoll(pages, &end, 10);
+        if (*end || n < 1)
+            return err_set(err, -EINVAL, "IPSD_MAX_DB_PAGES: '%s' is not a page count >= 1",
+                           pages);
+    }
+    if ((!file || !*file) && n == 0) return 0;
+    if (storage_gate_set_test_faults(srv->gate, file, n))
+        return err_set(err, -EINVAL, "IPSD_STORAGE_FAULT_FILE: path too long");
+    fprintf(stderr, "ipsd: storage test hooks armed:%s%s%s%s\n", file && *file ? " fault file " : "",
+            file && *file ? file : "", n ? " max pages " : "", n ? pages : "");
+    return 0;
+}
+
 int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
 {
     srv_t *srv = calloc(1, sizeof *srv);
@@ -73,7 +95,7 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
     if ((ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
                                    &srv->failpoints, err)) ||
         (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
-        (ret = storage_gate_new(&srv->gate)) ||
+        (ret = storage_gate_new(&srv->gate)) || (ret = arm_storage_hooks(srv, err)) ||
         (ret = srv_dbpool_open(cfg->db_path, srv->gate, &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||
         (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
@@ -148,6 +170,10 @@ int srv_stopping(const srv_t *srv)
 srv_events_t *srv_events(srv_t *srv)
 {
     return srv->events;
+}
+void srv_storage_health(srv_t *srv, storage_health_t *out)
+{
+    storage_gate_health(srv->gate, out);
 }
 storage_t *srv_db_get(srv_t *srv, err_t *err)
 {
@@ -256,6 +282,21 @@ int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const s
     free(params);
     if (ret) return ret;
     publish_stored(srv, st, *job_id, row.points_total);
+    srv_notify_work(srv);
+    return 0;
+}
+
+int srv_scan_resume(srv_t *srv, storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err)
+{
+    if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
+    storage_scan_t sc;
+    int ret = storage_scan_resume(st, scan_id, job_id, err);
+    if (ret) return ret;
+    int total = storage_scan_get(st, scan_id, &sc, NULL) == 0 ? sc.points_total : 0;
+    if (total) storage_scan_free(&sc);
+    fprintf(stderr, "ipsd: scan %lld resumed (job %lld queued again)\n", (long long)scan_id,
+            (long long)*job_id);
+    publish_stored(srv, st, *job_id, total);
     srv_notify_work(srv);
     return 0;
 }

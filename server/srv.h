@@ -41,6 +41,14 @@ const srv_config_t *srv_config(const srv_t *srv);
 int srv_stopping(const srv_t *srv);
 srv_events_t *srv_events(srv_t *srv);
 
+/* The storage's health (storage.h: the last storage fault seen by any handle, cleared by a
+ * write that commits). */
+void srv_storage_health(srv_t *srv, storage_health_t *out);
+
+/* A scan job whose failure the storage refuses to record yet (the scan worker retries it), 0
+ * when none; msg (size bytes, may be NULL) gets its error. */
+int64_t srv_scan_unrecorded(srv_t *srv, char *msg, size_t size);
+
 /* A database handle for the calling thread's request, or NULL with err. Give it back. */
 storage_t *srv_db_get(srv_t *srv, err_t *err);
 void srv_db_put(srv_t *srv, storage_t *st);
@@ -51,6 +59,11 @@ void srv_db_put(srv_t *srv, storage_t *st);
  * the area), -ENOENT (sensor), -ESHUTDOWN when stopping. */
 int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const srv_scan_params_t *p,
                     int64_t *scan_id, int64_t *job_id, err_t *err);
+
+/* Resumes a failed scan (storage_scan_resume: its stored points kept, its job queued again) and
+ * wakes the scan worker, which continues after the last stored point. -ENOENT, -ESTALE (not
+ * failed), -ESHUTDOWN when stopping. */
+int srv_scan_resume(srv_t *srv, storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err);
 
 /* Queues a fit job (linked to p->scan_id when it has one) and wakes the fit workers. */
 int srv_fit_submit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_t *job_id,

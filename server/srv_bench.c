@@ -19,7 +19,8 @@ int srv_bench_check(const char *kind, err_t *err)
 
 /* The simulated bench as the scan's sensor (from the database), optics, scene and seed. */
 static int open_sim(const storage_sensor_t *sn, const storage_scan_t *sc,
-                    const srv_scan_params_t *p, srv_bench_t *b, err_t *err)
+                    const srv_scan_params_t *p, int (*frame_fault)(void *, unsigned long long),
+                    void *ctx, srv_bench_t *b, err_t *err)
 {
     sim_config_t c = sim_config_default();
     c.scene = p->scene;
@@ -35,6 +36,8 @@ static int open_sim(const storage_sensor_t *sn, const storage_scan_t *sc,
     c.radius_um = sc->spot_radius_um;
     c.seed = p->seed;
     c.stage.seed = p->seed;
+    c.frame_fault = frame_fault;
+    c.frame_fault_ctx = ctx;
     int ret = sim_open(&c, &b->sim, err);
     if (ret) return ret;
     b->cam = sim_camera(b->sim);
@@ -44,11 +47,17 @@ static int open_sim(const storage_sensor_t *sn, const storage_scan_t *sc,
 }
 
 int srv_bench_open(const char *kind, const storage_sensor_t *sn, const storage_scan_t *sc,
-                   const srv_scan_params_t *p, srv_bench_t *b, err_t *err)
+                   const srv_scan_params_t *p, int (*frame_fault)(void *, unsigned long long),
+                   void *ctx, double timeout_s, srv_bench_t *b, err_t *err)
 {
     memset(b, 0, sizeof *b);
-    if (strcmp(kind, "sim") == 0) return open_sim(sn, sc, p, b, err);
-    int ret = cam_open(kind, NULL, &b->cam, err);
+    int ret;
+    if (strcmp(kind, "sim") == 0) {
+        ret = open_sim(sn, sc, p, frame_fault, ctx, b, err);
+        return ret ? ret : cam_set_timeout(b->cam, timeout_s, err);
+    }
+    ret = cam_open(kind, NULL, &b->cam, err);
+    if (ret == 0) ret = cam_set_timeout(b->cam, timeout_s, err);
     if (ret == 0) ret = stage_open("sim", NULL, &b->stage, err);
     /* no stage driver: the POI's centre in stage coordinates is its sensor position */
     b->start =

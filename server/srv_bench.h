@@ -24,9 +24,12 @@ typedef struct srv_bench {
 int srv_bench_check(const char *kind, err_t *err);
 
 /* Opens the bench for scan sc of sensor sn with the job's parameters. *b is released with
- * srv_bench_close (also after an error). */
+ * srv_bench_close (also after an error). frame_fault (NULL: none) is the simulated camera's
+ * fault switch (sim_config_t), with ctx. The camera waits at most timeout_s for a frame
+ * (cam_set_timeout; 0: the camera's default). */
 int srv_bench_open(const char *kind, const storage_sensor_t *sn, const storage_scan_t *sc,
-                   const srv_scan_params_t *p, srv_bench_t *b, err_t *err);
+                   const srv_scan_params_t *p, int (*frame_fault)(void *, unsigned long long),
+                   void *ctx, double timeout_s, srv_bench_t *b, err_t *err);
 
 void srv_bench_close(srv_bench_t *b);
 

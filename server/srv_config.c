@@ -56,6 +56,8 @@ static const char usage[] =
     "                       more get 413\n"
     "  --max-fit-r N        largest r_max / ftest_r / geometry_r a fit may ask for, 1..32\n"
     "                       (default 32); more get 422\n"
+    "  --camera-timeout S   a camera that delivers no frame within S seconds fails the scan\n"
+    "                       (default 0: the camera's own, the exposure time + 5 s)\n"
     "SIGINT / SIGTERM stop gracefully: running scans resume at the next start.\n";
 
 const char *srv_config_usage(void)
@@ -170,6 +172,7 @@ enum {
     O_PORTFILE,
     O_HEARTBEAT,
     O_ATTEMPTS,
+    O_CAMTIMEOUT,
     O_HELP
 };
 
@@ -198,6 +201,7 @@ static const struct option opts[] = {
     {"port-file", required_argument, NULL, O_PORTFILE},
     {"heartbeat", required_argument, NULL, O_HEARTBEAT},
     {"max-attempts", required_argument, NULL, O_ATTEMPTS},
+    {"camera-timeout", required_argument, NULL, O_CAMTIMEOUT},
     {"help", no_argument, NULL, O_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -291,6 +295,14 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
                            c == O_HEARTBEAT ? "heartbeat" : "max-attempts", arg);
         *(c == O_HEARTBEAT ? &cfg->heartbeat_s : &cfg->max_attempts) = (int)v;
         return 0;
+    case O_CAMTIMEOUT: {
+        double t;
+        if (parse_double(arg, &t) || !(t >= 0 && t <= 3600))
+            return err_set(err, -EINVAL, "--camera-timeout must be 0..3600 seconds (got '%s')",
+                           arg);
+        cfg->camera_timeout_s = t;
+        return 0;
+    }
     default:
         return err_set(err, -EINVAL, "unknown option");
     }

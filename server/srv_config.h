@@ -48,6 +48,7 @@ typedef struct srv_config {
     int max_attempts;             /* a job claimed this often by crashed runs fails (3) */
     int max_fit_points;           /* largest uploaded scan file a fit takes, in points (10000) */
     int max_fit_r;                /* largest r a fit request may ask for (32) */
+    double camera_timeout_s;      /* a frame not delivered within fails the scan (0: camera's) */
 } srv_config_t;
 
 /* The defaults above (web_dir: the source tree's web/ when it exists, else ./web). */

@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "base/parse.h"
+#include "instrument/sim.h"
 
 #define MAX_TERMS 16
 #define HOLD_POLL_MS 2
@@ -39,7 +40,7 @@ struct srv_failpoints {
 
 /* The points the workers have (a misspelt name must not arm nothing silently). */
 static const char *const POINTS[] = {"scan.setup", "scan.point", "fit.step", "fit.before_store",
-                                     "fit.after_store", "fit.poll"};
+                                     "fit.after_store", "fit.poll", "camera.frame"};
 
 static int parse_term(char *text, struct fp_term *t, err_t *err)
 {
@@ -53,7 +54,7 @@ static int parse_term(char *text, struct fp_term *t, err_t *err)
     if (!known)
         return err_set(err, -EINVAL,
                        "IPSD_FAILPOINTS: unknown point '%s' (scan.setup, scan.point, fit.step, "
-                       "fit.before_store, fit.after_store, fit.poll)",
+                       "fit.before_store, fit.after_store, fit.poll, camera.frame)",
                        text);
     snprintf(t->name, sizeof t->name, "%s", text);
     if (!strcmp(action, "hold")) t->action = FP_HOLD;
@@ -157,9 +158,9 @@ static int hold(srv_failpoints_t *fp, srv_worker_t *w, const char *name, long lo
     return ret;
 }
 
-int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err)
+/* Counts a hit of point name: the action that fires on it (FP_OFF: none) and its hit number. */
+static enum fp_action fire_of(srv_failpoints_t *fp, const char *name, long long *hit_out)
 {
-    srv_failpoints_t *fp = w->srv->failpoints;
     enum fp_action fire = FP_OFF;
     long long hit = 0;
     pthread_mutex_lock(&fp->mu);
@@ -174,6 +175,27 @@ int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err)
         }
     }
     pthread_mutex_unlock(&fp->mu);
+    *hit_out = hit;
+    return fire;
+}
+
+int srv_failpoint_frame(void *ctx, unsigned long long frame)
+{
+    srv_t *srv = ctx;
+    if (!srv->failpoints) return SIM_FRAME_OK;
+    long long hit;
+    enum fp_action fire = fire_of(srv->failpoints, "camera.frame", &hit);
+    if (fire == FP_OFF) return SIM_FRAME_OK;
+    fprintf(stderr, "ipsd: failpoint camera.frame: the camera %s at its frame %llu (hit %lld)\n",
+            fire == FP_HOLD ? "stops answering" : "fails", frame + 1, hit);
+    return fire == FP_HOLD ? SIM_FRAME_HANG : SIM_FRAME_FAIL;
+}
+
+int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err)
+{
+    srv_failpoints_t *fp = w->srv->failpoints;
+    long long hit = 0;
+    enum fp_action fire = fire_of(fp, name, &hit);
     if (fire == FP_CRASH) {
         /* a crash as kill -9 makes it: no cleanup, nothing flushed, no transaction ended (stderr
          * is unbuffered, so the line is out before) */

@@ -11,7 +11,9 @@
  * the F-test, the Wiener baseline), fit.before_store (a fit computed, before the transaction that
  * stores it), fit.after_store (after that transaction committed, before the job's end is
  * published), fit.poll (inside a fit's long loops, where it polls its stop: each batch of
- * design-matrix rows, after each solve, each LM iteration). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
+ * design-matrix rows, after each solve, each LM iteration), camera.frame (the simulated camera,
+ * before each frame it captures: hold makes the camera stop answering until its frame timeout,
+ * error makes the capture fail; no held file). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
  * process kills itself with SIGKILL there: a kill -9 at a known point) or off. @N: only the N-th hit of that point since ipsd started, counted over all
  * jobs; without it, every hit. Several terms may name one point.
  *
@@ -32,6 +34,10 @@ int srv_failpoints_open(const char *spec, const char *dir, srv_failpoints_t **ou
 
 /* Frees the failpoints (accepts NULL). */
 void srv_failpoints_close(srv_failpoints_t *fp);
+
+/* The simulated camera's fault switch (sim_config_t.frame_fault; ctx: the srv_t): a hit of
+ * camera.frame, answered SIM_FRAME_OK, SIM_FRAME_HANG (hold) or SIM_FRAME_FAIL (error). */
+int srv_failpoint_frame(void *ctx, unsigned long long frame);
 
 /* The slow path of srv_failpoint. */
 int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err);

@@ -35,6 +35,8 @@ struct srv {
     int lock_fd; /* flock on DB-ipsd.lock: one ipsd per database, -1 when not held */
     srv_failpoints_t *failpoints; /* armed test hooks (IPSD_FAILPOINTS), NULL: none */
     atomic_int backup_running;    /* a POST /api/backup is copying (srv_backup.c) */
+    int64_t unrecorded_job;       /* under mu: a scan job failed whose failure the storage */
+    char unrecorded_msg[256];     /* refuses to record yet (srv_scanner.c), and its error */
 };
 
 /* A worker's life: claims jobs of kind in queue order and runs each with run, waiting for
@@ -63,6 +65,9 @@ int srv_enqueue_fit(srv_t *srv, storage_t *st, const srv_fit_params_t *p, int64_
  * that job reach it. srv_worker_end: idle again. */
 void srv_worker_begin(srv_worker_t *w, int64_t id);
 void srv_worker_end(srv_worker_t *w);
+
+/* The scan worker's failure that cannot be written yet (job 0 / msg NULL: none any more). */
+void srv_scan_unrecorded_set(srv_t *srv, int64_t job_id, const char *msg);
 
 /* Worker threads (arg: their srv_worker_t). */
 void *srv_scanner_main(void *arg);

@@ -5,7 +5,13 @@
  * the raster: a resumed scan continues at the point after its last stored one with the same
  * positions. When the raster is complete the scan is done and the fit of its POI is queued.
  * Cancel (the worker's stop flag, or the database refusing the next point) stops between points;
- * a graceful shutdown gives the job back to the queue. */
+ * a graceful shutdown gives the job back to the queue.
+ *
+ * Storage faults (disk full, read-only, I/O errors; issue 10): the point that cannot be stored
+ * fails the scan and its job with the database's error, the instrument is released, and the
+ * worker takes the next job. When even recording the failure cannot be written, the failure is
+ * kept in memory (srv_scan_unrecorded, shown by GET /api/health) and the worker retries writing
+ * it with a growing pause until it succeeds or ipsd stops; the job is then never left running. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -20,6 +26,8 @@
 #include "srv_int.h"
 
 #define HEARTBEAT_S 1.0 /* a running scan job writes its heartbeat and progress this often */
+#define RECORD_RETRY_MIN_MS 100  /* first pause before writing an unrecorded failure again */
+#define RECORD_RETRY_MAX_MS 5000 /* the pause doubles up to this */
 
 /* One scan job being run. */
 struct scan_run {
@@ -35,6 +43,7 @@ struct scan_run {
     int first;            /* first raster point captured by this run */
     double t0, last_beat; /* when this run's raster started, last heartbeat (srv_now_s) */
     int store_rc;         /* why store_point stopped the raster, 0 if it did not */
+    err_t store_err;      /* and its error (the raster's own "stopped by the handler" is not) */
     err_t err;
 };
 
@@ -63,7 +72,7 @@ static int store_point(const scan_point_t *pt, void *user)
 {
     struct scan_run *r = user;
     if (!pt->raw) {
-        r->store_rc = err_set(&r->err, -EINVAL, "the scan procedure did not keep raw frames");
+        r->store_rc = err_set(&r->store_err, -EINVAL, "the scan procedure did not keep raw frames");
         return 1;
     }
     storage_frame_t f = {.scan_id = r->scan.id,
@@ -76,7 +85,7 @@ static int store_point(const scan_point_t *pt, void *user)
                          .sub_px = pt->width,
                          .raw = (uint16_t *)pt->raw,
                          .mean = (double *)pt->mean_dn};
-    int rc = storage_frame_put(r->st, &f, &r->err);
+    int rc = storage_frame_put(r->st, &f, &r->store_err);
     if (rc && rc != -EEXIST) {
         r->store_rc = rc;
         return 1;
@@ -85,7 +94,8 @@ static int store_point(const scan_point_t *pt, void *user)
     double now = clock_mono_s();
     if (now - r->last_beat >= HEARTBEAT_S || done == total) {
         r->last_beat = now;
-        rc = storage_job_heartbeat(r->st, r->job->id, (double)done / total, done, &r->err);
+        rc = storage_job_heartbeat(r->st, r->job->id, (double)done / total, done,
+                                   &r->store_err);
         if (rc) {
             r->store_rc = rc;
             return 1;
@@ -94,7 +104,7 @@ static int store_point(const scan_point_t *pt, void *user)
     int run_done = done - r->first;
     double eta = run_done > 0 ? (now - r->t0) / run_done * (total - done) : NAN;
     publish(r, "raster", done, eta);
-    if ((r->store_rc = srv_failpoint(r->w, "scan.point", &r->err))) return 1; /* test hook */
+    if ((r->store_rc = srv_failpoint(r->w, "scan.point", &r->store_err))) return 1; /* test hook */
     return 0;
 }
 
@@ -180,7 +190,9 @@ static int begin(struct scan_run *r)
     /* the job must still be ours (not cancelled meanwhile) before the scan is marked running */
     if ((ret = storage_job_heartbeat(r->st, r->job->id, r->job->progress, r->job->points_done,
                                      &r->err)) ||
-        (ret = srv_bench_open(r->srv->cfg.bench, &r->sensor, &r->scan, &p, &r->bench, &r->err)))
+        (ret = srv_bench_open(r->srv->cfg.bench, &r->sensor, &r->scan, &p,
+                              r->srv->failpoints ? srv_failpoint_frame : NULL, r->srv,
+                              r->srv->cfg.camera_timeout_s, &r->bench, &r->err)))
         return ret;
     make_config(r);
     return storage_scan_set_state(r->st, r->scan.id, STORAGE_RUNNING, NULL, &r->err);
@@ -201,11 +213,64 @@ static int capture(struct scan_run *r)
     publish(r, "raster", r->first, NAN);
     ret = scan_raster_run(r->bench.cam, r->bench.stage, &r->cfg, &r->setup, (size_t)r->first,
                           &hooks, NULL, &r->err);
-    return r->store_rc ? r->store_rc : ret;
+    if (r->store_rc) {
+        r->err = r->store_err;
+        return r->store_rc;
+    }
+    return ret;
+}
+
+/* Writes the failure of the run: the scan and the job failed with r->err. 0, or the storage
+ * error that kept it from being written (a job no longer running, e.g. cancelled meanwhile,
+ * needs nothing more). */
+static int record_failure(struct scan_run *r, int *scan_written, err_t *e)
+{
+    int ret = 0;
+    if (r->scan.id && !*scan_written) {
+        ret = storage_scan_set_state(r->st, r->scan.id, STORAGE_FAILED, r->err.msg, e);
+        if (ret && ret != -ENOENT) return ret;
+        *scan_written = 1;
+    }
+    ret = storage_job_finish(r->st, r->job->id, STORAGE_FAILED, r->err.msg, e);
+    return ret == -ECANCELED || ret == -ESTALE || ret == -ENOENT ? 0 : ret;
+}
+
+/* Records the failure (why: its error code), retrying while the storage refuses it: the failure is kept in memory and
+ * shown by GET /api/health meanwhile. Gives up only when ipsd stops (the job, still running in
+ * the database, is requeued at the next start and resumes). */
+static void fail_job(struct scan_run *r, int why)
+{
+    err_t e = {{0}};
+    int scan_written = 0, pause_ms = RECORD_RETRY_MIN_MS, tries = 1;
+    int ret = record_failure(r, &scan_written, &e);
+    /* a full disk: the write-ahead log's space back to the file system, if the database file
+     * can take its pages now */
+    if (why == -ENOSPC) storage_checkpoint(r->st, NULL);
+    if (ret == 0) return;
+    fprintf(stderr, "ipsd: scan job %lld: cannot record its failure (%s); kept in memory, "
+                    "retrying\n",
+            (long long)r->job->id, e.msg);
+    srv_scan_unrecorded_set(r->srv, r->job->id, r->err.msg);
+    while (ret && !atomic_load(&r->srv->stopping)) {
+        srv_wait_work(r->srv, pause_ms);
+        pause_ms = pause_ms * 2 > RECORD_RETRY_MAX_MS ? RECORD_RETRY_MAX_MS : pause_ms * 2;
+        storage_checkpoint(r->st, NULL);
+        ret = record_failure(r, &scan_written, &e);
+        tries++;
+    }
+    if (ret == 0)
+        fprintf(stderr, "ipsd: scan job %lld: failure recorded after %d tries\n",
+                (long long)r->job->id, tries);
+    else
+        fprintf(stderr, "ipsd: scan job %lld: failure not recorded at shutdown (%s); it is "
+                        "requeued at the next start\n",
+                (long long)r->job->id, e.msg);
+    srv_scan_unrecorded_set(r->srv, 0, NULL);
 }
 
 /* After the run stopped with ret: done, cancelled by the user, stopped by the shutdown, or
- * failed. The job row is brought to its final (or queued) state and the event published. */
+ * failed. The job row is brought to its final (or queued) state and the event published. The
+ * instrument is released already. */
 static void conclude(struct scan_run *r, int ret)
 {
     storage_t *st = r->st;
@@ -221,8 +286,7 @@ static void conclude(struct scan_run *r, int ret)
             storage_job_release(st, id, NULL);
     } else if (ret) {
         fprintf(stderr, "ipsd: scan job %lld failed: %s\n", (long long)id, r->err.msg);
-        if (r->scan.id) storage_scan_set_state(st, r->scan.id, STORAGE_FAILED, r->err.msg, NULL);
-        storage_job_finish(st, id, STORAGE_FAILED, r->err.msg, NULL);
+        fail_job(r, ret);
     }
     storage_job_t j;
     if (storage_job_get(st, id, &j, NULL) == 0) {
@@ -237,11 +301,29 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
     srv_worker_begin(w, job->id);
     int ret = begin(&r);
     if (ret == 0 && r.scan.state != STORAGE_DONE) ret = capture(&r);
+    srv_bench_close(&r.bench); /* the instrument is free before the job's end is written */
+    memset(&r.bench, 0, sizeof r.bench);
     conclude(&r, ret);
     srv_worker_end(w);
-    srv_bench_close(&r.bench);
     storage_sensor_free(&r.sensor);
     storage_scan_free(&r.scan);
+}
+
+void srv_scan_unrecorded_set(srv_t *srv, int64_t job_id, const char *msg)
+{
+    pthread_mutex_lock(&srv->mu);
+    srv->unrecorded_job = job_id;
+    snprintf(srv->unrecorded_msg, sizeof srv->unrecorded_msg, "%s", msg ? msg : "");
+    pthread_mutex_unlock(&srv->mu);
+}
+
+int64_t srv_scan_unrecorded(srv_t *srv, char *msg, size_t size)
+{
+    pthread_mutex_lock(&srv->mu);
+    int64_t id = srv->unrecorded_job;
+    if (msg && size) snprintf(msg, size, "%s", id ? srv->unrecorded_msg : "");
+    pthread_mutex_unlock(&srv->mu);
+    return id;
 }
 
 void *srv_scanner_main(void *arg)

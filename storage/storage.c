@@ -37,15 +37,21 @@ int storage_state_parse(const char *name, storage_state_t *out)
 
 /* ---- errors and statements ---------------------------------------------------------------- */
 
-int stg_error(storage_t *st, int rc, err_t *err, const char *what)
+/* stg_error with SQLite's message msg. A storage fault (the disk full, read-only, I/O errors, a
+ * corrupt or vanished file) names the database and is recorded in the gate's health. */
+static int error_text(storage_t *st, int rc, const char *msg, err_t *err, const char *what)
 {
-    const char *msg = st && st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc);
-    int code;
+    int code, fault = 0;
     switch (rc & 0xff) {
     case SQLITE_BUSY:
     case SQLITE_LOCKED: code = -EBUSY; break;
     case SQLITE_NOMEM: code = -ENOMEM; break;
-    case SQLITE_FULL: code = -ENOSPC; break;
+    case SQLITE_FULL: code = fault = -ENOSPC; break;
+    case SQLITE_READONLY: code = fault = -EROFS; break;
+    case SQLITE_IOERR:
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB:
+    case SQLITE_CANTOPEN: code = fault = -EIO; break;
     case SQLITE_CONSTRAINT:
         if (rc == SQLITE_CONSTRAINT_UNIQUE || rc == SQLITE_CONSTRAINT_PRIMARYKEY)
             code = -EEXIST;
@@ -56,7 +62,28 @@ int stg_error(storage_t *st, int rc, err_t *err, const char *what)
         break;
     default: code = -EIO;
     }
-    return err_set(err, code, "%s: %s", what, msg);
+    if (!fault) return err_set(err, code, "%s: %s", what, msg);
+    const char *db = st && st->db ? sqlite3_db_filename(st->db, "main") : NULL;
+    err_t e;
+    err_set(&e, code, "%s: %s (%s, database %s)", what, msg, storage_fault_name(fault),
+            db && *db ? db : "?");
+    if (st) stg_gate_fault(st, fault, e.msg);
+    if (err) *err = e;
+    return code;
+}
+
+int stg_error(storage_t *st, int rc, err_t *err, const char *what)
+{
+    return error_text(st, rc, st && st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc), err,
+                      what);
+}
+
+/* The test hook's injected fault for a write about to begin (see storage_gate_set_test_faults):
+ * 0, or the error as SQLite would have reported it. */
+static int injected(storage_t *st, err_t *err, const char *what)
+{
+    int rc = stg_gate_injected(st);
+    return rc == SQLITE_OK ? 0 : error_text(st, rc, sqlite3_errstr(rc), err, what);
 }
 
 int stg_stmt(storage_t *st, enum stg_id id, sqlite3_stmt **out, err_t *err)
@@ -135,8 +162,12 @@ int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
         stg_reset(s);
         return err_set(err, -EDEADLK, "%s: this thread is writing through another handle", what);
     }
-    int rc = sqlite3_step(s);
-    int ret = rc == SQLITE_DONE ? 0 : stg_error(st, rc, err, what);
+    int ret = gated ? injected(st, err, what) : 0;
+    if (ret == 0) {
+        int rc = sqlite3_step(s);
+        ret = rc == SQLITE_DONE ? 0 : stg_error(st, rc, err, what);
+        if (ret == 0 && gated && sqlite3_changes(st->db)) stg_gate_ok(st);
+    }
     stg_reset(s);
     if (gated) stg_gate_leave(st);
     return ret;
@@ -220,8 +251,10 @@ int stg_begin_write(storage_t *st, err_t *err)
     if (stg_gate_enter(st))
         return err_set(err, -EDEADLK, "starting a write transaction: this thread is writing "
                                       "through another handle");
-    int ret = run_fixed(st, STG_BEGIN_WRITE, err, "starting a write transaction");
+    int ret = injected(st, err, "starting a write transaction");
+    if (ret == 0) ret = run_fixed(st, STG_BEGIN_WRITE, err, "starting a write transaction");
     if (ret) stg_gate_leave(st);
+    st->changes_at_begin = sqlite3_total_changes64(st->db);
     return ret;
 }
 
@@ -232,6 +265,9 @@ int stg_begin_read(storage_t *st, err_t *err)
 
 int stg_commit(storage_t *st, err_t *err)
 {
+    /* a write transaction that changed rows: the storage took a write (a claim that found no
+     * job changes nothing and proves nothing) */
+    int wrote = st->gate_held && sqlite3_total_changes64(st->db) != st->changes_at_begin;
     int ret = run_fixed(st, STG_COMMIT, err, "committing");
     if (ret) {
         stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
@@ -239,6 +275,7 @@ int stg_commit(storage_t *st, err_t *err)
         stg_gate_committed(st);
         stg_gate_leave(st);
     }
+    if (ret == 0 && wrote) stg_gate_ok(st);
     return ret;
 }
 
@@ -452,6 +489,16 @@ out:
     }
     *out = st;
     return 0;
+}
+
+int storage_checkpoint(storage_t *st, err_t *err)
+{
+    if (!st) return err_set(err, -EINVAL, "checkpoint: NULL handle");
+    int busy = 0;
+    int rc = sqlite3_wal_checkpoint_v2(st->db, NULL, SQLITE_CHECKPOINT_TRUNCATE, NULL, NULL);
+    if (rc == SQLITE_BUSY) busy = 1;
+    else if (rc != SQLITE_OK) return stg_error(st, rc, err, "checkpointing the write-ahead log");
+    return busy ? err_set(err, -EBUSY, "checkpointing the write-ahead log: busy") : 0;
 }
 
 void storage_close(storage_t *st)

@@ -52,6 +52,31 @@ void storage_set_gate(storage_t *st, storage_gate_t *g);
  * gate (then changes cannot be seen: do not cache). Writes by other processes are not counted. */
 int storage_calib_generation(storage_t *st, uint64_t *gen);
 
+/* The storage's health as the gate saw it (issue 10, "Storage faults"): every handle sharing the
+ * gate records there a write (or read) that failed because of the storage itself - SQLITE_FULL
+ * (fault -ENOSPC, "full"), SQLITE_READONLY (-EROFS, "read-only"), SQLITE_IOERR / SQLITE_CORRUPT /
+ * SQLITE_CANTOPEN (-EIO, "io-error") - and a write that commits clears it. msg: the last fault's
+ * message (which names the database), kept after it clears; since_ms: when the current fault
+ * began (wall clock), 0 when healthy; faults: how many failed operations so far. */
+typedef struct storage_health {
+    int fault;    /* 0 (ok), -ENOSPC, -EROFS or -EIO */
+    char msg[256];
+    int64_t since_ms;
+    uint64_t faults;
+} storage_health_t;
+void storage_gate_health(storage_gate_t *g, storage_health_t *out);
+/* "ok", "full", "read-only" or "io-error" for a health's fault. */
+const char *storage_fault_name(int fault);
+
+/* Test hooks of the gate (docs/server.md, "Test hooks"), both for storage faults made on purpose:
+ * - fault_file: while that file exists, every write through the gate fails before it begins, with
+ *   the SQLite error its first word names ("full": SQLITE_FULL, "ioerr": SQLITE_IOERR, "readonly":
+ *   SQLITE_READONLY), as SQLite would report it. NULL or "": none. The path is copied.
+ * - max_pages > 0: every handle given the gate afterwards (storage_set_gate) caps the database at
+ *   that many pages (PRAGMA max_page_count), so SQLite itself answers SQLITE_FULL beyond it.
+ * Returns 0 or -ENAMETOOLONG. */
+int storage_gate_set_test_faults(storage_gate_t *g, const char *fault_file, long long max_pages);
+
 /* The schema version this code creates and understands (PRAGMA user_version). */
 int storage_schema_version(void);
 
@@ -60,6 +85,12 @@ int storage_schema_version(void);
  * latest, each in its own transaction. A database with a newer user_version than this code knows
  * is refused with -ENOTSUP and left untouched. *out is owned by the caller: storage_close it. */
 int storage_open(const char *path, storage_t **out, err_t *err);
+
+/* Moves the write-ahead log into the database file and truncates the log to nothing (PRAGMA
+ * wal_checkpoint(TRUNCATE)): after a storage fault, the log's space goes back to the file system
+ * once the database file can take its pages. 0, -EBUSY (a reader or writer kept it from
+ * finishing) or the storage error. */
+int storage_checkpoint(storage_t *st, err_t *err);
 
 /* Closes the connection and frees the handle. Accepts NULL; cannot fail. */
 void storage_close(storage_t *st);
@@ -170,6 +201,12 @@ int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, in
  * first time; entering done/failed/cancelled stamps finished_ms. -ENOENT for an unknown scan. */
 int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, const char *error,
                            err_t *err);
+/* Resumes a failed scan (issue 10: after a storage or camera fault): the scan and its latest
+ * scan job are queued again in one transaction, keeping every stored point, the setup and the
+ * job's progress (the job's error, end time and attempts are cleared); the scan worker continues
+ * after the last stored point. *job_id: that job. -ENOENT unknown scan; -ESTALE when the scan
+ * or its job is not failed. */
+int storage_scan_resume(storage_t *st, int64_t id, int64_t *job_id, err_t *err);
 void storage_scan_free(storage_scan_t *sc);
 void storage_scan_list_free(storage_scan_list_t *l);
 

@@ -1,7 +1,8 @@
 /* storage_compose.c: the writes that span tables, each one transaction composed of the per-table
  * steps of the other files (stg_*_insert, stg_job_set_fit, ...): a scan with the job that runs it,
  * a fit with its job link (and the job's end), the map it offers and (when asked) its
- * calibration, and the promotion of a stored fit's map to its pixel's calibration. Nothing calls into this file from storage/,
+ * calibration, the promotion of a stored fit's map to its pixel's calibration, and the resume of
+ * a failed scan with its job. Nothing calls into this file from storage/,
  * so the table files never call each other both ways (docs/schema.md, "The code"). */
 #include "storage_int.h"
 
@@ -106,4 +107,18 @@ int storage_calib_promote(storage_t *st, int64_t fit_id, const char *by, const c
     if (ret) stg_rollback(st);
     if (ret == 0 || ret == -EALREADY) *calib_id = id;
     return ret;
+}
+
+int storage_scan_resume(storage_t *st, int64_t id, int64_t *job_id, err_t *err)
+{
+    if (!st || !job_id) return err_set(err, -EINVAL, "scan resume: NULL argument");
+    *job_id = 0;
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    if ((ret = stg_scan_resume(st, id, err)) || (ret = stg_job_resume(st, id, job_id, err))) {
+        stg_rollback(st);
+        *job_id = 0;
+        return ret;
+    }
+    return stg_commit(st, err);
 }

@@ -4,13 +4,23 @@
  * take the lock again before a waiting fit worker or a cancel woke up, and starve it past the busy
  * timeout ("database is locked"). In-process writes are short (one point, one fit), so the
  * wait has no deadline of its own; SQLite's busy timeout still applies to other processes.
- * Hand-written: pthreads has no fair mutex. */
+ * Hand-written: pthreads has no fair mutex.
+ *
+ * Every handle of the process passes here to write, so the gate also keeps the storage's health
+ * (storage.h: the last storage fault, cleared by a write that commits) and the test hooks that
+ * make storage faults on purpose (a fault file, a page cap). */
 #include "storage_int.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <pthread.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "base/clock.h"
 
 struct storage_gate {
     pthread_mutex_t mu;
@@ -19,6 +29,10 @@ struct storage_gate {
     pthread_t owner;             /* the thread writing now, when owned */
     int owned;
     atomic_uint_least64_t calib_gen; /* committed transactions that stored a calibration */
+    pthread_mutex_t health_mu; /* guards health */
+    storage_health_t health;
+    char fault_file[PATH_MAX]; /* test hook: "" none */
+    long long max_pages;       /* test hook: 0 none */
 };
 
 int storage_gate_new(storage_gate_t **out)
@@ -27,6 +41,7 @@ int storage_gate_new(storage_gate_t **out)
     if (!g) return -ENOMEM;
     pthread_mutex_init(&g->mu, NULL);
     pthread_cond_init(&g->cv, NULL);
+    pthread_mutex_init(&g->health_mu, NULL);
     *out = g;
     return 0;
 }
@@ -36,12 +51,85 @@ void storage_gate_free(storage_gate_t *g)
     if (!g) return;
     pthread_cond_destroy(&g->cv);
     pthread_mutex_destroy(&g->mu);
+    pthread_mutex_destroy(&g->health_mu);
     free(g);
 }
 
 void storage_set_gate(storage_t *st, storage_gate_t *g)
 {
     st->gate = g;
+    if (g && g->max_pages > 0) {
+        char sql[64];
+        snprintf(sql, sizeof sql, "PRAGMA max_page_count = %lld", g->max_pages);
+        if (sqlite3_exec(st->db, sql, NULL, NULL, NULL) != SQLITE_OK)
+            fprintf(stderr, "ipsd: test hook: %s failed: %s\n", sql, sqlite3_errmsg(st->db));
+    }
+}
+
+int storage_gate_set_test_faults(storage_gate_t *g, const char *fault_file, long long max_pages)
+{
+    const char *f = fault_file ? fault_file : "";
+    if (strlen(f) >= sizeof g->fault_file) return -ENAMETOOLONG;
+    snprintf(g->fault_file, sizeof g->fault_file, "%s", f);
+    g->max_pages = max_pages > 0 ? max_pages : 0;
+    return 0;
+}
+
+const char *storage_fault_name(int fault)
+{
+    switch (fault) {
+    case 0: return "ok";
+    case -ENOSPC: return "full";
+    case -EROFS: return "read-only";
+    default: return "io-error";
+    }
+}
+
+void storage_gate_health(storage_gate_t *g, storage_health_t *out)
+{
+    memset(out, 0, sizeof *out);
+    if (!g) return;
+    pthread_mutex_lock(&g->health_mu);
+    *out = g->health;
+    pthread_mutex_unlock(&g->health_mu);
+}
+
+void stg_gate_fault(storage_t *st, int code, const char *msg)
+{
+    storage_gate_t *g = st->gate;
+    if (!g) return;
+    pthread_mutex_lock(&g->health_mu);
+    if (!g->health.fault || g->health.fault != code) g->health.since_ms = clock_wall_ms();
+    g->health.fault = code;
+    g->health.faults++;
+    snprintf(g->health.msg, sizeof g->health.msg, "%s", msg);
+    pthread_mutex_unlock(&g->health_mu);
+}
+
+void stg_gate_ok(storage_t *st)
+{
+    storage_gate_t *g = st->gate;
+    if (!g) return;
+    pthread_mutex_lock(&g->health_mu);
+    if (g->health.fault)
+        fprintf(stderr, "ipsd: storage: writes succeed again (after: %s)\n", g->health.msg);
+    g->health.fault = 0;
+    g->health.since_ms = 0;
+    pthread_mutex_unlock(&g->health_mu);
+}
+
+int stg_gate_injected(storage_t *st)
+{
+    storage_gate_t *g = st->gate;
+    if (!g || !g->fault_file[0]) return SQLITE_OK;
+    FILE *f = fopen(g->fault_file, "r");
+    if (!f) return SQLITE_OK;
+    char word[32] = "";
+    if (fscanf(f, "%31s", word) != 1) word[0] = '\0';
+    fclose(f);
+    if (!strcmp(word, "ioerr")) return SQLITE_IOERR_WRITE;
+    if (!strcmp(word, "readonly")) return SQLITE_READONLY;
+    return SQLITE_FULL; /* "full", or anything else */
 }
 
 int storage_calib_generation(storage_t *st, uint64_t *gen)

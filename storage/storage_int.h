@@ -63,6 +63,8 @@ enum stg_id {
     STG_CALIB_HISTORY,
     STG_CALIB_COUNT,
     STG_CALIB_SEARCH,
+    STG_SCAN_RESUME,
+    STG_JOB_RESUME,
     STG_N
 };
 
@@ -104,6 +106,7 @@ struct storage {
     storage_gate_t *gate; /* shared with the process's other handles, or NULL (storage_gate.c) */
     int gate_held;        /* this handle is in a write transaction through the gate */
     int calib_dirty;      /* this write transaction stored a calibration (storage_gate.c) */
+    sqlite3_int64 changes_at_begin; /* sqlite3_total_changes64 when it began */
 };
 
 /* The write gate around BEGIN IMMEDIATE .. COMMIT / ROLLBACK (no-ops without a gate): enter
@@ -112,6 +115,13 @@ int stg_gate_enter(storage_t *st);
 void stg_gate_leave(storage_t *st);
 /* After COMMIT succeeded: counts a calibration change when the transaction stored one. */
 void stg_gate_committed(storage_t *st);
+/* The gate's health (storage.h): a storage fault (code -ENOSPC, -EROFS or -EIO, message msg), or
+ * a write that committed. No-ops without a gate. */
+void stg_gate_fault(storage_t *st, int code, const char *msg);
+void stg_gate_ok(storage_t *st);
+/* The test hook's injected fault for a write beginning now: an SQLite result code, SQLITE_OK for
+ * none (storage_gate_set_test_faults). */
+int stg_gate_injected(storage_t *st);
 
 /* The cached statement id, prepared on first use; 0 or -EIO/-ENOMEM. Give it back with
  * stg_reset once its rows are read (before the next use or the end of the transaction). */
@@ -182,6 +192,8 @@ int stg_scan_insert(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t 
 int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err);
 /* Counts one more stored point (the frame's write transaction, storage_frame.c). */
 int stg_scan_add_point(storage_t *st, int64_t id, err_t *err);
+/* Queues a failed scan again (storage_scan_resume): -ESTALE when it is not failed. */
+int stg_scan_resume(storage_t *st, int64_t id, err_t *err);
 /* Cancels a queued or running scan (its job's cancel transaction, storage_job.c). */
 int stg_scan_cancel(storage_t *st, int64_t id, err_t *err);
 
@@ -189,6 +201,9 @@ int stg_scan_cancel(storage_t *st, int64_t id, err_t *err);
 /* Inserts a job inside the caller's write transaction. */
 int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_json,
                    int64_t scan_id, int64_t *id, err_t *err);
+/* Queues the failed latest scan job of scan_id again, keeping its progress (*job_id: it);
+ * -ESTALE when that job is not failed. Inside the caller's write transaction. */
+int stg_job_resume(storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err);
 /* Records the fit a job produced, inside the caller's write transaction (-ENOENT: no job). */
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
 /* storage_job_finish's statement, inside the caller's transaction (or alone). */

@@ -402,3 +402,22 @@ int storage_job_requeue_stale(storage_t *st, int64_t stale_ms, int max_attempts,
     if (failed) *failed = n_failed;
     return 0;
 }
+
+int stg_job_resume(storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_JOB_RESUME, &q, err))) return ret;
+    stg_bind_int(q, 1, scan_id, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "resuming a scan job")
+                          : stg_error(st, rc, err, "resuming a scan job");
+    if (ret == 0) {
+        *job_id = sqlite3_column_int64(q, 0);
+        rc = sqlite3_step(q); /* RETURNING: the update is complete when the step says done */
+        if (rc != SQLITE_DONE) ret = stg_error(st, rc, err, "resuming a scan job");
+    }
+    stg_reset(q);
+    return ret == -ENOENT ? err_set(err, -ESTALE, "scan %lld: its scan job is not failed",
+                                    (long long)scan_id)
+                          : ret;
+}

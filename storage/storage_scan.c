@@ -227,6 +227,26 @@ int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, con
     return 0;
 }
 
+int stg_scan_resume(storage_t *st, int64_t id, err_t *err)
+{
+    storage_scan_t sc;
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_scan_load(st, id, &sc, err))) return ret;
+    storage_state_t state = sc.state;
+    storage_scan_free(&sc);
+    if (state != STORAGE_FAILED)
+        return err_set(err, -ESTALE, "scan %lld is %s, not failed: nothing to resume",
+                       (long long)id, storage_state_name(state));
+    if ((ret = stg_stmt(st, STG_SCAN_RESUME, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "resuming a scan");
+    }
+    return stg_run(st, q, err, "resuming a scan");
+}
+
 /* ---- the scan's setup (schema 2) ---------------------------------------------------------- */
 
 int storage_scan_set_setup(storage_t *st, int64_t id, const char *json, err_t *err)

@@ -239,6 +239,13 @@ const char *const stg_sql[STG_N] = {
     [STG_SCAN_ADD_POINT] = "UPDATE scans SET points_done = points_done + 1 WHERE id = ?1",
     [STG_SCAN_SET_SETUP] = "UPDATE scans SET setup = ?2 WHERE id = ?1",
     [STG_SCAN_GET_SETUP] = "SELECT setup FROM scans WHERE id = ?1",
+    /* a failed scan and its failed scan job queued again (storage_scan_resume) */
+    [STG_SCAN_RESUME] = "UPDATE scans SET state = 'queued', error = NULL, finished_ms = NULL "
+                        "WHERE id = ?1 AND state = 'failed'",
+    [STG_JOB_RESUME] =
+        "UPDATE jobs SET state = 'queued', error = NULL, finished_ms = NULL, heartbeat_ms = NULL, "
+        "attempts = 0 WHERE id = (SELECT max(id) FROM jobs WHERE kind = 'scan' AND scan_id = ?1) "
+        "AND state = 'failed' RETURNING id",
     [STG_SCAN_CANCEL] = "UPDATE scans SET state = 'cancelled', finished_ms = ?2 "
                         "WHERE id = ?1 AND state IN ('queued', 'running')",
 

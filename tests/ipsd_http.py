@@ -213,13 +213,17 @@ class Ipsd:
         self.client = None
         self.port = None
 
-    def start(self, *args, failpoints=None):
+    def start(self, *args, failpoints=None, env=None):
         """Starts ipsd with args (after --listen, --port-file, --db, --heartbeat 1) and waits for
-        its port; failpoints: IPSD_FAILPOINTS for this run (held files in self.fp_dir)."""
+        its port; failpoints: IPSD_FAILPOINTS for this run (held files in self.fp_dir); env: more
+        environment variables for this run (e.g. the storage test hooks)."""
         port_file = os.path.join(self.tmp, "port")
         if os.path.exists(port_file):
             os.remove(port_file)
-        env = {k: v for k, v in os.environ.items() if not k.startswith("IPSD_FAILPOINT")}
+        extra = env or {}
+        env = {k: v for k, v in os.environ.items()
+               if not k.startswith(("IPSD_FAILPOINT", "IPSD_STORAGE_FAULT", "IPSD_MAX_DB_PAGES"))}
+        env.update(extra)
         if failpoints:
             os.makedirs(self.fp_dir, exist_ok=True)
             env["IPSD_FAILPOINTS"] = failpoints

@@ -14,7 +14,8 @@ find_package(Python3 COMPONENTS Interpreter)
 if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
     # TIMEOUT (tests/CMakeLists.txt): seconds on a busy 2-core machine, ASan build: flow 31,
     # restart 93, input 20, promote ~25 (optimised: 11, 26, 9, 6.5; hostile 3, flood 8; region: 4
-    # fits of a 225-point upload; security 4 / ASan 11, backup 12-21 / ASan 71; crash: 8 starts
+    # fits of a 225-point upload; storfault ~40 s optimised: three daemons, four 961-point scans each;
+    # camfault ~10 s; security 4 / ASan 11, backup 12-21 / ASan 71; crash: 8 starts
     # and 4 small fits, 10 s optimised; fitstop 3 starts, 3 small fits). One test per line below,
     # so branches that add tests merge without conflicts.
     foreach(t flow:130 restart:380 input:80 promote:120 region:120 hostile:60 flood:200
@@ -24,6 +25,8 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             backup:240
             crash:150
             fitstop:120
+            storfault:240
+            camfault:120
             )
         string(REPLACE ":" ";" t ${t})
         list(GET t 0 name)

@@ -3,7 +3,8 @@
  * conservation of the spot's flux over a large sub-frame (against the box integral of the whole
  * region and the encircled-energy bounds), frame statistics (mean and variance against gain,
  * bias, shot and read noise by z and chi-square tests with a fixed seed), saturation, exposure
- * and gain scaling, defocus, the leave-out rule's bounds, and the camera interface's errors. */
+ * and gain scaling, defocus, the leave-out rule's bounds, the camera interface's errors, and the
+ * fault switch with the frame timeout (a hang ended by the timeout, a failed capture). */
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -258,6 +259,44 @@ static void test_interface(void)
     CHECK(sim_open(&c, &s, &err) == -EINVAL && strstr(err.msg, "aperture"));
 }
 
+/* The fault switch of test_faults (ctx: its count of questions): the camera hangs at the 2nd
+ * capture and fails the 4th; frame is the number of frames delivered before. */
+static int fault_switch(void *ctx, unsigned long long frame)
+{
+    int n = ++*(int *)ctx;
+    CHECK(frame == (unsigned long long)(n - 1 - (n > 2) - (n > 4)));
+    return n == 2 ? SIM_FRAME_HANG : n == 4 ? SIM_FRAME_FAIL : SIM_FRAME_OK;
+}
+
+static void test_faults(void)
+{
+    sim_config_t c = sim_config_default();
+    int asked = 0;
+    c.frame_fault = fault_switch;
+    c.frame_fault_ctx = &asked;
+    sim_t *s;
+    err_t err = {{0}};
+    CHECK(sim_open(&c, &s, &err) == 0);
+    cam_t *cam = sim_camera(s);
+    cam_roi_t roi = {POI, POI, 1, 1};
+    cam_frame_t f;
+    CHECK(cam_set_timeout(cam, -1, &err) == -EINVAL);
+    CHECK(cam_set_timeout(cam, 0.01, &err) == 0);
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0);
+    cam_frame_free(&f);
+    /* the hang is ended by the timeout, with the camera's error naming it */
+    CHECK(cam_capture(cam, &roi, &f, &err) == -ETIMEDOUT &&
+          strstr(err.msg, "no frame within 0.01 s") && strstr(err.msg, "frame 2"));
+    CHECK(f.dn == NULL);
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0); /* the next frame comes again */
+    cam_frame_free(&f);
+    CHECK(cam_capture(cam, &roi, &f, &err) == -EIO && strstr(err.msg, "frame 3"));
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0);
+    cam_frame_free(&f);
+    CHECK(asked == 5);
+    sim_close(s);
+}
+
 int main(void)
 {
     test_uniform_vs_box();
@@ -267,5 +306,6 @@ int main(void)
     test_exposure_gain_saturation();
     test_defocus();
     test_interface();
+    test_faults();
     CHECK_DONE();
 }
