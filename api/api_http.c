@@ -51,7 +51,7 @@ static int hex_digit(char c)
                                   : -1;
 }
 
-static size_t unescape_keep_nul(void *cls, struct MHD_Connection *c, char *s)
+size_t api_unescape_keep_nul(void *cls, struct MHD_Connection *c, char *s)
 {
     (void)cls;
     (void)c;
@@ -275,7 +275,7 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
         api_conns_notify, h->conns, MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60,
         MHD_OPTION_CONNECTION_LIMIT, (unsigned)cfg->max_connections,
         MHD_OPTION_PER_IP_CONNECTION_LIMIT, (unsigned)cfg->max_per_client,
-        MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL, MHD_OPTION_END);
+        MHD_OPTION_UNESCAPE_CALLBACK, api_unescape_keep_nul, NULL, MHD_OPTION_END);
     if (!h->d) {
         api_conns_close(h->conns);
         free(h);
