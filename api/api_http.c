@@ -32,10 +32,10 @@
 typedef struct api_http {
     srv_t *srv;
     struct MHD_Daemon *d;
-    api_conns_t *conns;  /* open connections and their request deadlines */
+    api_conns_t *conns;             /* open connections and their request deadlines */
     api_calib_cache_t *calib_cache; /* replies of current calibrations (api_calib_cache.h) */
-    MHD_socket quiesced; /* the listening socket after quiesce, closed after the stop */
-    int log_fd;          /* the request log (api_log.h), -1 off */
+    MHD_socket quiesced;            /* the listening socket after quiesce, closed after the stop */
+    int log_fd;                     /* the request log (api_log.h), -1 off */
 } api_http_t;
 
 /* What the Authorization header's bearer token grants (SRV_TOKEN_*): its SHA-256 digest is
@@ -101,7 +101,7 @@ static int hex_digit(char c)
                                   : -1;
 }
 
-static size_t unescape_keep_nul(void *cls, struct MHD_Connection *c, char *s)
+size_t api_unescape_keep_nul(void *cls, struct MHD_Connection *c, char *s)
 {
     (void)cls;
     (void)c;
@@ -158,8 +158,10 @@ static int check_request(api_req_t *q, const char *method, const char *url)
     }
     /* what the request needs and what its token grants (no tokens configured: all open) */
     int need = SRV_TOKEN_NONE;
-    if (write) need = SRV_TOKEN_WRITE;
-    else if (cfg->reads_closed && !open_read(url)) need = SRV_TOKEN_READ;
+    if (write)
+        need = SRV_TOKEN_WRITE;
+    else if (cfg->reads_closed && !open_read(url))
+        need = SRV_TOKEN_READ;
     const char *auth =
         MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION);
     int have = need && cfg->n_tokens ? bearer_level(cfg, auth) : need;
@@ -393,7 +395,7 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
         on_completed, h, MHD_OPTION_NOTIFY_CONNECTION, api_conns_notify, h->conns,
         MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60, MHD_OPTION_CONNECTION_LIMIT,
         (unsigned)cfg->max_connections, MHD_OPTION_PER_IP_CONNECTION_LIMIT,
-        (unsigned)cfg->max_per_client, MHD_OPTION_UNESCAPE_CALLBACK, unescape_keep_nul, NULL,
+        (unsigned)cfg->max_per_client, MHD_OPTION_UNESCAPE_CALLBACK, api_unescape_keep_nul, NULL,
         MHD_OPTION_END);
     if (!h->d) {
         api_conns_close(h->conns);

@@ -58,6 +58,11 @@ const api_route_t *api_route_find(const char *method, const char *path, int64_t 
 /* The methods a known path allows ("GET, POST"), into buf. */
 const char *api_route_allow(const char *path, char *buf, size_t n);
 
+/* The unescape of the URL path and of query keys and values (api_http.c; libmicrohttpd's
+ * MHD_OPTION_UNESCAPE_CALLBACK): %XX decoded in place, except %00, which stays literal. Returns
+ * the new length. */
+size_t api_unescape_keep_nul(void *cls, struct MHD_Connection *c, char *s);
+
 /* ---- replies (api_reply.c) ---- */
 
 /* The text api_reply_json sends for body (takes its reference): malloc'ed, *len bytes; NULL on
