@@ -41,7 +41,9 @@ function config(name) {
 // A figure holding one Plotly graph: title, the graph's testid, and data + layout (drawn once the
 // div is in the document, so that it takes its container's width). The graph div carries
 // Plotly's own `data` and `layout` (what the browser test reads).
-export function plotFigure({ title, testid, data, layout, height = 340, note, name }) {
+// stacked: an optional second layout, and its height, for a narrow graph (a phone): side-by-side
+// subplots one above the other.
+export function plotFigure({ title, testid, data, layout, height = 340, note, name, stacked }) {
     const graph = h('div', { class: 'pgraph', 'data-testid': testid });
     graph.style.height = `${height}px`;
     const fig = h('figure', { class: 'pfig' }, h('figcaption', {}, title),
@@ -54,6 +56,11 @@ export function plotFigure({ title, testid, data, layout, height = 340, note, na
         if (!graph.isConnected) {
             if (++tries < 600) requestAnimationFrame(draw);
             return;
+        }
+        if (stacked && graph.clientWidth < 520) {
+            Object.assign(lay, stacked.layout);
+            graph.style.height = `${stacked.height}px`;
+            graph.dataset.stacked = 'true';
         }
         window.Plotly.newPlot(graph, data, lay, config(name || testid))
             .then(() => { graph.dataset.state = 'ready'; });
@@ -69,27 +76,27 @@ export function purgeIn(el) {
 }
 
 // The axes of a pixel: x to the right and y downward from its top-left corner (docs/contracts.md
-// "Coordinates"), in micrometres when the pitch is known, else in pixel widths (said on the axis).
+// "Coordinates"), in micrometres when the pitch is known, else in pixel widths (said on the axis;
+// the figures' section says where the origin is: short titles fit a phone).
 export function pixelFrame(pitch) {
     const um = Number.isFinite(pitch) && pitch > 0;
-    const unit = um ? 'µm' : 'pixel widths (pitch unknown)';
+    const unit = um ? 'µm' : 'pixel widths; pitch unknown';
     return {
         w: um ? pitch : 1, um, unit, u: um ? ' µm' : ' px',
-        xtitle: `x (${unit}, from the pixel's left edge)`,
-        ytitle: `y (${unit}, down from the top edge)`,
+        xtitle: `x (${unit})`, ytitle: `y (${unit}), downward`,
     };
 }
 
 // Axis pair for a subplot k ('' or 2, 3, ...) spanning range [lo, hi] on both axes, y downward,
 // one unit the same length on both; a subplot right of another (k not '') has a short y title,
 // which would otherwise run into its neighbour.
-export function squareAxes(frame, k, domain, range) {
+export function squareAxes(frame, k, domain, range, ydomain = [0, 1]) {
     const x = `xaxis${k}`, y = `yaxis${k}`;
     return {
         [x]: { title: { text: frame.xtitle }, domain, range, zeroline: false, constrain: 'domain',
             anchor: `y${k}` },
         [y]: { title: { text: k ? `y (${frame.unit})` : frame.ytitle }, range: [range[1], range[0]],
-            zeroline: false,
+            domain: ydomain, zeroline: false,
             scaleanchor: `x${k}`, constrain: 'domain', anchor: `x${k}` },
     };
 }

@@ -122,7 +122,10 @@ export function renderFit(root, id) {
         const fit = await get(`/api/fits/${id}`);
         const res = fit.result || {};
         const scan = fit.scan_id ? await get(`/api/scans/${fit.scan_id}`).catch(() => null) : null;
-        const sensor = scan ? await get(`/api/sensors/${scan.sensor_id}`).catch(() => null) : null;
+        // the pitch for the maps' um axes: the scan's sensor, or the sensor an uploaded scan file
+        // was fitted for (fit.calibration names it)
+        const sensorId = scan?.sensor_id ?? fit.calibration?.sensor_id;
+        const sensor = sensorId ? await get(`/api/sensors/${sensorId}`).catch(() => null) : null;
         const pitch = sensor?.pitch_um;
         const best = res.best_r || {};
         const fits = res.fits || [];
@@ -216,8 +219,9 @@ export function renderFit(root, id) {
                         h('h3', { id: 'cal-h' }, 'Calibration'), calibrationPanel(fit)))),
             h('section', { class: 'panel', 'aria-labelledby': 'maps-h' },
                 h('h3', { id: 'maps-h' }, 'IPS maps'),
-                h('p', { class: 'muted small' }, 'Axes in µm from the pixel\'s top-left corner ' +
-                    '(y grows downward; the pixel outlined). Point at a map for its values, drag ' +
+                h('p', { class: 'muted small' }, 'Axes in µm (pixel widths when the sensor\'s ' +
+                    'pitch is unknown) from the pixel\'s top-left corner (y grows downward; the ' +
+                    'pixel outlined). Point at a map for its values, drag ' +
                     'to zoom, double-click to reset; each figure\'s bar saves it as PNG (camera) ' +
                     'or SVG (disk).'),
                 maps),

@@ -44,13 +44,13 @@ export function mapPairFigure(f, wiener, pitch) {
             colorbar: { title: { text: 'S (mean 1)' }, thickness: 14 } },
         shapes: [outline(fr, '')], annotations: [subTitle('', `Fitted S (${r}×${r})`)],
         margin: { l: 60, r: 20, t: 30, b: 50 } };
-    let note = null;
+    let note = null, stacked = null;
     if (hasW) {
         const w = wiener;
         // Wiener nodes are positions in um (x0_um + i step_um[0]); they share the map's frame
         // when the pitch is known
         const wf = fr.um ? fr : { um: true, unit: 'µm', u: ' µm',
-            xtitle: 'x (µm, from the pixel\'s left edge)', ytitle: 'y (µm)',
+            xtitle: 'x (µm)', ytitle: 'y (µm), downward',
             w: Math.max(w.x0_um + w.nx * w.step_um[0], w.y0_um + w.ny * w.step_um[1]) };
         data.push({ type: 'heatmap', name: 'Wiener', coloraxis: 'coloraxis', xaxis: 'x2',
             yaxis: 'y2', x: Array.from({ length: w.nx }, (_, i) => w.x0_um + i * w.step_um[0]),
@@ -58,6 +58,9 @@ export function mapPairFigure(f, wiener, pitch) {
             z: rows(w.S, w.nx, w.ny), hovertemplate: `x %{x:.3f} µm, y %{y:.3f} µm<br>` +
                 'S = %{z:.6g}<extra>Wiener</extra>' });
         Object.assign(layout, squareAxes(wf, 2, split[1], [0, wf.w]));
+        // on a phone: S above the Wiener map, the colour bar beside both
+        stacked = { height: 620, layout: { ...squareAxes(fr, '', [0, 1], [0, fr.w], [0.56, 0.96]),
+            ...squareAxes(wf, 2, [0, 1], [0, wf.w], [0, 0.4]) } };
         layout.shapes.push(outline(wf, 2));
         layout.annotations.push(subTitle(2, `Wiener baseline (${w.nx}×${w.ny})`));
         note = 'One colour scale for both maps. The Wiener map is the deconvolved raster at ' +
@@ -68,7 +71,7 @@ export function mapPairFigure(f, wiener, pitch) {
     }
     return plotFigure({ title: hasW ? 'Fitted sensitivity S beside the Wiener deconvolution ' +
         'baseline' : 'Fitted sensitivity S', testid: 'plot-maps', data, layout, note,
-    height: 360, name: `map-r${r}` });
+    height: 360, name: `map-r${r}`, stacked });
 }
 
 // S_err, 1 sigma, on its own scale.
@@ -186,8 +189,15 @@ export function residualFigure(f, pts) {
         showlegend: false };
     const n = resid.length, out = n - keep.length;
     const chi = keep.reduce((a, k) => a + resid[k] * resid[k], 0);
+    // on a phone: the signal above the residuals, each colour bar beside its plot
+    const stacked = { height: 640, layout: { ...squareAxes(fr, '', [0, 1], range, [0.56, 0.96]),
+        ...squareAxes(fr, 2, [0, 1], range, [0, 0.4]),
+        coloraxis: { ...layout.coloraxis, colorbar: { ...layout.coloraxis.colorbar, x: 1.02,
+            y: 0.76, len: 0.42 } },
+        coloraxis2: { ...layout.coloraxis2, colorbar: { ...layout.coloraxis2.colorbar, y: 0.2,
+            len: 0.42 } } } };
     return plotFigure({ title: `Measured signal and normalised residuals (r = ${f.r})`,
-        testid: 'plot-resid', data, layout, height: 340, name: `residuals-r${f.r}`,
+        testid: 'plot-resid', data, layout, height: 340, name: `residuals-r${f.r}`, stacked,
         note: `${keep.length} points fitted${out ? `, ${out} left out` : ''}; Σ residual² = ` +
             `${fmt(chi, 5)} (the χ²). Residuals should scatter about 0 without a pattern; a ` +
             'pattern at the pixel edges says the model misses something there.' });

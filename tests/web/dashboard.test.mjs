@@ -531,11 +531,12 @@ async function run(base, page, api) {
         'a cancelled scan has no Cancel button');
     await page.screenshot({ path: '/tmp/ipsd-dashboard-scans.png' });
 
-    // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box
+    // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box, the
+    // Fit view's plots drawn (their pairs stacked)
     await page.setViewportSize({ width: 390, height: 844 });
     const views = [['#/scans', `tr[data-scan-id="${scan.id}"]`],
         [`#/scans/${scan.id}`, 'table.list tbody tr'],
-        [`#/fits/${fitId}`, '[data-testid="sweep-table"] tbody tr'],
+        [`#/fits/${fitId}`, '[data-testid="plot-resid"][data-state="ready"]'],
         ['#/calibrations', 'table.list tbody tr'],
         [`#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`,
             '[data-testid="current-why"]']];
@@ -545,6 +546,11 @@ async function run(base, page, api) {
         const w = await page.evaluate(() => [document.documentElement.scrollWidth,
             document.documentElement.clientWidth]);
         check(w[0] <= w[1], `${view} at 390 px: no sideways scrolling`, `page ${w[0]} px wide`);
+        if (view.startsWith('#/fits/')) {
+            check(await page.locator('[data-testid="plot-maps"][data-stacked="true"]').count() ===
+                1 && await page.locator('[data-testid="plot-resid"][data-stacked="true"]')
+                .count() === 1, 'at 390 px the side-by-side plots stand one above the other');
+        }
     }
     await page.setViewportSize({ width: 1280, height: 800 });
 }
