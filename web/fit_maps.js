@@ -12,6 +12,7 @@
 //     /api/scans/{id}/pixels/{dcol}/{drow}?all=1) selected by the fit's region as
 //     fit_region_contains does (fit/region.c).
 import { get } from './api.js';
+import { valueTable } from './plots.js';
 import { failure, fill, fmt, h } from './dom.js';
 import { DIVERGING, MAGMA, VIRIDIS, jointRange, outline, pixelFrame, plotFigure, rows,
     squareAxes } from './charts.js';
@@ -69,21 +70,25 @@ export function mapPairFigure(f, wiener, pitch) {
         note = wiener?.error ? `Wiener baseline failed: ${wiener.error}`
             : 'No Wiener baseline was requested for this fit.';
     }
-    return plotFigure({ title: hasW ? 'Fitted sensitivity S beside the Wiener deconvolution ' +
-        'baseline' : 'Fitted sensitivity S', testid: 'plot-maps', data, layout, note,
+    const fig = plotFigure({ title: hasW ? 'Fitted sensitivity S beside the Wiener ' +
+        'deconvolution baseline' : 'Fitted sensitivity S', testid: 'plot-maps', data, layout, note,
     height: 360, name: `map-r${r}`, stacked });
+    if (r * r <= 400) fig.append(valueTable(f.S, r, r)); // the numbers, for keyboards and readers
+    return fig;
 }
 
 // S_err, 1 sigma, on its own scale.
 export function errFigure(f, pitch) {
     const fr = pixelFrame(pitch), r = f.r, xs = centres(r, fr.w);
-    return plotFigure({ title: 'Uncertainty S_err (1σ)', testid: 'plot-Serr', height: 320,
+    const fig = plotFigure({ title: 'Uncertainty S_err (1σ)', testid: 'plot-Serr', height: 320,
         name: `S_err-r${r}`,
         data: [{ type: 'heatmap', x: xs, y: xs, z: rows(f.S_err, r, r), colorscale: MAGMA,
             colorbar: { title: { text: 'S_err' }, thickness: 14 },
             hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>S_err = %{z:.3g}` +
                 '<extra></extra>' }],
         layout: { ...squareAxes(fr, '', [0, 1], [0, fr.w]), shapes: [outline(fr)] } });
+    if (r * r <= 400) fig.append(valueTable(f.S_err, r, r));
+    return fig;
 }
 
 // The interpolated map from the server (interpPath: the route with its ?r=) as a 3-D surface,
