@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# run.sh: installs what is missing, builds ipsd, and runs the main job: the ipsd server on the
-# simulated bench with its database in var/ipsd.db, one paper-like scan of a pixel queued (the
-# paper's raster: 5 x 5 pixels in 0.6 um steps, 9 x 9 sub-frames, 12 frames per point), then the
-# automatic fit of that pixel. Prints the dashboard's URL and how to follow the job with curl, and
-# keeps ipsd in the foreground until Ctrl-C (a graceful stop: a scan still running resumes at the
-# next start). It says when the scan and its fit end and what the fit found
-# (scripts/run_follow.py). At the next start it queues no second scan of the same pixel: it follows
-# the scan still running, or shows the pixel's calibration (IPSD_NEW_SCAN=1 queues a new scan).
+# run.sh: installs what is missing (Debian packages, the dashboard's Plotly.js), builds ipsd, and
+# runs the main job: the ipsd server on the simulated bench with its database in var/ipsd.db,
+# one paper-like scan of a pixel queued (the paper's raster: 5 x 5 pixels in 0.6 um steps, 9 x 9
+# sub-frames, 12 frames per point), then the automatic fit of that pixel. Prints the dashboard's
+# URL and how to follow the job with curl, and keeps ipsd in the foreground until Ctrl-C (a
+# graceful stop: a scan still running resumes at the next start). It says when the scan and its
+# fit end and what the fit found (scripts/run_follow.py). At the next start it queues no second
+# scan of the same pixel: it follows the scan still running, or shows the pixel's calibration
+# (IPSD_NEW_SCAN=1 queues a new scan).
 #   scripts/run.sh [ipsd options...]   e.g. --workers 4, --token FILE
 #   scripts/run.sh --fit-only          the former main job: `ips fit` of the reference scan as a table
 # Environment: IPSD_LISTEN (default 127.0.0.1:8080), IPSD_POI (default 128,128), IPSD_BUILD (the
@@ -21,6 +22,8 @@ scripts/build.sh "$build"
 if [[ ${1:-} == --fit-only ]]; then
     exec "$build"/cli/ips fit tests/data/paperlike_scan.json --ftest top,left,bottom --wiener --table
 fi
+# the dashboard's plotting library (Plotly.js from web/package-lock.json), served by ipsd
+scripts/web-deps.sh
 
 listen=${IPSD_LISTEN:-127.0.0.1:8080}
 poi=${IPSD_POI:-128,128}

@@ -26,6 +26,8 @@ fi
 scripts/build-matrix.sh --incremental gcc-release gcc-debug clang-release
 # the browser test's driver, pinned by tests/web/package-lock.json (the browser is Debian's)
 npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
+# the dashboard's plotting library, pinned by web/package-lock.json (the browser test needs it)
+scripts/web-deps.sh --strict
 
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1

@@ -1,25 +1,18 @@
 // fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document): the chosen map S
-// (the recommended r by default, any r selectable) as a heatmap with its colour bar, the interpolated
-// map (from the server, maps.js), the uncertainties S_err, the Wiener-deconvolution baseline next
-// to them, the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, the
+// (the recommended r by default, any r selectable) beside the Wiener-deconvolution baseline on one
+// colour scale, its uncertainties S_err, the interpolated map as a 3-D surface, and the measured
+// signal and normalised residuals at the spot positions (Plotly figures on um axes, fit_maps.js);
+// the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, the
 // F-test verdict (paper: reject H0 when p < 0.05), and whether the fit's map is its pixel's current
 // calibration, with the action that makes it so (POST /api/fits/{id}/promote, with a reason).
 import { get, post } from './api.js';
 import { errorBox, failure, field, fill, fmt, fmtTime, h, onSubmit } from './dom.js';
-import { mapFigures } from './maps.js';
-import { heatmap, linePlot } from './plots.js';
+import { purgeIn } from './charts.js';
+import { errFigure, fitPoints, mapPairFigure, residualFigure, surfaceFigure } from './fit_maps.js';
+import { linePlot } from './plots.js';
 import { requestRules, ruleAttrs } from './rules.js';
 
 const ALPHA = 0.05; // the paper's significance level for the F-test
-
-function wienerFigure(w, pitch) {
-    if (!w) return h('p', { class: 'muted' }, 'No Wiener baseline was requested for this fit.');
-    if (w.error) return h('p', { class: 'err' }, `Wiener baseline failed: ${w.error}`);
-    return heatmap({ values: w.S, nx: w.nx, ny: w.ny, title: `Wiener deconvolution baseline ` +
-        `(${w.nx}×${w.ny})`, testid: 'map-wiener', describe: (i, j, v) =>
-        `x = ${fmt(w.x0_um + i * w.step_um[0], 3)} µm, y = ${fmt(w.y0_um + j * w.step_um[1], 3)}` +
-        ` µm: S = ${fmt(v, 5)}`, table: w.nx * w.ny <= 144 });
-}
 
 // The model-selection plots and table; note: the line under them that says which map the maps
 // above show (updated by the view when another r is chosen).
@@ -129,7 +122,10 @@ export function renderFit(root, id) {
         const fit = await get(`/api/fits/${id}`);
         const res = fit.result || {};
         const scan = fit.scan_id ? await get(`/api/scans/${fit.scan_id}`).catch(() => null) : null;
-        const sensor = scan ? await get(`/api/sensors/${scan.sensor_id}`).catch(() => null) : null;
+        // the pitch for the maps' um axes: the scan's sensor, or the sensor an uploaded scan file
+        // was fitted for (fit.calibration names it)
+        const sensorId = scan?.sensor_id ?? fit.calibration?.sensor_id;
+        const sensor = sensorId ? await get(`/api/sensors/${sensorId}`).catch(() => null) : null;
         const pitch = sensor?.pitch_um;
         const best = res.best_r || {};
         const fits = res.fits || [];
@@ -143,7 +139,9 @@ export function renderFit(root, id) {
         const facts = h('dl', { class: 'facts' });
         const note = h('p', { class: 'muted small', 'data-testid': 'selection-note' });
         const maps = h('div', { class: 'maps' });
-        const wiener = wienerFigure(res.wiener, pitch);
+        // the spot positions of the residuals, read once (fit_maps.js)
+        const points = fitPoints(fit);
+        points.catch(() => {});
         const show = () => {
             const f = fits.find((x) => x.r === Number(rSel.value));
             if (!f) {
@@ -178,9 +176,20 @@ export function renderFit(root, id) {
                 `are r = ${f.r}` + (f.r === rec ? ', the recommended r: the map the fit offers ' +
                 'as its pixel\'s calibration.' : `; the map the fit offers as its pixel's ` +
                 `calibration is the recommended r = ${rec ?? '–'}.`));
-            fill(maps, f.S ? mapFigures(f.S, f.S_err, f.r, pitch,
-                `/api/fits/${fit.id}/interp?r=${f.r}`) : h('p', { class: 'muted' },
-                `The r = ${f.r} fit has no map (${f.status}).`), wiener);
+            purgeIn(maps);
+            if (!f.S) {
+                fill(maps, h('p', { class: 'muted' }, `The r = ${f.r} fit has no map ` +
+                    `(${f.status}).`));
+                return;
+            }
+            const resid = h('div', { class: 'pfig-slot' }, h('p', { class: 'muted' },
+                'Loading the spot positions…'));
+            points.then((pts) => fill(resid, residualFigure(f, pts)), (err) => fill(resid,
+                h('p', { class: 'muted', 'data-testid': 'resid-missing' },
+                    `No residual plot: ${err.message}.`)));
+            fill(maps, mapPairFigure(f, res.wiener, pitch),
+                surfaceFigure(`/api/fits/${fit.id}/interp?r=${f.r}`, pitch),
+                f.S_err ? errFigure(f, pitch) : null, resid);
         };
         rSel.addEventListener('change', show);
         const where = fit.scan_id
@@ -210,8 +219,11 @@ export function renderFit(root, id) {
                         h('h3', { id: 'cal-h' }, 'Calibration'), calibrationPanel(fit)))),
             h('section', { class: 'panel', 'aria-labelledby': 'maps-h' },
                 h('h3', { id: 'maps-h' }, 'IPS maps'),
-                h('p', { class: 'muted small' }, 'Row 0 is the top edge of the pixel (y grows ' +
-                    'downward). Point at a map, or focus it and use the arrow keys, for values.'),
+                h('p', { class: 'muted small' }, 'Axes in µm (pixel widths when the sensor\'s ' +
+                    'pitch is unknown) from the pixel\'s top-left corner (y grows downward; the ' +
+                    'pixel outlined). Point at a map for its values, drag ' +
+                    'to zoom, double-click to reset; each figure\'s bar saves it as PNG (camera) ' +
+                    'or SVG (disk).'),
                 maps),
             h('section', { class: 'panel', 'aria-labelledby': 'sel-h' },
                 h('h3', { id: 'sel-h' }, 'Model selection'), fits.length ? selection(res, rec, note)

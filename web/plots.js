@@ -132,7 +132,8 @@ export function heatmap(opts) {
     return fig;
 }
 
-function valueTable(values, nx, ny) {
+// The values of an nx x ny map as a table in a <details> (for keyboards and screen readers).
+export function valueTable(values, nx, ny) {
     const rows = [];
     for (let j = 0; j < ny; j++) {
         rows.push(h('tr', {}, h('th', { scope: 'row' }, j),

@@ -5,9 +5,12 @@
 // request and checks the API's own error message is shown at the form, submits a small scan,
 // waits for the progress to reach done on the page, opens the automatic fit through the scan
 // page, and checks what the page shows against GET /api/fits/{id} and its interpolated map
-// (GET /api/fits/{id}/interp) fetched independently (best r, status, F-test, the heatmaps'
-// colours at the maps' extreme cells, the hover readouts), the calibration search and its CSV
-// link, cancels a long scan, and checks that the page logged no console errors.
+// (GET /api/fits/{id}/interp) and the pixel's raster fetched independently (best r, status,
+// F-test; the Plotly figures' data read from their graph divs: the map S and the Wiener baseline
+// on one colour scale, axes in µm, the pixel outline, the 3-D surface of the interpolated map, the
+// residuals at their spot positions, a hover readout), the calibration search and its CSV link
+// (the pixel view's canvas heat map's colours), cancels a long scan, and checks that the page
+// logged no console errors.
 //
 // Deterministic on a busy machine: every wait is for a condition (on the page, or polled from
 // the API) with a generous deadline, never for a time; the scan cancelled from the page is far
@@ -15,7 +18,7 @@
 // the cancel comes a few seconds after the start).
 //
 // usage: node dashboard.test.mjs IPSD WEBDIR     exit 0 pass, 1 fail, 77 skip (no node_modules
-// or no chromium). Screenshots go to /tmp (ipsd-dashboard-*.png).
+// here or in WEBDIR (Plotly.js), or no chromium). Screenshots go to /tmp (ipsd-dashboard-*.png).
 import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -26,7 +29,6 @@ const HERE = path.dirname(fileURLToPath(import.meta.url));
 const CHROMIUM = '/usr/bin/chromium';
 const [ipsdBin, webDir] = process.argv.slice(2);
 const VIRIDIS_TOP = [0xfd, 0xe7, 0x25]; // the colour map's ends: a map's max and min cells
-const VIRIDIS_BOTTOM = [0x44, 0x01, 0x54];
 const TOKEN = 'e2e-Token-7f3a'; // ipsd runs with --token: writes need it
 const WAIT = 30000; // ms: the deadline of a wait for something the page shows soon
 const LONG_WAIT = 90000; // ms: the deadline of a wait for a scan or a fit to finish
@@ -43,6 +45,10 @@ if (!ipsdBin || !webDir) {
 if (!fs.existsSync(path.join(HERE, 'node_modules', 'playwright-core'))) {
     skip('tests/web/node_modules is missing: run `npm ci --prefix tests/web` (needs the npm ' +
         'registry) to enable the browser test');
+}
+if (!fs.existsSync(path.join(webDir, 'node_modules', 'plotly.js-dist-min', 'plotly.min.js'))) {
+    skip(`${webDir}/node_modules/plotly.js-dist-min is missing: run \`npm ci --prefix web\` ` +
+        '(needs the npm registry) to install the dashboard\'s plotting library');
 }
 if (!fs.existsSync(CHROMIUM)) skip(`${CHROMIUM} is missing: apt-get install chromium`);
 const { chromium } = await import('playwright-core');
@@ -342,49 +348,92 @@ async function run(base, page, api) {
     check(sig === String(res.ftest.p_value < 0.05), 'the F-test verdict is p < 0.05',
         `${sig}, p = ${res.ftest.p_value}`);
 
-    // the map's heatmap: its max cell is the top of the colour map, its min cell the bottom
-    const r = best.r, S = best.S;
-    const kMax = S.indexOf(Math.max(...S)), kMin = S.indexOf(Math.min(...S));
-    const centre = (k) => [((k % r) + 0.5) / r, (Math.floor(k / r) + 0.5) / r];
-    const heat = await canvasInfo(page, '[data-testid="map-S"] canvas.heat',
-        [centre(kMax), centre(kMin)]);
-    check(heat.distinct > 1, 'the IPS map canvas is not one colour', `${heat.distinct} colours`);
-    check(sameColour(heat.at[0], VIRIDIS_TOP) && sameColour(heat.at[1], VIRIDIS_BOTTOM),
-        'the cells of max and min S have the colour bar\'s end colours', JSON.stringify(heat.at));
-    const wiener = await canvasInfo(page, '[data-testid="map-wiener"] canvas.heat');
-    check(wiener.distinct > 1 && res.wiener.nx > 0, 'the Wiener baseline map is drawn');
-
-    // hover: the readout names the cell's value
-    const hover = async (testid, [fx, fy], re) => {
-        const canvas = page.locator(`[data-testid="${testid}"] canvas.heat`);
-        const box = await canvas.boundingBox();
-        await page.mouse.move(box.x + fx * box.width, box.y + fy * box.height);
-        const out = page.locator(`[data-testid="${testid}"] output`).filter({ hasText: re });
-        await out.waitFor({ timeout: WAIT });
-        return out.textContent();
+    // the Plotly figures (web/fit_maps.js): what they plot is read from the graph divs (Plotly
+    // keeps each graph's data and layout on its div) and checked against the API's numbers
+    const r = best.r, S = best.S, pitch = sensor.pitch_um;
+    const graph = async (testid) => {
+        const sel = `[data-testid="${testid}"]`;
+        await page.locator(`${sel}[data-state="ready"]`).waitFor({ timeout: WAIT });
+        return page.$eval(sel, (g) => JSON.parse(JSON.stringify({ data: g.data,
+            layout: g.layout })));
     };
-    const readout = await hover('map-S', centre(kMax), /S = /);
+    const flat = (z) => z.flat();
+    const same = (a, b) => a.length === b.length && a.every((v, k) => near(v, b[k], 1e-12));
+    const title = (ax) => ax?.title?.text ?? ax?.title ?? '';
+    const maps = await graph('plot-maps');
+    const [sTr, wTr] = maps.data;
+    check(sTr.type === 'heatmap' && sTr.z.length === r && sTr.z.every((row) => row.length === r) &&
+        same(flat(sTr.z), S), `the heat map plots the API's ${r} x ${r} map S`,
+    JSON.stringify(sTr.z));
+    check(same(sTr.x, S.slice(0, r).map((_, i) => (i + 0.5) * pitch / r)) &&
+        same(sTr.y, sTr.x), 'the map\'s cells sit at the sub-pixel centres in µm (the sensor\'s ' +
+        `pitch ${pitch} µm)`, JSON.stringify(sTr.x));
+    check(title(maps.layout.xaxis).includes('µm') && title(maps.layout.yaxis).includes('µm') &&
+        title(maps.layout.xaxis2).includes('µm') && title(maps.layout.yaxis2).includes('µm'),
+    'the heat maps\' axes are in µm', JSON.stringify([title(maps.layout.xaxis),
+        title(maps.layout.yaxis)]));
+    check(maps.layout.shapes.some((sh) => sh.type === 'rect' && sh.x0 === 0 && sh.y0 === 0 &&
+        near(sh.x1, pitch, 1e-12) && near(sh.y1, pitch, 1e-12)), 'the pixel outline is drawn');
+    const W = res.wiener.S;
+    const lo = Math.min(...S, ...W), hi = Math.max(...S, ...W);
+    check(wTr?.type === 'heatmap' && same(flat(wTr.z), W) && wTr.z.length === res.wiener.ny,
+        'the Wiener baseline plotted is the API\'s');
+    check(sTr.coloraxis === 'coloraxis' && wTr.coloraxis === 'coloraxis' &&
+        near(maps.layout.coloraxis.cmin, lo, 1e-12) && near(maps.layout.coloraxis.cmax, hi, 1e-12),
+    'S and the Wiener baseline share one colour scale spanning both', JSON.stringify([
+        maps.layout.coloraxis.cmin, maps.layout.coloraxis.cmax, lo, hi]));
+    check(/viridis/i.test(JSON.stringify(maps.layout.coloraxis.colorscale)),
+        'the maps use viridis');
+
+    // hover: the pointer on the cell of the largest S shows its value
+    const kMax = S.indexOf(Math.max(...S));
+    await page.locator('[data-testid="plot-maps"]').scrollIntoViewIfNeeded();
+    const spot = await page.$eval('[data-testid="plot-maps"]', (g, [x, y]) => {
+        const fl = g._fullLayout, b = g.getBoundingClientRect();
+        return [b.left + fl.xaxis._offset + fl.xaxis.l2p(x),
+            b.top + fl.yaxis._offset + fl.yaxis.l2p(y)];
+    }, [sTr.x[kMax % r], sTr.y[Math.floor(kMax / r)]]);
+    await page.mouse.move(spot[0], spot[1]);
+    const tip = page.locator('[data-testid="plot-maps"] .hoverlayer .hovertext')
+        .filter({ hasText: /S = / });
+    await tip.first().waitFor({ timeout: WAIT });
+    const readout = (await tip.first().textContent()).replace(/\u2212/g, '-');
     const m = readout.match(/S = ([-0-9.e]+)/);
     check(m && near(Number(m[1]), S[kMax], 1e-4), 'hovering a cell shows its S value',
         `"${readout}" vs ${S[kMax]}`);
 
-    // the interpolated map: the server's (GET /api/fits/{id}/interp, fetched by the test too)
+    // the interpolated map (GET /api/fits/{id}/interp, fetched by the test too) as a surface
     const ip = (await api('GET', `/api/fits/${fitId}/interp?r=${r}&n=100`)).body;
-    await page.locator('[data-testid="map-interp"] canvas.heat').waitFor({ timeout: WAIT });
     const n = ip.n, at = (k) => [((k % n) + 0.5) / n, (Math.floor(k / n) + 0.5) / n];
-    const iMax = ip.S.indexOf(Math.max(...ip.S)), iMin = ip.S.indexOf(Math.min(...ip.S));
-    const interpHeat = await canvasInfo(page, '[data-testid="map-interp"] canvas.heat',
-        [at(iMax), at(iMin)]);
-    check(ip.r === r && n === 100 && sameColour(interpHeat.at[0], VIRIDIS_TOP) &&
-        sameColour(interpHeat.at[1], VIRIDIS_BOTTOM),
-    'the interpolated map drawn is the API\'s: its max and min cells have the end colours',
-    JSON.stringify(interpHeat.at));
-    const title = await page.locator('[data-testid="map-interp"] figcaption').textContent();
-    check(title.includes(ip.method), 'the interpolated map names its method', title);
-    const ir = await hover('map-interp', at(iMax), /S ≈ /);
-    const im = ir.match(/S ≈ ([-0-9.e]+)/);
-    check(im && near(Number(im[1]), ip.S[iMax], 1e-4),
-        'hovering the interpolated map shows the API\'s value', `"${ir}" vs ${ip.S[iMax]}`);
+    const surf = await graph('plot-surface');
+    check(ip.r === r && n === 100 && surf.data[0].type === 'surface' &&
+        surf.data[0].z.length === n && same(flat(surf.data[0].z), ip.S),
+    'the 3-D surface plots the API\'s interpolated map');
+    const sc = surf.layout.scene;
+    check(title(sc.xaxis).includes('µm') && title(sc.yaxis).includes('µm'),
+        'the surface\'s axes are in µm', JSON.stringify([title(sc.xaxis),
+            title(sc.yaxis)]));
+    const surfTitle = await page.locator('figure:has([data-testid="plot-surface"]) figcaption')
+        .textContent();
+    check(surfTitle.includes(ip.method), 'the interpolated map names its method', surfTitle);
+
+    // residuals against spot position: the fit's residuals at the positions of the scan's raster
+    // of the pixel (its default answer: the points strictly inside, those the fit used)
+    const px = (await api('GET', `/api/scans/${scan.id}/pixels/${fit.dcol}/${fit.drow}`)).body;
+    const resid = best.residuals;
+    const kept = resid.map((_, k) => k).filter((k) => Number.isFinite(resid[k]));
+    const rg = await graph('plot-resid');
+    const rTr = rg.data[1];
+    check(px.x_um.length === resid.length && kept.length > 0 &&
+        same(rTr.marker.color, kept.map((k) => resid[k])),
+    'the residual plot shows the API\'s residuals', `${rTr.marker.color.length} plotted, ` +
+        `${kept.length} finite of ${resid.length}; raster ${px.x_um.length} points`);
+    check(same(rTr.x, kept.map((k) => px.x_um[k])) && same(rTr.y, kept.map((k) => px.y_um[k])),
+        'each residual sits at its spot position (µm)');
+    check(title(rg.layout.xaxis2).includes('µm') && rg.layout.shapes.length === 2,
+        'the residuals share the maps\' µm axes, the pixel outlined');
+    const sErr = await graph('plot-Serr');
+    check(same(flat(sErr.data[0].z), best.S_err), 'the S_err map plotted is the API\'s');
     check(await page.locator('[data-testid="sweep-table"] tbody tr').count() === res.fits.length,
         'the model-selection table has a row per r');
     await page.screenshot({ path: '/tmp/ipsd-dashboard-fit.png', fullPage: true });
@@ -482,11 +531,12 @@ async function run(base, page, api) {
         'a cancelled scan has no Cancel button');
     await page.screenshot({ path: '/tmp/ipsd-dashboard-scans.png' });
 
-    // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box
+    // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box, the
+    // Fit view's plots drawn (their pairs stacked)
     await page.setViewportSize({ width: 390, height: 844 });
     const views = [['#/scans', `tr[data-scan-id="${scan.id}"]`],
         [`#/scans/${scan.id}`, 'table.list tbody tr'],
-        [`#/fits/${fitId}`, '[data-testid="sweep-table"] tbody tr'],
+        [`#/fits/${fitId}`, '[data-testid="plot-resid"][data-state="ready"]'],
         ['#/calibrations', 'table.list tbody tr'],
         [`#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`,
             '[data-testid="current-why"]']];
@@ -496,6 +546,11 @@ async function run(base, page, api) {
         const w = await page.evaluate(() => [document.documentElement.scrollWidth,
             document.documentElement.clientWidth]);
         check(w[0] <= w[1], `${view} at 390 px: no sideways scrolling`, `page ${w[0]} px wide`);
+        if (view.startsWith('#/fits/')) {
+            check(await page.locator('[data-testid="plot-maps"][data-stacked="true"]').count() ===
+                1 && await page.locator('[data-testid="plot-resid"][data-stacked="true"]')
+                .count() === 1, 'at 390 px the side-by-side plots stand one above the other');
+        }
     }
     await page.setViewportSize({ width: 1280, height: 800 });
 }

@@ -1,0 +1,126 @@
+// charts.js: the dashboard's Plotly.js figures (issue 11): heat maps on a pixel's axes in
+// micrometres with the pixel outline drawn, a 3-D surface, and values at spot positions; each
+// with hover values, zoom and Plotly's mode bar (PNG export, plus an SVG button). Plotly is the
+// npm package plotly.js-dist-min pinned by web/package-lock.json, installed by `npm ci --prefix
+// web` (scripts/run.sh, scripts/test.sh) and loaded by index.html as window.Plotly before the
+// modules, from ipsd itself (no CDN: labs are often offline). Without it every figure says how
+// to install it (the rest of the page works). docs/web.md.
+import { h } from './dom.js';
+
+// Colour scales, perceptually uniform and colour-blind safe: viridis for maps (Plotly's own),
+// magma (matplotlib's, 9 stops) for uncertainties, and blue-white-red (ColorBrewer RdBu, safe
+// for the common colour blindnesses) centred on 0 for signed residuals.
+export const VIRIDIS = 'Viridis';
+const stops = (cs) => cs.map((c, k) => [k / (cs.length - 1), c]);
+export const MAGMA = stops(['#000004', '#1c1044', '#4f127b', '#812581', '#b5367a', '#e55964',
+    '#fb8761', '#fec287', '#fcfdbf']);
+export const DIVERGING = stops(['#2166ac', '#67a9cf', '#d1e5f0', '#f7f7f7', '#fddbc7', '#ef8a62',
+    '#b2182b']);
+
+export const plotlyReady = () => typeof window.Plotly?.newPlot === 'function';
+
+// The message a figure shows when the bundle did not load.
+function missing() {
+    return h('p', { class: 'warn plot-missing', 'data-testid': 'plotly-missing' },
+        'The plotting library (Plotly.js) is not installed, so this figure cannot be drawn: run ',
+        h('code', {}, 'npm ci --prefix web'), ' in the ipsd source directory (scripts/run.sh does)' +
+        ' and reload the page.');
+}
+
+// Plotly's mode bar with an SVG download next to its PNG one (camera icon).
+function config(name) {
+    const P = window.Plotly;
+    return {
+        responsive: true, displaylogo: false, displayModeBar: true,
+        toImageButtonOptions: { format: 'png', filename: name, scale: 2 },
+        modeBarButtonsToAdd: [{ name: 'Download plot as SVG', icon: P.Icons.disk,
+            click: (gd) => P.downloadImage(gd, { format: 'svg', filename: name }) }],
+    };
+}
+
+// A figure holding one Plotly graph: title, the graph's testid, and data + layout (drawn once the
+// div is in the document, so that it takes its container's width). The graph div carries
+// Plotly's own `data` and `layout` (what the browser test reads).
+// stacked: an optional second layout, and its height, for a narrow graph (a phone): side-by-side
+// subplots one above the other.
+export function plotFigure({ title, testid, data, layout, height = 340, note, name, stacked }) {
+    const graph = h('div', { class: 'pgraph', 'data-testid': testid });
+    graph.style.height = `${height}px`;
+    const fig = h('figure', { class: 'pfig' }, h('figcaption', {}, title),
+        plotlyReady() ? graph : missing(), note ? h('p', { class: 'muted small' }, note) : null);
+    if (!plotlyReady()) return fig;
+    const lay = { autosize: true, margin: { l: 60, r: 20, t: 30, b: 50 },
+        font: { size: 11 }, ...layout };
+    let tries = 0;
+    const draw = () => {
+        if (!graph.isConnected) {
+            if (++tries < 600) requestAnimationFrame(draw);
+            return;
+        }
+        if (stacked && graph.clientWidth < 520) {
+            Object.assign(lay, stacked.layout);
+            graph.style.height = `${stacked.height}px`;
+            graph.dataset.stacked = 'true';
+        }
+        window.Plotly.newPlot(graph, data, lay, config(name || testid))
+            .then(() => { graph.dataset.state = 'ready'; });
+    };
+    requestAnimationFrame(draw);
+    return fig;
+}
+
+// Frees the Plotly graphs under el (their resize listeners) before el's content is replaced.
+export function purgeIn(el) {
+    if (!plotlyReady()) return;
+    for (const g of el.querySelectorAll('.js-plotly-plot')) window.Plotly.purge(g);
+}
+
+// The axes of a pixel: x to the right and y downward from its top-left corner (docs/contracts.md
+// "Coordinates"), in micrometres when the pitch is known, else in pixel widths (said on the axis;
+// the figures' section says where the origin is: short titles fit a phone).
+export function pixelFrame(pitch) {
+    const um = Number.isFinite(pitch) && pitch > 0;
+    const unit = um ? 'µm' : 'pixel widths; pitch unknown';
+    return {
+        w: um ? pitch : 1, um, unit, u: um ? ' µm' : ' px',
+        xtitle: `x (${unit})`, ytitle: `y (${unit}), downward`,
+    };
+}
+
+// Axis pair for a subplot k ('' or 2, 3, ...) spanning range [lo, hi] on both axes, y downward,
+// one unit the same length on both; a subplot right of another (k not '') has a short y title,
+// which would otherwise run into its neighbour.
+export function squareAxes(frame, k, domain, range, ydomain = [0, 1]) {
+    const x = `xaxis${k}`, y = `yaxis${k}`;
+    return {
+        [x]: { title: { text: frame.xtitle }, domain, range, zeroline: false, constrain: 'domain',
+            anchor: `y${k}` },
+        [y]: { title: { text: k ? `y (${frame.unit})` : frame.ytitle }, range: [range[1], range[0]],
+            domain: ydomain, zeroline: false,
+            scaleanchor: `x${k}`, constrain: 'domain', anchor: `x${k}` },
+    };
+}
+
+// The pixel's outline [0, w]^2 on subplot k.
+export function outline(frame, k = '') {
+    return { type: 'rect', xref: `x${k}`, yref: `y${k}`, x0: 0, x1: frame.w, y0: 0, y1: frame.w,
+        line: { color: '#111', width: 1.5 }, fillcolor: 'rgba(0,0,0,0)', layer: 'above' };
+}
+
+// values (nx * ny, row-major y then x) as rows for a heatmap's z.
+export function rows(values, nx, ny) {
+    return Array.from({ length: ny }, (_, j) => values.slice(j * nx, (j + 1) * nx));
+}
+
+// [min, max] of the finite values of the arrays given.
+export function jointRange(...arrays) {
+    let lo = Infinity, hi = -Infinity;
+    for (const a of arrays) {
+        for (const v of a || []) {
+            if (v === null || !Number.isFinite(v)) continue;
+            lo = Math.min(lo, v);
+            hi = Math.max(hi, v);
+        }
+    }
+    return lo === Infinity ? [0, 1] : lo === hi ? [lo - 0.5, hi + 0.5] : [lo, hi];
+}
