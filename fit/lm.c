@@ -52,7 +52,7 @@ static int lm_df(const gsl_vector *x, void *vd, gsl_matrix *J)
     return GSL_SUCCESS;
 }
 
-/* gsl_multifit_nlinear_driver's loop (GSL 2.x, multifit_nlinear/fdf.c: iterate, fail when the
+/* gsl_multifit_nlinear_driver's loop (GSL 2.x, multifit_nlinear/fdf.c: iterate, end when the
  * first iteration makes no progress, test for convergence, at most LM_MAX_ITER), which also ends
  * when the stop answered. GSL's driver ignores an iteration's error, so a residual function that
  * refuses to run does not end it: each further iteration still factors the Jacobian. */
@@ -62,8 +62,13 @@ static int drive(gsl_multifit_nlinear_workspace *ws, const struct lm_data *d, in
     for (size_t iter = 0; st == GSL_CONTINUE && iter < LM_MAX_ITER && !d->stopped;) {
         st = gsl_multifit_nlinear_iterate(ws);
         if (st == GSL_ENOPROG && iter == 0) {
+            /* GSL's driver reports this as GSL_EMAXITER, but no iteration limit was hit: no
+             * step lowers the cost from the start, so the start is a minimum to rounding (at
+             * r = 1 the start, S = 1 and the linear I0, is the exact solution). The caller's
+             * comparison with the linear minimum (FIT_LM_NOT_GLOBAL) still catches a start that
+             * is not the global one. */
             *info = st;
-            return GSL_EMAXITER;
+            return GSL_ENOPROG;
         }
         ++iter;
         st = gsl_multifit_nlinear_test(1e-12, 1e-12, 1e-15, info, ws);
