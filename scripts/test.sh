@@ -26,6 +26,8 @@ fi
 scripts/build-matrix.sh --incremental gcc-release gcc-debug clang-release
 # the browser test's driver, pinned by tests/web/package-lock.json (the browser is Debian's)
 npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
+# the OpenAPI checks' tools (Redocly's CLI, ajv), pinned by tests/apilint/package-lock.json
+npm ci --prefix tests/apilint --no-audit --no-fund --loglevel=error
 # the dashboard's plotting library, pinned by web/package-lock.json (the browser test needs it)
 scripts/web-deps.sh --strict
 

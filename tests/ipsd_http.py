@@ -9,6 +9,9 @@
 - sql(): the database read by Python's sqlite3 module, an independent reader of what ipsd stored.
 - wait_for(): polls a condition until a generous deadline: tests wait for states, never for time.
 - Checks: counts checks and failures; finish() prints the tally and gives the exit status.
+- Recording: with IPSD_API_RECORD_DIR set (tests/server.cmake sets it), every answer a Client or
+  an EventStream gets is appended to DIR/<test>.<pid>.jsonl (method, path, status, content type,
+  body), which tests/apilint/validate.mjs checks against api/openapi.json (docs/api.md).
 """
 import http.client
 import json
@@ -31,6 +34,34 @@ try:  # Linux: ipsd gets SIGKILL when the test dies (e.g. killed by ctest's TIME
         _libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 except (OSError, AttributeError):
     _die_with_parent = None
+
+_RECORD_DIR = os.environ.get("IPSD_API_RECORD_DIR")
+if _RECORD_DIR:  # this test's answers of an earlier run are stale: start its record afresh
+    os.makedirs(_RECORD_DIR, exist_ok=True)
+    _RECORD_PREFIX = os.path.basename(sys.argv[0]).rsplit(".", 1)[0] + "."
+    for _f in os.listdir(_RECORD_DIR):
+        if _f.startswith(_RECORD_PREFIX) and _f.endswith(".jsonl"):
+            os.remove(os.path.join(_RECORD_DIR, _f))
+_record_lock = threading.Lock()
+
+
+def _record(method, path, status, content_type, body, events=None, request=None):
+    """Appends one answer to this test's record file (no-op unless IPSD_API_RECORD_DIR is set).
+    body: bytes (kept as text, lossy for non-UTF-8); events: an event stream's data lines;
+    request: the request's body (bytes) when it had one."""
+    if not _RECORD_DIR:
+        return
+    rec = {"method": method, "path": path, "status": status,
+           "content_type": (content_type or "").split(";")[0].strip(),
+           "body": body.decode("utf-8", "replace") if body is not None else None}
+    if events is not None:
+        rec["events"] = events
+    if request:
+        rec["request"] = request.decode("utf-8", "replace")
+    name = "%s%d.jsonl" % (_RECORD_PREFIX, os.getpid())
+    with _record_lock, open(os.path.join(_RECORD_DIR, name), "a") as f:
+        f.write(json.dumps(rec) + "\n")
+
 
 DEADLINE_S = 60  # how long a wait may take on a busy machine (ASan, other tests) before it fails
 
@@ -151,6 +182,7 @@ class Client:
             self.used = True
             if r.will_close:
                 self.close()
+            _record(method, path, r.status, r.headers.get("Content-Type"), data, request=body)
             return Response(r.status, data, r.headers)
 
 
@@ -167,6 +199,8 @@ class EventStream:
         self.resp = http.client.HTTPResponse(self.sock, method="GET")
         self.resp.begin()
         self.status = self.resp.status
+        self.path = path
+        self.content_type = self.resp.headers.get("Content-Type")
         self.thread = threading.Thread(target=self._read, daemon=True)
         self.thread.start()
         self.ready = wait_for(lambda: self.has(": ipsd events"))
@@ -198,6 +232,8 @@ class EventStream:
         self.thread.join(DEADLINE_S)
         self.resp.close()
         self.sock.close()
+        _record("GET", self.path, self.status, self.content_type, None,
+                events=[l[6:] for l in self.snapshot() if l.startswith("data: ")])
 
 
 class Ipsd:

@@ -36,7 +36,10 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
                          ${CMAKE_CURRENT_SOURCE_DIR}/test_server_${name}.py $<TARGET_FILE:ipsd>
                          $<TARGET_FILE:ips>
                  WORKING_DIRECTORY ${IPSD_TEST_DATA})
-        set_tests_properties(test_server_${name} PROPERTIES TIMEOUT ${timeout})
+        # every answer is recorded for tests/apilint.cmake's check against api/openapi.json
+        set_tests_properties(test_server_${name} PROPERTIES TIMEOUT ${timeout}
+            ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
+            FIXTURES_SETUP api_records)
     endforeach()
 elseif(TARGET ipsapi)
     message(STATUS "server HTTP tests: python3 or the ips target missing, not registered")
