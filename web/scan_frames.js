@@ -94,7 +94,7 @@ function pointView(p) {
             note: 'One colour scale for both. The dashed square is the pixel of interest.' }));
     };
     const inp = chooser.querySelector('input');
-    inp.addEventListener('change', () => {
+    inp.addEventListener('input', () => {
         const k = Math.round(Number(inp.value));
         if (k >= 1 && k <= p.frames) draw(k);
     });

@@ -117,6 +117,7 @@ export function rasterFigure(data, scan, opt = {}) {
     if (graph) {
         graph.dataset.zoom = opt.zoom === 'pixel' ? 'pixel' : 'all';
         graph.dataset.colour = log ? 'log' : 'linear';
+        graph.dataset.pixel = `${data.dcol ?? 0},${data.drow ?? 0}`;
     }
     if (g.onGrid && opt.onPoint) {
         whenDrawn(fig, (gd) => gd.on('plotly_click', (ev) => {
