@@ -149,16 +149,17 @@ export function geometryFigure(scan, pitch, shown, onPoint) {
             pts.k[t].push(k);
         }
     }
-    const size = Math.max(2, Math.min(7, (300 / (n / every)) * 0.35));
     const trace = (t, name, color) => ({ type: 'scatter', mode: 'markers', name, x: pts.x[t],
         y: pts.y[t], customdata: pts.k[t], marker: { color, size, line: { width: 0 } },
         hovertemplate: `point %{customdata}<br>x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}` +
             `<extra>${name}</extra>` });
-    const data = [trace(0, 'stored', SPOT)];
-    if (pts.x[1].length) data.push(trace(1, 'not yet measured', PENDING));
     const lo = Math.min(-hs * w, -ha * w, axis[0]), hi = Math.max((hs + 1) * w, (ha + 1) * w,
         axis[n - 1]);
     const m = (hi - lo) * 0.02, range = [lo - m, hi + m];
+    // a marker about half a drawn step wide on a graph some 300 px across
+    const size = Math.max(2, Math.min(6, (150 * every * r.step_um) / (range[1] - range[0])));
+    const data = [trace(0, 'stored', SPOT)];
+    if (pts.x[1].length) data.push(trace(1, 'not yet measured', PENDING));
     const shapes = [];
     for (let k = -hs; k <= hs + 1; k++) { // the sub-frame's pixel grid
         const line = { color: '#8a93a6', width: 1 };
