@@ -93,9 +93,10 @@ export function renderScan(root, id, ctx) {
             radios('zoom', 'Show', [['all', 'whole raster'], ['pixel', 'the pixel']], 'zoom'),
             h('div', { class: 'downloads' },
                 downloadButton('Download CSV', () => `${base()}.csv`, 'text/csv',
-                    () => rasterCsv(rasterData), 'raster-csv'),
+                    () => (rasterData ? rasterCsv(rasterData) : null), 'raster-csv'),
                 downloadButton('Download JSON', () => `${base()}.json`, 'application/json',
-                    () => JSON.stringify(rasterData), 'raster-json')));
+                    () => (rasterData ? JSON.stringify(rasterData) : null),
+                    'raster-json')));
     }
 
     function drawHead() {

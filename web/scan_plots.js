@@ -15,7 +15,7 @@ import { VIRIDIS, outline, pixelFrame, plotFigure, rows, squareAxes } from './ch
 // Colour-blind safe marks (Okabe-Ito): stored spot positions, the pixel of interest, the pixel
 // whose raster is shown.
 const SPOT = '#d55e00', PENDING = '#b8bec9', POI = '#e69f00', SHOWN = '#0072b2';
-const MAX_GEOMETRY_POINTS = 40000; // above this the geometry figure thins its spots (said so)
+const MAX_GEOMETRY_POINTS = 10000; // above this the geometry figure thins its spots (said so)
 
 // Calls fn(graph div) once the Plotly graph of fig (plotFigure's answer) is drawn.
 export function whenDrawn(fig, fn) {
@@ -231,11 +231,14 @@ export function rasterCsv(d) {
     return `${lines.join('\n')}\n`;
 }
 
-// A button that downloads text() as a file named filename() (a Blob made in the browser).
+// A button that downloads text() as a file named filename() (a Blob made in the browser);
+// text() null: nothing to download yet.
 export function downloadButton(label, filename, type, text, testid) {
     return h('button', { type: 'button', class: 'small', 'data-testid': testid,
         onclick: () => {
-            const url = URL.createObjectURL(new Blob([text()], { type }));
+            const body = text();
+            if (body === null) return; // nothing loaded yet
+            const url = URL.createObjectURL(new Blob([body], { type }));
             const a = h('a', { href: url, download: filename() });
             document.body.append(a);
             a.click();
