@@ -49,9 +49,11 @@ export function overviewFigure(scan, pitch, cals) {
                     layer: 'below' });
                 continue;
             }
-            const n = cal.r, cs = Array.from({ length: n }, (_, i) => (i + 0.5) * w / n);
+            // cells at the sub-pixel centres (i + 1/2) w / r of the pixel's place (x0 + k dx:
+            // also right for r = 1, where an x array would leave Plotly to guess the width)
+            const n = cal.r;
             data.push({ type: 'heatmap', name: `(${cal.pixel.col}, ${cal.pixel.row})`,
-                x: cs.map((v) => dcol * w + v), y: cs.map((v) => drow * w + v),
+                x0: dcol * w + w / (2 * n), dx: w / n, y0: drow * w + w / (2 * n), dy: w / n,
                 z: rows(cal.S, n, n), coloraxis: 'coloraxis',
                 customdata: rows(cal.S.map(() => cal.id), n, n),
                 meta: [cal.pixel.col, cal.pixel.row, cal.r],

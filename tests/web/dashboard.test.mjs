@@ -322,7 +322,8 @@ async function checkScanPage(page, api, scan, sensor) {
     const ov = await plotly(page, 'subframe-overview', '[data-maps="1"]');
     check(ov.data.length === 1 && same(ov.data[0].z.flat(), cal.S) &&
         ov.dataset.missing === String(m * m - 1) &&
-        near(ov.data[0].x[0], pitch / (2 * cal.r), 1e-12),
+        near(ov.data[0].x0, pitch / (2 * cal.r), 1e-12) &&
+        near(ov.data[0].y0, pitch / (2 * cal.r), 1e-12) && near(ov.data[0].dx, pitch / cal.r, 1e-12),
     'the sub-frame overview shows the POI\'s calibration in its place, the other pixels empty',
     JSON.stringify(ov.dataset));
     await page.screenshot({ path: shot('scan'), fullPage: true });
