@@ -233,8 +233,9 @@ async function checkScanPage(page, api, scan, sensor) {
         `the raster heat map of pixel (${dcol}, ${drow}) holds the API's ${px.x_um.length} ` +
             'values at their spot positions', `${c.set} cells set`);
         check(axisTitle(g.layout.xaxis).includes('µm') &&
-            axisTitle(g.layout.yaxis).includes('µm') && g.layout.shapes.some((sh) => sh.type === 'rect' && sh.x0 === 0 && sh.y0 === 0 &&
-                near(sh.x1, pitch, 1e-12) && near(sh.y1, pitch, 1e-12)),
+            axisTitle(g.layout.yaxis).includes('µm') && g.layout.shapes.some((sh) =>
+            sh.type === 'rect' && sh.x0 === 0 && sh.y0 === 0 && near(sh.x1, pitch, 1e-12) &&
+                near(sh.y1, pitch, 1e-12)),
         `the raster of pixel (${dcol}, ${drow}) has µm axes and the pixel outlined`);
         // the CSV download: the API's numbers, sigma by the paper's eq. 5, the pitch in a comment
         const csv = (await download(page, page.locator('[data-testid="raster-csv"]')))
