@@ -1,33 +1,102 @@
-// scan_detail.js: the Scan view (#/scans/ID): the scan's state and setup, the response raster of
-// its pixel of interest (filling in while the scan runs), the fit jobs of the scan with their
-// results, and the form to fit another pixel (fit_form.js). Live from /api/events, and re-read
-// every few seconds while the scan or a fit is active.
+// scan_detail.js: the Scan view (#/scans/ID): the scan's state and setup, the scan geometry
+// (spot positions over the sub-frame), the response raster of any pixel of the sub-frame
+// (filling in while the scan runs; linear or log colour, the whole raster or the pixel, CSV and
+// JSON download), a point's raw frames (scan_frames.js), the sub-frame overview of the pixels'
+// maps from this scan (scan_overview.js), the fit jobs of the scan with their results, and the
+// form to fit another pixel (fit_form.js). Plotly figures: scan_plots.js. Live from /api/events,
+// and re-read every few seconds while the scan or a fit is active.
 import { ApiError, get, post } from './api.js';
 import { errorBox, failure, fill, fmt, fmtTime, h, showError, stateBadge } from './dom.js';
 import { buildFitForm } from './fit_form.js';
 import { requestRules } from './rules.js';
-import { rasterFigure } from './scan_plots.js';
+import { purgeIn } from './charts.js';
+import { framesPanel } from './scan_frames.js';
+import { overviewContent } from './scan_overview.js';
+import { downloadButton, geometryFigure, rasterCsv, rasterFigure } from './scan_plots.js';
 import { ACTIVE, POLL_MS, progressCell, sensorName, setProgress } from './scan_state.js';
 
 export function renderScan(root, id, ctx) {
-    let scan = null, closed = false, fitsTimer = null, rasterAt = 0;
+    let scan = null, sensor = null, closed = false, fitsTimer = null, rasterAt = 0;
+    let rasterData = null, rasterSeq = 0, geoKey = '';
+    const sel = { dcol: 0, drow: 0, colourMode: 'linear', zoom: 'all' }; // what the raster shows
     const head = h('h2', {}, `Scan #${id}`);
     const summary = h('section', { class: 'panel', 'aria-label': 'Scan summary' });
+    const geometry = h('section', { class: 'panel', 'aria-labelledby': 'geometry-h' },
+        h('h3', { id: 'geometry-h' }, 'Scan geometry'));
+    const geoSlot = h('div', {});
+    geometry.append(geoSlot);
+    const rasterTools = h('div', { class: 'scan-tools' });
+    const rasterSlot = h('div', {}, h('p', { class: 'muted' }, 'Loading…'));
     const raster = h('section', { class: 'panel', 'aria-labelledby': 'raster-h' },
-        h('h3', { id: 'raster-h' }, 'Response of the pixel of interest'));
+        h('h3', { id: 'raster-h' }, 'Response raster of a pixel'), rasterTools, rasterSlot);
+    const frames = framesPanel(id, () => scan?.points_done ?? 0);
+    const overviewSlot = h('div', {}, h('p', { class: 'muted' }, 'When the scan is done: the ' +
+        'maps of the sub-frame\'s pixels fitted from it, on one colour scale.'));
+    const overview = h('section', { class: 'panel', 'aria-labelledby': 'overview-h' },
+        h('h3', { id: 'overview-h' }, 'Sub-frame overview'), overviewSlot);
     const fitTable = h('div', {}), fitFormBox = h('div', {});
     const fits = h('section', { class: 'panel', 'aria-labelledby': 'fits-h' },
         h('h3', { id: 'fits-h' }, 'Fits of this scan'), fitTable, fitFormBox);
     const headMsg = errorBox();
     fill(root, h('p', { class: 'crumbs' }, h('a', { href: '#/scans' }, '← Scans')),
         h('div', { class: 'title-row' }, head), h('div', {}, headMsg),
-        h('div', { class: 'two-col even' }, summary, raster), fits);
+        h('div', { class: 'two-col even' }, summary, geometry),
+        h('div', { class: 'two-col even' }, raster, frames.el), overview, fits);
 
     async function loadScan() {
+        const first = !scan;
         scan = await get(`/api/scans/${id}`);
-        const sensor = await get(`/api/sensors/${scan.sensor_id}`).catch(() => null);
+        sensor ??= await get(`/api/sensors/${scan.sensor_id}`).catch(() => null);
         drawHead();
         drawSummary(sensor);
+        if (first) {
+            buildRasterTools();
+            frames.setTotal(scan.raster.points_total);
+        }
+        drawGeometry();
+    }
+
+    const pitch = () => sensor?.pitch_um ?? rasterData?.pitch_um;
+
+    // The geometry figure, redrawn when the pixel shown or the points stored change.
+    function drawGeometry() {
+        const key = `${scan?.points_done} ${sel.dcol} ${sel.drow} ${pitch()}`;
+        if (!scan || !pitch() || key === geoKey) return;
+        geoKey = key;
+        purgeIn(geoSlot);
+        fill(geoSlot, geometryFigure(scan, pitch(), sel, (k) => frames.show(k)));
+    }
+
+    // The raster's controls: the pixel (offsets from the POI), the colour scale, the zoom and
+    // the downloads; built once.
+    function buildRasterTools() {
+        const hs = Math.floor(scan.raster.sub_px / 2);
+        const offsets = Array.from({ length: 2 * hs + 1 }, (_, k) => k - hs);
+        const pick = (label, key) => h('label', { class: 'fld' }, h('span', { class: 'lbl' },
+            label), h('select', { 'data-testid': `raster-${key}`, onchange: (e) => {
+            sel[key] = Number(e.target.value);
+            loadRaster();
+            drawGeometry();
+        } }, offsets.map((o) => h('option', { value: o, selected: o === 0 }, String(o)))));
+        const radios = (name, legend, opts, key) => h('fieldset', { class: 'radios-box' },
+            h('legend', {}, legend), opts.map(([v, text]) => h('label', { class: 'inline' },
+                h('input', { type: 'radio', name: `${name}-${id}`, value: v,
+                    'data-testid': `${name}-${v}`, checked: sel[key] === v,
+                    onchange: () => {
+                        sel[key] = v;
+                        drawRaster();
+                    } }), text)));
+        const base = () => `scan${id}-pixel${sel.dcol}_${sel.drow}-raster`;
+        fill(rasterTools,
+            pick('Column offset (dcol)', 'dcol'), pick('Row offset (drow)', 'drow'),
+            radios('colour', 'Colour', [['linear', 'linear'], ['log', 'log']], 'colourMode'),
+            radios('zoom', 'Show', [['all', 'whole raster'], ['pixel', 'the pixel']], 'zoom'),
+            h('div', { class: 'downloads' },
+                downloadButton('Download CSV', () => `${base()}.csv`, 'text/csv',
+                    () => (rasterData ? rasterCsv(rasterData) : null), 'raster-csv'),
+                downloadButton('Download JSON', () => `${base()}.json`, 'application/json',
+                    () => (rasterData ? JSON.stringify(rasterData) : null),
+                    'raster-json')));
     }
 
     function drawHead() {
@@ -69,17 +138,37 @@ export function renderScan(root, id, ctx) {
                 h('pre', { class: 'json' }, JSON.stringify(s.setup, null, 2))) : null);
     }
 
+    // The raster of the chosen pixel (every point), then its figure.
     async function loadRaster() {
         rasterAt = Date.now();
+        const mine = ++rasterSeq, path = `/api/scans/${id}/pixels/${sel.dcol}/${sel.drow}?all=1`;
         let data;
         try {
-            data = await get(`/api/scans/${id}/pixels/0/0?all=1`);
+            data = await get(path);
         } catch (err) {
-            fill(raster, raster.firstChild, failure(err));
+            if (mine !== rasterSeq) return;
+            purgeIn(rasterSlot);
+            fill(rasterSlot, failure(err));
             return;
         }
-        fill(raster, raster.firstChild, rasterFigure(data, scan && data.inside_only === 0 ? {
-            n: scan.raster.points_per_axis, step: scan.raster.step_um } : null));
+        if (mine !== rasterSeq) return;
+        rasterData = data;
+        drawRaster();
+        drawGeometry();
+    }
+
+    function drawRaster() {
+        if (!rasterData) return;
+        purgeIn(rasterSlot);
+        fill(rasterSlot, rasterFigure(rasterData, scan, { ...sel, log: sel.colourMode === 'log',
+            onPoint: (k) => frames.show(k) }));
+    }
+
+    async function loadOverview() {
+        if (!scan || scan.state !== 'done' || !pitch()) return;
+        const content = await overviewContent(scan, pitch()).catch(failure);
+        purgeIn(overviewSlot);
+        fill(overviewSlot, content);
     }
 
     async function loadFits() {
@@ -122,7 +211,8 @@ export function renderScan(root, id, ctx) {
 
     function queueFits() {
         clearTimeout(fitsTimer);
-        fitsTimer = setTimeout(() => !closed && loadFits().catch(() => {}), 300);
+        fitsTimer = setTimeout(() => !closed && loadFits().then(loadOverview).catch(() => {}),
+            300);
     }
 
     const stop = ctx.onJob((ev) => {
@@ -139,7 +229,7 @@ export function renderScan(root, id, ctx) {
         if (cell) setProgress(cell, { ...scan, eta_s: ev.eta_s, phase: ev.phase });
         if (was !== ev.state) {
             loadScan().catch(() => {});
-            if (!ACTIVE.has(ev.state)) loadRaster();
+            if (!ACTIVE.has(ev.state)) loadRaster().then(loadOverview);
         } else if (Date.now() - rasterAt > 3000) {
             loadRaster(); // the raster fills in while the scan runs
         }
@@ -147,17 +237,20 @@ export function renderScan(root, id, ctx) {
     // events can be missed: while the scan or its fits are active, re-read them every few s
     const poll = setInterval(() => {
         if (closed || !scan) return;
-        if (ACTIVE.has(scan.state)) loadScan().then(() => !ACTIVE.has(scan.state) && loadRaster())
+        if (ACTIVE.has(scan.state)) loadScan().then(() => !ACTIVE.has(scan.state) &&
+            loadRaster().then(loadOverview))
             .catch(() => {});
         if (fits.querySelector('tr[data-state="queued"], tr[data-state="running"]')) queueFits();
     }, POLL_MS);
-    loadScan().then(() => Promise.all([loadRaster(), loadFits(), loadFitForm()]))
+    loadScan().then(() => Promise.all([loadRaster().then(loadOverview), loadFits(),
+        loadFitForm()]))
         .catch((err) => {
             root.append(failure(err));
             if (err instanceof ApiError && err.status === 404) head.textContent = `Scan #${id}`;
         });
     return () => {
         closed = true;
+        purgeIn(root);
         clearInterval(poll);
         clearTimeout(fitsTimer);
         stop();

@@ -1,62 +1,248 @@
-// scan_plots.js: the picture of a scan: the response raster of one pixel (a scan file from
-// GET /api/scans/ID/pixels/DCOL/DROW?all=1) as a heatmap over the spot positions, with the
-// pixel's outline; on the scan's whole raster grid, so a running scan shows its empty part too.
+// scan_plots.js: the Scan view's Plotly.js figures (charts.js), issue 11:
+//   - the response raster of any pixel of the sub-frame (a scan file from
+//     GET /api/scans/ID/pixels/DCOL/DROW?all=1) as a heat map over the spot positions, on the
+//     pixel's axes in µm from its top-left corner (y downward, as in the API), the pixel
+//     outlined, the colour linear or logarithmic, zoomed to the whole raster or to the pixel;
+//     on the scan's whole raster grid, so a running scan shows its empty part too;
+//   - the scan geometry (the paper's figure): the raster's spot positions over the sub-frame's
+//     pixels, the pixel grid drawn, the pixel of interest and the pixel shown highlighted;
+//   - the raster as CSV (x_um, y_um, value, sigma; the pitch in a header comment).
+// Clicking a spot (in either figure) names its point index (raster order, row by row from the
+// top left: docs/api.md) to the caller, which shows that point's raw frames (scan_frames.js).
 import { fmt, h } from './dom.js';
-import { heatmap } from './plots.js';
+import { VIRIDIS, outline, pixelFrame, plotFigure, rows, squareAxes } from './charts.js';
 
-// The response raster of a pixel (scan-file JSON) as a heatmap over the spot positions, with the
-// pixel's outline [0, pitch] x [0, pitch]. grid {n, step}: the scan's whole raster (n x n points
-// centred on the pixel), so a running scan shows its empty part too; without it (or when the
-// points are not on it) the grid is the distinct positions present.
-export function rasterFigure(data, grid) {
-    if (!data.x_um.length) return h('p', { class: 'muted' }, 'No points stored yet.');
+// Colour-blind safe marks (Okabe-Ito): stored spot positions, the pixel of interest, the pixel
+// whose raster is shown.
+const SPOT = '#d55e00', PENDING = '#b8bec9', POI = '#e69f00', SHOWN = '#0072b2';
+const MAX_GEOMETRY_POINTS = 10000; // above this the geometry figure thins its spots (said so)
+
+// Calls fn(graph div) once the Plotly graph of fig (plotFigure's answer) is drawn.
+export function whenDrawn(fig, fn) {
+    const graph = fig.querySelector('.pgraph');
+    if (!graph) return;
+    if (graph.dataset.state === 'ready') {
+        fn(graph);
+        return;
+    }
+    const obs = new MutationObserver(() => {
+        if (graph.dataset.state !== 'ready') return;
+        obs.disconnect();
+        fn(graph);
+    });
+    obs.observe(graph, { attributes: true, attributeFilter: ['data-state'] });
+}
+
+// The spot positions of scan's n x n raster on the axes of sub-frame pixel (dcol, drow), from
+// that pixel's top-left corner: the raster is centred on the centre of the pixel of interest,
+// whose top-left corner is at (-dcol, -drow) pitches (docs/api.md).
+export function rasterAxis(scan, pitch, d) {
+    const n = scan.raster.points_per_axis, step = scan.raster.step_um;
+    const c = pitch / 2 - d * pitch - ((n - 1) / 2) * step;
+    return Array.from({ length: n }, (_, k) => c + k * step);
+}
+
+// The grid {xs, ys, col(x), row(y), onGrid} the points of data sit on: the scan's raster
+// (so a running scan shows its empty part, and a cell's point index is row * n + col), or, when
+// the points are not on it, the distinct positions present (to 1e-6 µm).
+function rasterGrid(data, scan) {
     const pitch = data.pitch_um;
-    const axes = (grid && onGrid(data, grid, pitch)) || distinctAxes(data);
-    const { xs, ys } = axes, nx = xs.length, ny = ys.length;
-    const values = new Float64Array(nx * ny).fill(NaN);
-    data.signal_dn.forEach((v, k) => {
-        values[axes.row(data.y_um[k]) * nx + axes.col(data.x_um[k])] = v;
-    });
-    const x0 = xs[0], y0 = ys[0];
-    const dx = nx > 1 ? (xs[nx - 1] - x0) / (nx - 1) : 1;
-    const dy = ny > 1 ? (ys[ny - 1] - y0) / (ny - 1) : 1;
-    return heatmap({
-        values, nx, ny, size: 300, unit: 'DN', testid: 'raster-map',
-        title: `Pixel (${data.pixel.col}, ${data.pixel.row}): mean signal (DN) against spot ` +
-            `position, ${data.x_um.length} of ${nx * ny} points`,
-        describe: (i, j, v) => `spot at x = ${fmt(xs[i])} µm, y = ${fmt(ys[j])} µm: ` +
-            (Number.isFinite(v) ? `${fmt(v, 6)} DN` : 'not measured (yet)'),
-        outline: (ctx, w, hh) => { // the pixel's edges, in canvas units
-            const X = (x) => (x - (x0 - dx / 2)) / (nx * dx) * w;
-            const Y = (y) => (y - (y0 - dy / 2)) / (ny * dy) * hh;
-            ctx.strokeStyle = '#ffffff';
-            ctx.lineWidth = Math.max(1, w / 300);
-            ctx.setLineDash([4, 3]);
-            ctx.strokeRect(X(0), Y(0), X(pitch) - X(0), Y(pitch) - Y(0));
-        },
-    });
-}
-
-// The axes {xs, ys, col(x), row(y)} of the scan's n x n raster centred on the pixel, or null
-// when the data's points are not on it.
-function onGrid(data, grid, pitch) {
-    const { n, step } = grid;
-    if (!(n >= 1 && step > 0) || n > 2000) return null;
-    const c = pitch / 2 - ((n - 1) / 2) * step;
-    const axis = Array.from({ length: n }, (_, k) => c + k * step);
-    const index = (v) => Math.round((v - c) / step);
-    const fits = (v) => Math.abs((v - c) / step - index(v)) < 1e-3 && index(v) >= 0 &&
-        index(v) < n;
-    if (!data.x_um.every(fits) || !data.y_um.every(fits)) return null;
-    return { xs: axis, ys: axis, col: index, row: index };
-}
-
-// The axes made of the distinct positions present (to 1e-6 um).
-function distinctAxes(data) {
+    if (scan && scan.raster.points_per_axis <= 2000 && scan.raster.step_um > 0) {
+        const xs = rasterAxis(scan, pitch, data.dcol ?? 0);
+        const ys = rasterAxis(scan, pitch, data.drow ?? 0), step = scan.raster.step_um;
+        const index = (a) => (v) => Math.round((v - a[0]) / step);
+        const fits = (a) => (v) => {
+            const k = (v - a[0]) / step;
+            return Math.abs(k - Math.round(k)) < 1e-3 && Math.round(k) >= 0 &&
+                Math.round(k) < a.length;
+        };
+        if (data.x_um.every(fits(xs)) && data.y_um.every(fits(ys))) {
+            return { xs, ys, col: index(xs), row: index(ys), onGrid: true };
+        }
+    }
     const key = (v) => Math.round(v * 1e6);
     const axis = (a) => [...new Set(a.map(key))].sort((p, q) => p - q);
     const kx = axis(data.x_um), ky = axis(data.y_um);
     const ix = new Map(kx.map((v, i) => [v, i])), iy = new Map(ky.map((v, j) => [v, j]));
     return { xs: kx.map((v) => v / 1e6), ys: ky.map((v) => v / 1e6),
-        col: (x) => ix.get(key(x)), row: (y) => iy.get(key(y)) };
+        col: (x) => ix.get(key(x)), row: (y) => iy.get(key(y)), onGrid: false };
+}
+
+// Log colour: the colour bar's ticks at 5 values between lo and hi (log10), labelled in DN.
+function logTicks(lo, hi) {
+    const t = Array.from({ length: 5 }, (_, k) => lo + (k / 4) * (hi - lo));
+    return { tickmode: 'array', tickvals: t, ticktext: t.map((v) => fmt(10 ** v, 3)) };
+}
+
+// The response raster of a pixel (scan-file JSON) as a heat map over the spot positions, with
+// the pixel's outline [0, pitch]^2. scan: the Scan (its raster grid); opt {log, zoom ('pixel' |
+// 'all'), onPoint(index)}: logarithmic colour, the axes' range, a click on a measured cell.
+export function rasterFigure(data, scan, opt = {}) {
+    if (!data.x_um.length) return h('p', { class: 'muted' }, 'No points stored yet.');
+    const fr = pixelFrame(data.pitch_um);
+    const g = rasterGrid(data, scan), nx = g.xs.length, ny = g.ys.length;
+    const values = new Array(nx * ny).fill(null);
+    data.signal_dn.forEach((v, k) => {
+        values[g.row(data.y_um[k]) * nx + g.col(data.x_um[k])] = Number.isFinite(v) ? v : null;
+    });
+    const log = !!opt.log;
+    const shown = log ? values.map((v) => (v !== null && v > 0 ? Math.log10(v) : null)) : values;
+    const fin = shown.filter((v) => v !== null);
+    const lo = Math.min(...fin), hi = Math.max(...fin);
+    const bar = { title: { text: log ? 'DN (log)' : 'DN' }, thickness: 14,
+        ...(log && fin.length ? logTicks(lo, hi) : {}) };
+    const dx = nx > 1 ? g.xs[1] - g.xs[0] : fr.w / 10, dy = ny > 1 ? g.ys[1] - g.ys[0] : dx;
+    const whole = [Math.min(g.xs[0] - dx / 2, g.ys[0] - dy / 2, 0),
+        Math.max(g.xs[nx - 1] + dx / 2, g.ys[ny - 1] + dy / 2, fr.w)];
+    const pad = Math.max(dx, fr.w * 0.04);
+    const range = opt.zoom === 'pixel' ? [-pad, fr.w + pad] : whole;
+    const trace = { type: 'heatmap', x: g.xs, y: g.ys, z: rows(shown, nx, ny),
+        colorscale: VIRIDIS, colorbar: bar, hoverongaps: false, xgap: 0, ygap: 0,
+        hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>signal ` +
+            (log ? '%{customdata:.6g} DN' : '%{z:.6g} DN') + '<extra></extra>' };
+    if (log) trace.customdata = rows(values, nx, ny);
+    const pix = data.pixel ? `(${data.pixel.col}, ${data.pixel.row})` : '';
+    const fig = plotFigure({
+        title: `Pixel ${pix}, offset (${data.dcol ?? 0}, ${data.drow ?? 0}) from the POI: mean ` +
+            `signal (DN) against spot position, ${data.x_um.length} of ${nx * ny} points, ` +
+            `${log ? 'log' : 'linear'} colour`,
+        testid: 'raster-map', height: 400, name: `raster-${data.scan_id}-${data.dcol ?? 0}-` +
+            `${data.drow ?? 0}`, data: [trace],
+        layout: { ...squareAxes(fr, '', [0, 1], range), shapes: [{ ...outline(fr),
+            line: { color: '#ffffff', width: 2, dash: 'dash' } }] },
+        note: `Axes from the pixel's top-left corner, y downward; the dashed square is the ` +
+            `pixel. ${g.onGrid ? 'Click a spot for its raw frames.' : ''}`,
+    });
+    const graph = fig.querySelector('.pgraph');
+    if (graph) {
+        graph.dataset.zoom = opt.zoom === 'pixel' ? 'pixel' : 'all';
+        graph.dataset.colour = log ? 'log' : 'linear';
+        graph.dataset.pixel = `${data.dcol ?? 0},${data.drow ?? 0}`;
+    }
+    if (g.onGrid && opt.onPoint) {
+        whenDrawn(fig, (gd) => gd.on('plotly_click', (ev) => {
+            const p = ev.points?.[0];
+            if (!p || !Array.isArray(p.pointIndex)) return;
+            const [j, i] = p.pointIndex;
+            if (values[j * nx + i] !== null) opt.onPoint(j * nx + i);
+        }));
+    }
+    return fig;
+}
+
+// The scan's geometry (the paper's figure): the raster's spot positions (stored ones in colour,
+// the rest grey) over the sub-frame's pixels, on axes in µm from the POI's top-left corner
+// (y downward); the pixel grid, the scanned area (dashed), the pixel of interest (filled) and
+// the pixel whose raster is shown (shown {dcol, drow}, outlined). onPoint(index) on a click.
+export function geometryFigure(scan, pitch, shown, onPoint) {
+    const fr = pixelFrame(pitch), w = fr.w, r = scan.raster;
+    const n = r.points_per_axis, hs = Math.floor(r.sub_px / 2), ha = (r.area_px - 1) / 2;
+    const axis = rasterAxis(scan, w, 0);
+    const every = Math.max(1, Math.ceil(Math.sqrt((n * n) / MAX_GEOMETRY_POINTS)));
+    const done = scan.points_done ?? 0;
+    const pts = { x: [[], []], y: [[], []], k: [[], []] };
+    for (let j = 0; j < n; j += every) {
+        for (let i = 0; i < n; i += every) {
+            const k = j * n + i, t = k < done ? 0 : 1;
+            pts.x[t].push(axis[i]);
+            pts.y[t].push(axis[j]);
+            pts.k[t].push(k);
+        }
+    }
+    const trace = (t, name, color) => ({ type: 'scatter', mode: 'markers', name, x: pts.x[t],
+        y: pts.y[t], customdata: pts.k[t], marker: { color, size, line: { width: 0 } },
+        hovertemplate: `point %{customdata}<br>x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}` +
+            `<extra>${name}</extra>` });
+    const lo = Math.min(-hs * w, -ha * w, axis[0]), hi = Math.max((hs + 1) * w, (ha + 1) * w,
+        axis[n - 1]);
+    const m = (hi - lo) * 0.02, range = [lo - m, hi + m];
+    // a marker about half a drawn step wide on a graph some 300 px across
+    const size = Math.max(2, Math.min(6, (150 * every * r.step_um) / (range[1] - range[0])));
+    const data = [trace(0, 'stored', SPOT)];
+    if (pts.x[1].length) data.push(trace(1, 'not yet measured', PENDING));
+    const shapes = [];
+    for (let k = -hs; k <= hs + 1; k++) { // the sub-frame's pixel grid
+        const line = { color: '#8a93a6', width: 1 };
+        shapes.push({ type: 'line', x0: k * w, x1: k * w, y0: -hs * w, y1: (hs + 1) * w, line,
+            layer: 'below' });
+        shapes.push({ type: 'line', y0: k * w, y1: k * w, x0: -hs * w, x1: (hs + 1) * w, line,
+            layer: 'below' });
+    }
+    shapes.push({ type: 'rect', x0: 0, x1: w, y0: 0, y1: w, fillcolor: POI, opacity: 0.35,
+        line: { width: 0 }, layer: 'below' });
+    shapes.push({ type: 'rect', x0: -ha * w, x1: (ha + 1) * w, y0: -ha * w, y1: (ha + 1) * w,
+        line: { color: '#333', width: 1.5, dash: 'dash' }, fillcolor: 'rgba(0,0,0,0)' });
+    if (shown) {
+        shapes.push({ type: 'rect', x0: shown.dcol * w, x1: (shown.dcol + 1) * w,
+            y0: shown.drow * w, y1: (shown.drow + 1) * w, line: { color: SHOWN, width: 3 },
+            fillcolor: 'rgba(0,0,0,0)' });
+    }
+    const layout = { ...squareAxes({ ...fr, xtitle: `x (${fr.unit}) from the POI's corner` },
+        '', [0, 1], range), shapes, showlegend: true,
+    legend: { orientation: 'h', x: 0, y: -0.18, yanchor: 'top' },
+    margin: { l: 60, r: 20, t: 20, b: 90 } };
+    const fig = plotFigure({ title: `Scan geometry: ${n}×${n} spot positions over ` +
+        `${r.area_px}×${r.area_px} pixels; the ${r.sub_px}×${r.sub_px} sub-frame`,
+    testid: 'scan-geometry', data, layout, height: 440, name: `geometry-${scan.id}`,
+    note: `Filled: the pixel of interest (${scan.poi.col}, ${scan.poi.row}); blue outline: ` +
+        'the pixel whose raster is shown; dashed: the scanned area. ' +
+        (every > 1 ? `Every ${every}th row and column of spots is drawn (${n * n} in all). `
+            : '') + 'Click a spot for its raw frames.' });
+    const graph = fig.querySelector('.pgraph');
+    if (graph) graph.dataset.points = String(n * n);
+    if (onPoint) {
+        whenDrawn(fig, (gd) => gd.on('plotly_click', (ev) => {
+            const p = ev.points?.[0];
+            if (p && Number.isInteger(p.customdata) && p.customdata < done) onPoint(p.customdata);
+        }));
+    }
+    return fig;
+}
+
+// sigma (DN) of a mean signal under the paper's noise model, eq. 5 as printed (what the
+// automatic fit weights a point by; fit/noise.c fit_noise_sigma, FIT_NOISE_PAPER):
+// sqrt(max(I - B, 0) + (R/G)^2) / sqrt(frames).
+function paperSigma(d, v) {
+    const s = Math.max(v - d.bias_dn, 0), rg = d.read_noise_e / d.gain_e_per_dn;
+    return Math.sqrt((s + rg * rg) / Math.max(d.frames, 1));
+}
+
+// The raster (scan-file JSON) as CSV: x_um,y_um,value,sigma, one line per point in the API's
+// order, numbers as JavaScript writes them (shortest round trip), a non-finite value empty;
+// header comments name the scan, the pixel, the pitch and what sigma is.
+export function rasterCsv(d) {
+    const num = (v) => (v === null || !Number.isFinite(v) ? '' : String(v));
+    const lines = [
+        `# ipsd scan ${d.scan_id}, pixel (${d.pixel?.col}, ${d.pixel?.row}) = offset ` +
+            `(${d.dcol}, ${d.drow}) from the POI: mean signal against spot position`,
+        `# pitch_um = ${d.pitch_um}`,
+        '# x_um, y_um: spot centre from the pixel\'s top-left corner (y downward); value: mean ' +
+            'signal (DN, bias included)',
+        `# sigma: its uncertainty (DN) under the paper's noise model (eq. 5): ` +
+            `sqrt(max(value - ${d.bias_dn}, 0) + (${d.read_noise_e} / ${d.gain_e_per_dn})^2) / ` +
+            `sqrt(${d.frames})`,
+        'x_um,y_um,value,sigma',
+    ];
+    d.x_um.forEach((x, k) => {
+        const v = d.signal_dn[k];
+        lines.push([num(x), num(d.y_um[k]), num(v), Number.isFinite(v) ? num(paperSigma(d, v))
+            : ''].join(','));
+    });
+    return `${lines.join('\n')}\n`;
+}
+
+// A button that downloads text() as a file named filename() (a Blob made in the browser);
+// text() null: nothing to download yet.
+export function downloadButton(label, filename, type, text, testid) {
+    return h('button', { type: 'button', class: 'small', 'data-testid': testid,
+        onclick: () => {
+            const body = text();
+            if (body === null) return; // nothing loaded yet
+            const url = URL.createObjectURL(new Blob([body], { type }));
+            const a = h('a', { href: url, download: filename() });
+            document.body.append(a);
+            a.click();
+            a.remove();
+            setTimeout(() => URL.revokeObjectURL(url), 60000);
+        } }, label);
 }

@@ -17,8 +17,9 @@
 // too long to end first (982081 points; the simulated bench stores about 500 a second here, and
 // the cancel comes a few seconds after the start).
 //
-// usage: node dashboard.test.mjs IPSD WEBDIR     exit 0 pass, 1 fail, 77 skip (no node_modules
-// here or in WEBDIR (Plotly.js), or no chromium). Screenshots go to /tmp (ipsd-dashboard-*.png).
+// usage: node dashboard.test.mjs IPSD WEBDIR [SHOTDIR]   exit 0 pass, 1 fail, 77 skip (no
+// node_modules here or in WEBDIR (Plotly.js), or no chromium). Screenshots go to SHOTDIR
+// (default /tmp; ctest passes the build's tests/ directory) as ipsd-dashboard-*.png.
 import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -27,7 +28,9 @@ import { fileURLToPath } from 'node:url';
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const CHROMIUM = '/usr/bin/chromium';
-const [ipsdBin, webDir] = process.argv.slice(2);
+const [ipsdBin, webDir, shotDir = '/tmp'] = process.argv.slice(2);
+// where the screenshots go (the build directory under ctest: tests/web.cmake)
+const shot = (name) => path.join(shotDir, `ipsd-dashboard-${name}.png`);
 const VIRIDIS_TOP = [0xfd, 0xe7, 0x25]; // the colour map's ends: a map's max and min cells
 const TOKEN = 'e2e-Token-7f3a'; // ipsd runs with --token: writes need it
 const WAIT = 30000; // ms: the deadline of a wait for something the page shows soon
@@ -183,8 +186,153 @@ async function checkFormRules(form, doc, method, path, fields, what) {
     }
 }
 
+// Plotly's data and layout of graph [data-testid=testid] once it is drawn (and matches the
+// extra attribute selector more, e.g. '[data-colour="log"]').
+async function plotly(page, testid, more = '') {
+    const sel = `[data-testid="${testid}"][data-state="ready"]${more}`;
+    await page.locator(sel).waitFor({ timeout: WAIT });
+    return page.$eval(sel, (g) => JSON.parse(JSON.stringify({ data: g.data, layout: g.layout,
+        dataset: { ...g.dataset } })));
+}
+const axisTitle = (ax) => ax?.title?.text ?? ax?.title ?? '';
+
+// The text of the file a click on locator downloads.
+async function download(page, locator) {
+    const [dl] = await Promise.all([page.waitForEvent('download', { timeout: WAIT }),
+        locator.click()]);
+    return fs.readFileSync(await dl.path(), 'utf8');
+}
+
+// The Scan view's Plotly figures (web/scan_plots.js, scan_frames.js, scan_overview.js) against
+// the API's numbers, fetched here: the raster of two pixels of the sub-frame (every point at
+// its cell, µm axes, the pixel outline), the log colour and the zoom to the pixel, the CSV and
+// JSON downloads, the geometry's spot count, a point's raw frames opened by a click on the
+// raster and from the keyboard, and the sub-frame overview.
+async function checkScanPage(page, api, scan, sensor) {
+    const pitch = sensor.pitch_um, n = scan.raster.points_per_axis;
+    const same = (a, b) => a.length === b.length && a.every((v, k) => near(v, b[k], 1e-12));
+    // the value in the heat map's cell at each of the API's points, and how many cells are set
+    const cells = (tr, px) => {
+        const at = (axis, v) => axis.findIndex((a) => Math.abs(a - v) < 1e-9);
+        const got = px.x_um.map((x, k) => {
+            const i = at(tr.x, x), j = at(tr.y, px.y_um[k]);
+            return i < 0 || j < 0 ? NaN : tr.z[j][i];
+        });
+        return { got, set: tr.z.flat().filter((v) => v !== null).length };
+    };
+    for (const [dcol, drow] of [[0, 0], [1, -1]]) {
+        if (dcol || drow) {
+            await page.locator('[data-testid="raster-dcol"]').selectOption(String(dcol));
+            await page.locator('[data-testid="raster-drow"]').selectOption(String(drow));
+        }
+        const px = (await api('GET', `/api/scans/${scan.id}/pixels/${dcol}/${drow}?all=1`)).body;
+        const g = await plotly(page, 'raster-map', `[data-pixel="${dcol},${drow}"]`);
+        const tr = g.data[0], c = cells(tr, px);
+        check(tr.type === 'heatmap' && px.x_um.length === scan.raster.points_total &&
+            same(c.got, px.signal_dn) && c.set === px.x_um.length,
+        `the raster heat map of pixel (${dcol}, ${drow}) holds the API's ${px.x_um.length} ` +
+            'values at their spot positions', `${c.set} cells set`);
+        check(axisTitle(g.layout.xaxis).includes('µm') &&
+            axisTitle(g.layout.yaxis).includes('µm') && g.layout.shapes.some((sh) =>
+            sh.type === 'rect' && sh.x0 === 0 && sh.y0 === 0 && near(sh.x1, pitch, 1e-12) &&
+                near(sh.y1, pitch, 1e-12)),
+        `the raster of pixel (${dcol}, ${drow}) has µm axes and the pixel outlined`);
+        // the CSV download: the API's numbers, sigma by the paper's eq. 5, the pitch in a comment
+        const csv = (await download(page, page.locator('[data-testid="raster-csv"]')))
+            .trim().split('\n');
+        const comments = csv.filter((l) => l.startsWith('#'));
+        const table = csv.filter((l) => !l.startsWith('#'));
+        const body = table.slice(1).map((l) => l.split(',').map(Number));
+        const rg = px.read_noise_e / px.gain_e_per_dn;
+        const sigma = px.signal_dn.map((v) => Math.sqrt((Math.max(v - px.bias_dn, 0) + rg * rg) /
+            px.frames));
+        check(table[0] === 'x_um,y_um,value,sigma' &&
+            comments.some((l) => l.includes(`pitch_um = ${pitch}`)) &&
+            body.length === px.x_um.length && same(body.map((r) => r[0]), px.x_um) &&
+            same(body.map((r) => r[1]), px.y_um) && same(body.map((r) => r[2]), px.signal_dn) &&
+            same(body.map((r) => r[3]), sigma),
+        `the raster CSV of pixel (${dcol}, ${drow}) has the API's numbers and the pitch`,
+        `${table[0]}; ${body.length} rows; ${comments.join(' | ')}`);
+    }
+    const json = JSON.parse(await download(page, page.locator('[data-testid="raster-json"]')));
+    const px = (await api('GET', `/api/scans/${scan.id}/pixels/1/-1?all=1`)).body;
+    check(json.pixel.col === px.pixel.col && json.pixel.row === px.pixel.row &&
+        same(json.x_um, px.x_um) && same(json.signal_dn, px.signal_dn) &&
+        json.pitch_um === px.pitch_um, 'the raster JSON download is the API\'s');
+
+    // log colour: the cells are log10 of the values, which the hover keeps; then the zoom
+    await page.locator('[data-testid="colour-log"]').check();
+    const lg = await plotly(page, 'raster-map', '[data-colour="log"]');
+    const lc = cells(lg.data[0], px), raw = cells({ ...lg.data[0], z: lg.data[0].customdata }, px);
+    check(same(lc.got, px.signal_dn.map(Math.log10)) && same(raw.got, px.signal_dn),
+        'log colour: the cells are log10 of the API\'s values, the hover gives the values');
+    await page.locator('[data-testid="colour-linear"]').check();
+    await page.locator('[data-testid="zoom-pixel"]').check();
+    const zg = await plotly(page, 'raster-map', '[data-zoom="pixel"][data-colour="linear"]');
+    const xr = zg.layout.xaxis.range, yr = zg.layout.yaxis.range;
+    check(xr[0] < 0 && xr[1] > pitch && xr[1] - xr[0] < 1.2 * pitch &&
+        Math.max(...yr) > pitch && Math.min(...yr) < 0,
+    'zoom to the pixel: the axes span the pixel and a small margin', JSON.stringify([xr, yr]));
+    await page.locator('[data-testid="zoom-all"]').check();
+    await page.locator('[data-testid="raster-dcol"]').selectOption('0');
+    await page.locator('[data-testid="raster-drow"]').selectOption('0');
+
+    // the geometry: one marker per raster point, the POI filled
+    const geo = await plotly(page, 'scan-geometry');
+    const spots = geo.data.reduce((a, t) => a + t.x.length, 0);
+    check(spots === scan.raster.points_total && geo.dataset.points === String(n * n) &&
+        geo.layout.shapes.some((sh) => sh.type === 'rect' && sh.x0 === 0 && sh.y0 === 0 &&
+            sh.fillcolor && near(sh.x1, pitch, 1e-12)),
+    `the geometry figure shows the ${scan.raster.points_total} spot positions and the POI`,
+    `${spots} markers`);
+
+    // a point's raw frames: a click on a cell of the raster, then from the keyboard
+    const rm = await plotly(page, 'raster-map', '[data-pixel="0,0"][data-zoom="all"]');
+    const [i, j] = [3, 5], want = j * n + i;
+    const spot = await page.$eval('[data-testid="raster-map"]', (g, [x, y]) => {
+        const fl = g._fullLayout, b = g.getBoundingClientRect();
+        return [b.left + fl.xaxis._offset + fl.xaxis.l2p(x),
+            b.top + fl.yaxis._offset + fl.yaxis.l2p(y)];
+    }, [rm.data[0].x[i], rm.data[0].y[j]]);
+    await page.mouse.click(spot[0], spot[1]);
+    await page.locator(`[data-testid="point-frames"][data-point="${want}"][data-state="ready"]`)
+        .waitFor({ timeout: WAIT });
+    const pt = (await api('GET', `/api/scans/${scan.id}/points/${want}`)).body;
+    let fr = await plotly(page, 'frames-plot');
+    check(same(fr.data[0].z.flat(), pt.mean) && same(fr.data[1].z.flat(), pt.raw[0]),
+        `a click on a raster cell shows point ${want}'s mean and raw frame from the API`);
+    const idx = page.locator('[data-testid="point-index"]');
+    await idx.focus();
+    await idx.fill(String(want + 1));
+    await page.keyboard.press('Enter');
+    await page.locator(`[data-testid="point-frames"][data-point="${want + 1}"]` +
+        '[data-state="ready"]').waitFor({ timeout: WAIT });
+    const frameNo = page.locator('[data-testid="frame-number"]');
+    await frameNo.fill(String(pt.frames));
+    const pt2 = (await api('GET', `/api/scans/${scan.id}/points/${want + 1}`)).body;
+    fr = await until(async () => {
+        const f = await plotly(page, 'frames-plot');
+        return same(f.data[1].z.flat(), pt2.raw[pt2.frames - 1]) && f;
+    }, 'the last raw frame of the next point');
+    check(same(fr.data[0].z.flat(), pt2.mean), 'the point and frame typed in are shown');
+
+    // the sub-frame overview: the auto fit's calibration in its pixel, the others placeholders
+    const cal = (await api('GET', `/api/sensors/${sensor.id}/pixels/${scan.poi.col}/` +
+        `${scan.poi.row}/calibration`)).body;
+    const m = scan.raster.sub_px;
+    const ov = await plotly(page, 'subframe-overview', '[data-maps="1"]');
+    check(ov.data.length === 1 && same(ov.data[0].z.flat(), cal.S) &&
+        ov.dataset.missing === String(m * m - 1) &&
+        near(ov.data[0].x0, pitch / (2 * cal.r), 1e-12) &&
+        near(ov.data[0].y0, pitch / (2 * cal.r), 1e-12) && near(ov.data[0].dx, pitch / cal.r, 1e-12),
+    'the sub-frame overview shows the POI\'s calibration in its place, the other pixels empty',
+    JSON.stringify(ov.dataset));
+    await page.screenshot({ path: shot('scan'), fullPage: true });
+}
+
 async function run(base, page, api) {
-    await page.goto(`${base}/#/scans`);
+    // the first load parses Plotly's 4.8 MB bundle: slow on a loaded machine
+    await page.goto(`${base}/#/scans`, { timeout: LONG_WAIT });
     await page.locator('#live[data-state="live"]').waitFor({ timeout: WAIT });
     check(true, 'dashboard loads and its event stream connects');
 
@@ -296,10 +444,6 @@ async function run(base, page, api) {
     // the automatic fit, opened from the scan page
     await row.locator('td.fit a').waitFor({ timeout: LONG_WAIT });
     await row.getByRole('link', { name: `#${scan.id}`, exact: true }).click();
-    await page.locator('[data-testid="raster-map"] canvas.heat').waitFor({ timeout: WAIT });
-    const raster = await canvasInfo(page, '[data-testid="raster-map"] canvas.heat');
-    check(raster.distinct > 10, 'the response raster heatmap is not uniform',
-        `${raster.distinct} colours`);
     const fitLink = page.locator('[data-testid="fit-link"]').first();
     await fitLink.waitFor({ timeout: LONG_WAIT });
     const fitForm = page.locator('[data-testid="fit-form"]');
@@ -308,6 +452,7 @@ async function run(base, page, api) {
         ['r_max', 'value'], ['ftest_r', 'value']], 'fit form');
     check(!(await fitForm.locator('[data-testid="fit-promote"]').isChecked()),
         'fit form: "becomes the calibration" is off by default');
+    await checkScanPage(page, api, scan, sensor);
     await fitLink.click();
     await page.locator('[data-testid="best-r-bic"]').waitFor({ timeout: WAIT });
     const fitId = Number(page.url().match(/#\/fits\/(\d+)/)[1]);
@@ -436,7 +581,7 @@ async function run(base, page, api) {
     check(same(flat(sErr.data[0].z), best.S_err), 'the S_err map plotted is the API\'s');
     check(await page.locator('[data-testid="sweep-table"] tbody tr').count() === res.fits.length,
         'the model-selection table has a row per r');
-    await page.screenshot({ path: '/tmp/ipsd-dashboard-fit.png', fullPage: true });
+    await page.screenshot({ path: shot('fit'), fullPage: true });
 
     // the calibration database: the search lists the auto fit's calibration, with its CSV
     await page.getByRole('navigation').getByRole('link', { name: 'Calibrations' }).click();
@@ -529,13 +674,13 @@ async function run(base, page, api) {
         `${cancelled.points_done} / ${cancelled.raster.points_total}`);
     check(await page.locator(`tr[data-scan-id="${longId}"] button`).count() === 0,
         'a cancelled scan has no Cancel button');
-    await page.screenshot({ path: '/tmp/ipsd-dashboard-scans.png' });
+    await page.screenshot({ path: shot('scans') });
 
     // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box, the
     // Fit view's plots drawn (their pairs stacked)
     await page.setViewportSize({ width: 390, height: 844 });
     const views = [['#/scans', `tr[data-scan-id="${scan.id}"]`],
-        [`#/scans/${scan.id}`, 'table.list tbody tr'],
+        [`#/scans/${scan.id}`, '[data-testid="subframe-overview"][data-state="ready"]'],
         [`#/fits/${fitId}`, '[data-testid="plot-resid"][data-state="ready"]'],
         ['#/calibrations', 'table.list tbody tr'],
         [`#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`,
@@ -546,6 +691,11 @@ async function run(base, page, api) {
         const w = await page.evaluate(() => [document.documentElement.scrollWidth,
             document.documentElement.clientWidth]);
         check(w[0] <= w[1], `${view} at 390 px: no sideways scrolling`, `page ${w[0]} px wide`);
+        if (view === `#/scans/${scan.id}`) {
+            await page.locator('[data-testid="raster-map"][data-state="ready"]')
+                .waitFor({ timeout: WAIT });
+            await page.screenshot({ path: shot('scan-390'), fullPage: true });
+        }
         if (view.startsWith('#/fits/')) {
             check(await page.locator('[data-testid="plot-maps"][data-stacked="true"]').count() ===
                 1 && await page.locator('[data-testid="plot-resid"][data-stacked="true"]')
@@ -559,9 +709,9 @@ async function run(base, page, api) {
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'ipsd-web-'));
 const watchdog = setTimeout(() => {
-    console.log('not ok - the test took over 240 s');
+    console.log('not ok - the test took over 420 s');
     process.exit(1);
-}, 240000);
+}, 420000);
 let daemon = null, context = null;
 const consoleErrors = [];
 try {
@@ -599,9 +749,9 @@ try {
 } catch (e) {
     failed++;
     console.log(`not ok - ${e.stack || e}`);
-    const shot = '/tmp/ipsd-dashboard-failure.png';
-    await context?.pages()[0]?.screenshot({ path: shot, fullPage: true }).catch(() => {});
-    console.log(`# screenshot of the failure: ${shot}`);
+    await context?.pages()[0]?.screenshot({ path: shot('failure'), fullPage: true })
+        .catch(() => {});
+    console.log(`# screenshot of the failure: ${shot('failure')}`);
     if (fs.existsSync(path.join(tmp, 'ipsd.log'))) {
         const log = fs.readFileSync(path.join(tmp, 'ipsd.log'), 'utf8');
         console.log(`# ipsd log:\n${log.slice(-3000)}`);
@@ -612,6 +762,6 @@ try {
     fs.rmSync(tmp, { recursive: true, force: true });
     clearTimeout(watchdog);
 }
-console.log('# screenshots: /tmp/ipsd-dashboard-fit.png /tmp/ipsd-dashboard-scans.png');
+console.log(`# screenshots: ${['scans', 'scan', 'scan-390', 'fit'].map(shot).join(' ')}`);
 console.log(`${passed} passed, ${failed} failed`);
 process.exit(failed ? 1 : 0);
