@@ -5,7 +5,7 @@
 // web` (scripts/run.sh, scripts/test.sh) and loaded by index.html as window.Plotly before the
 // modules, from ipsd itself (no CDN: labs are often offline). Without it every figure says how
 // to install it (the rest of the page works). docs/web.md.
-import { h } from './dom.js';
+import { fmt, h } from './dom.js';
 
 // Colour scales, perceptually uniform and colour-blind safe: viridis for maps (Plotly's own),
 // magma (matplotlib's, 9 stops) for uncertainties, and blue-white-red (ColorBrewer RdBu, safe
@@ -123,4 +123,17 @@ export function jointRange(...arrays) {
         }
     }
     return lo === Infinity ? [0, 1] : lo === hi ? [lo - 0.5, hi + 0.5] : [lo, hi];
+}
+
+// The values of an nx x ny map as a table in a <details> (for keyboards and screen readers).
+export function valueTable(values, nx, ny) {
+    const rows = [];
+    for (let j = 0; j < ny; j++) {
+        rows.push(h('tr', {}, h('th', { scope: 'row' }, j),
+            Array.from({ length: nx }, (_, i) => h('td', {}, fmt(values[j * nx + i], 4)))));
+    }
+    return h('details', { class: 'values' }, h('summary', {}, 'Values'),
+        h('table', { class: 'num' }, h('thead', {}, h('tr', {}, h('th', {}, 'row \\ col'),
+            Array.from({ length: nx }, (_, i) => h('th', { scope: 'col' }, i)))),
+        h('tbody', {}, rows)));
 }

@@ -1,6 +1,7 @@
-// plots.js: the pictures of the dashboard: heatmaps of maps and rasters on <canvas> with a colour
-// bar, the value under the pointer (or the keyboard cursor) and a table of the values; and line
-// plots as inline SVG (the model-selection plot: chi2, AIC and BIC against r, best r marked).
+// plots.js: the scan page's hand-drawn heatmaps of rasters on <canvas> with a colour bar, the
+// value under the pointer (or the keyboard cursor) and a table of the values (charts.js). The
+// maps, the model selection and the calibrations are Plotly figures now (charts.js).
+import { valueTable } from './charts.js';
 import { fmt, h } from './dom.js';
 
 // Perceptually uniform colour maps (matplotlib's viridis and magma), 9 stops each.
@@ -130,99 +131,4 @@ export function heatmap(opts) {
         readout);
     if (opts.table && nx * ny <= 400) fig.append(valueTable(values, nx, ny));
     return fig;
-}
-
-// The values of an nx x ny map as a table in a <details> (for keyboards and screen readers).
-export function valueTable(values, nx, ny) {
-    const rows = [];
-    for (let j = 0; j < ny; j++) {
-        rows.push(h('tr', {}, h('th', { scope: 'row' }, j),
-            Array.from({ length: nx }, (_, i) => h('td', {}, fmt(values[j * nx + i], 4)))));
-    }
-    return h('details', { class: 'values' }, h('summary', {}, 'Values'),
-        h('table', { class: 'num' }, h('thead', {}, h('tr', {}, h('th', {}, 'row \\ col'),
-            Array.from({ length: nx }, (_, i) => h('th', { scope: 'col' }, i)))),
-        h('tbody', {}, rows)));
-}
-
-// "Nice" tick values between lo and hi (about n of them).
-function ticks(lo, hi, n = 5) {
-    const span = hi - lo || Math.abs(hi) || 1;
-    const step0 = span / n, mag = 10 ** Math.floor(Math.log10(step0));
-    const step = [1, 2, 5, 10].map((m) => m * mag).find((s) => span / s <= n) || 10 * mag;
-    const out = [];
-    for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) {
-        out.push(Math.abs(v) < step * 1e-9 ? 0 : v);
-    }
-    return out;
-}
-
-// 10^k written with superscript digits.
-function power10(k) {
-    const sup = { '-': '⁻', 0: '⁰', 1: '¹', 2: '²', 3: '³', 4: '⁴', 5: '⁵', 6: '⁶', 7: '⁷',
-        8: '⁸', 9: '⁹' };
-    return `10${[...String(k)].map((c) => sup[c]).join('')}`;
-}
-
-// A line plot as SVG. opts: title, xlabel, ylabel, log (y axis), series [{name, cls, points:
-// [[x, y]]}], marks [{x, label, cls}] (vertical markers), xticks (values), width, height.
-export function linePlot(opts) {
-    const W = opts.width || 420, H = opts.height || 230;
-    const m = { l: 62, r: 12, t: 24, b: 40 };
-    const pts = opts.series.flatMap((s) => s.points).filter(([, y]) => Number.isFinite(y) &&
-        (!opts.log || y > 0));
-    const xs = pts.map(([x]) => x), ys = pts.map(([, y]) => (opts.log ? Math.log10(y) : y));
-    let [x0, x1] = [Math.min(...xs), Math.max(...xs)];
-    let [y0, y1] = [Math.min(...ys), Math.max(...ys)];
-    if (x0 === x1) [x0, x1] = [x0 - 1, x1 + 1];
-    if (y0 === y1) [y0, y1] = [y0 - 1, y1 + 1];
-    const pad = (y1 - y0) * 0.06;
-    y0 -= pad;
-    y1 += pad;
-    const X = (x) => m.l + (x - x0) / (x1 - x0) * (W - m.l - m.r);
-    const Y = (y) => H - m.b - ((opts.log ? Math.log10(y) : y) - y0) / (y1 - y0) *
-        (H - m.t - m.b);
-    const svg = h('svg:svg', { viewBox: `0 0 ${W} ${H}`, width: W, height: H, role: 'img',
-        'aria-label': opts.title, class: 'plot' });
-    svg.append(h('svg:text', { x: m.l, y: 15, class: 'ptitle' }, opts.title));
-    const yt = opts.log ? ticks(y0, y1, 4).filter((v) => Number.isInteger(v)).map((v) => 10 ** v)
-        : ticks(y0, y1, 5);
-    for (const v of yt) {
-        const y = Y(v);
-        if (y < m.t - 1 || y > H - m.b + 1) continue;
-        svg.append(h('svg:line', { x1: m.l, x2: W - m.r, y1: y, y2: y, class: 'grid' }),
-            h('svg:text', { x: m.l - 6, y: y + 4, class: 'tick', 'text-anchor': 'end' },
-                opts.log ? power10(Math.round(Math.log10(v))) : fmt(v, 3)));
-    }
-    for (const v of opts.xticks || ticks(x0, x1, 8)) {
-        svg.append(h('svg:text', { x: X(v), y: H - m.b + 16, class: 'tick',
-            'text-anchor': 'middle' }, v));
-    }
-    svg.append(h('svg:line', { x1: m.l, x2: W - m.r, y1: H - m.b, y2: H - m.b, class: 'axis' }),
-        h('svg:line', { x1: m.l, x2: m.l, y1: m.t, y2: H - m.b, class: 'axis' }),
-        h('svg:text', { x: (m.l + W - m.r) / 2, y: H - 6, class: 'alabel',
-            'text-anchor': 'middle' }, opts.xlabel),
-        h('svg:text', { x: 12, y: (m.t + H - m.b) / 2, class: 'alabel', 'text-anchor': 'middle',
-            transform: `rotate(-90 12 ${(m.t + H - m.b) / 2})` }, opts.ylabel));
-    for (const mk of opts.marks || []) {
-        const left = X(mk.x) > W - m.r - 100; // near the right edge: label on the left
-        svg.append(h('svg:line', { x1: X(mk.x), x2: X(mk.x), y1: m.t, y2: H - m.b,
-            class: `mark ${mk.cls || ''}` }),
-        h('svg:text', { x: X(mk.x) + (left ? -3 : 3), y: m.t + 10 + (mk.row || 0) * 12,
-            'text-anchor': left ? 'end' : 'start', class: `mark-label ${mk.cls || ''}` },
-        mk.label));
-    }
-    for (const s of opts.series) {
-        const p = s.points.filter(([, y]) => Number.isFinite(y) && (!opts.log || y > 0));
-        svg.append(h('svg:polyline', { class: `line ${s.cls}`,
-            points: p.map(([x, y]) => `${X(x).toFixed(1)},${Y(y).toFixed(1)}`).join(' ') }));
-        for (const [x, y] of p) {
-            svg.append(h('svg:circle', { cx: X(x), cy: Y(y), r: s.best?.includes(x) ? 6 : 3,
-                class: `dot ${s.cls}${s.best?.includes(x) ? ' best' : ''}` },
-            h('svg:title', {}, `${s.name} at r = ${x}: ${fmt(y, 6)}`)));
-        }
-    }
-    const legend = h('div', { class: 'legend' }, opts.series.map((s) =>
-        h('span', { class: `key ${s.cls}` }, s.name)));
-    return h('figure', { class: 'plot-fig' }, svg, legend);
 }
