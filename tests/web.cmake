@@ -12,7 +12,8 @@ endif()
 if(EXISTS /usr/bin/chromium AND TARGET ipsd)
     add_test(NAME web_dashboard
              COMMAND ${IPSD_NODE} ${CMAKE_CURRENT_SOURCE_DIR}/web/dashboard.test.mjs
-                     $<TARGET_FILE:ipsd> ${PROJECT_SOURCE_DIR}/web)
+                     $<TARGET_FILE:ipsd> ${PROJECT_SOURCE_DIR}/web
+                     ${CMAKE_BINARY_DIR}/web-screenshots)
     # busy 2-core machine: ~60 s (ASan ipsd), its own watchdog at 240 s; 4x margin
     set_tests_properties(web_dashboard PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 300)
 else()
