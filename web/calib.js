@@ -198,7 +198,7 @@ function comparePanel(hist, cur, pitch) {
         } });
     }
     const sel = (id, label) => h('label', { class: 'fld', for: id }, h('span', { class: 'lbl' },
-        label), h('select', { id, 'data-testid': id }));
+        label), h('select', { id, 'data-testid': id, style: 'min-width: 14rem; max-width: 100%' }));
     const selA = sel('cmp-a', 'Map A'), selB = sel('cmp-b', 'Map B');
     const fillSel = (lab, value) => {
         const s = lab.querySelector('select'), keep = value ?? s.value;

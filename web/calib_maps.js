@@ -12,7 +12,7 @@
 //   - the history of a pixel as small multiples: every map on one colour scale, newest first.
 // A "map source" is {label, S (row-major y then x), nx, ny, xs, ys (node centres, µm), cell
 // (true: S_ij holds over sub-pixel cells; false: values at nodes), r (cells only)}.
-import { DIVERGING, VIRIDIS, jointRange, outline, pixelFrame, plotFigure, rows,
+import { DIVERGING, VIRIDIS, cellAxes, jointRange, outline, pixelFrame, plotFigure, rows,
     squareAxes } from './charts.js';
 
 export const MAX_COMMON = 96; // cells per axis of a common grid at most
@@ -20,9 +20,6 @@ const FALLBACK_N = 48;        // common grid when the lcm is larger, or a map ha
 const MAX_MULTIPLES = 24;     // maps in the history figure at most (the table lists them all)
 
 const gcd = (a, b) => (b ? gcd(b, a % b) : a);
-// A heatmap's cell size: Plotly infers it from the centres, except for one cell (r = 1), where
-// it would draw a 1-unit square: dx / dy say it.
-const cellSize = (nx, ny, w) => ({ dx: w / nx, dy: w / ny });
 const centres = (n, w) => Array.from({ length: n }, (_, i) => (i + 0.5) * w / n);
 
 const subTitle = (k, text) => ({ text, showarrow: false, xref: `x${k} domain`,
@@ -93,14 +90,13 @@ export function compareFigure(a, b, pitch) {
     // theirs, so that 0 shows as white rather than as noise
     const lim = Math.max(0, ...D.filter(Number.isFinite).map(Math.abs)) ||
         (cmax - cmin) / 100 || 1e-3;
-    const heat = (s, k) => ({ type: 'heatmap', name: s.label, x: s.xs, y: s.ys,
-        ...cellSize(s.nx, s.ny, fr.w), z: rows(s.S, s.nx, s.ny), coloraxis: 'coloraxis', xaxis: `x${k}`, yaxis: `y${k}`,
+    const heat = (s, k) => ({ type: 'heatmap', name: s.label,
+        ...(s.cell ? cellAxes(s.nx, fr.w, s.ny) : { x: s.xs, y: s.ys }),
+        z: rows(s.S, s.nx, s.ny), coloraxis: 'coloraxis', xaxis: `x${k}`, yaxis: `y${k}`,
     hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>S = %{z:.6g}<extra>${s.label}` +
         '</extra>' });
-    const gc = centres(g.n, fr.w);
     const data = [heat(a, ''), heat(b, 2),
-        { type: 'heatmap', name: 'A − B', x: gc, y: gc, ...cellSize(g.n, g.n, fr.w),
-            z: rows(D, g.n, g.n),
+        { type: 'heatmap', name: 'A − B', ...cellAxes(g.n, fr.w), z: rows(D, g.n, g.n),
             coloraxis: 'coloraxis2', xaxis: 'x3', yaxis: 'y3',
             hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>A − B = %{z:.4g}` +
                 '<extra>difference</extra>' }];
@@ -133,8 +129,7 @@ export function compareFigure(a, b, pitch) {
 export function mapFigure(src, pitch, testid, title) {
     const fr = pixelFrame(pitch);
     return plotFigure({ title, testid, height: 340, name: testid,
-        data: [{ type: 'heatmap', x: centres(src.nx, fr.w), y: centres(src.ny, fr.w),
-            ...cellSize(src.nx, src.ny, fr.w),
+        data: [{ type: 'heatmap', ...cellAxes(src.nx, fr.w, src.ny),
             z: rows(src.S, src.nx, src.ny), customdata: src.S_err ? rows(src.S_err, src.nx,
                 src.ny) : undefined, colorscale: VIRIDIS,
             colorbar: { title: { text: 'S' }, thickness: 12 },
@@ -165,8 +160,7 @@ export function historyFigure(all, pitch, cols = 4) {
     };
     const big = grid(Math.min(cols, items.length)), small = grid(Math.min(2, items.length));
     const data = items.map((c, k) => ({ type: 'heatmap', name: `#${c.id}`,
-        x: centres(c.r, fr.w), y: centres(c.r, fr.w), ...cellSize(c.r, c.r, fr.w),
-        z: rows(c.S, c.r, c.r),
+        ...cellAxes(c.r, fr.w), z: rows(c.S, c.r, c.r),
         coloraxis: 'coloraxis', xaxis: `x${k ? k + 1 : ''}`, yaxis: `y${k ? k + 1 : ''}`,
         hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>S = %{z:.6g}` +
             `<extra>#${c.id}</extra>` }));

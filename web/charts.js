@@ -107,6 +107,14 @@ export function outline(frame, k = '') {
         line: { color: '#111', width: 1.5 }, fillcolor: 'rgba(0,0,0,0)', layer: 'above' };
 }
 
+// A heatmap's cell positions: the n centres over [0, w] on both axes; one cell (r = 1) as x0 / dx
+// instead, since Plotly cannot infer a cell's size from one centre (it would draw a 1-unit square).
+export function cellAxes(n, w, ny = n) {
+    const c = (m) => Array.from({ length: m }, (_, i) => (i + 0.5) * w / m);
+    return { ...(n > 1 ? { x: c(n) } : { x0: w / 2, dx: w }),
+        ...(ny > 1 ? { y: c(ny) } : { y0: w / 2, dy: w }) };
+}
+
 // values (nx * ny, row-major y then x) as rows for a heatmap's z.
 export function rows(values, nx, ny) {
     return Array.from({ length: ny }, (_, j) => values.slice(j * nx, (j + 1) * nx));

@@ -14,7 +14,7 @@
 import { get } from './api.js';
 import { failure, fill, fmt, h } from './dom.js';
 import { DIVERGING, MAGMA, VIRIDIS, jointRange, outline, pixelFrame, plotFigure, rows,
-    squareAxes, valueTable } from './charts.js';
+    cellAxes, squareAxes, valueTable } from './charts.js';
 
 export const INTERP_N = 100; // points per axis of the interpolated map
 const EDGE_REL_TOL = 1e-6; // of the pitch: fit/region.c
@@ -31,12 +31,11 @@ const centres = (r, w) => Array.from({ length: r }, (_, i) => (i + 0.5) * w / r)
 // shared colour axis whose range spans both maps.
 export function mapPairFigure(f, wiener, pitch) {
     const fr = pixelFrame(pitch);
-    const r = f.r, xs = centres(r, fr.w);
+    const r = f.r;
     const hasW = wiener && !wiener.error && Array.isArray(wiener.S);
     const [cmin, cmax] = jointRange(f.S, hasW ? wiener.S : null);
-    // dx, dy: the cell size, which Plotly cannot infer from one centre (r = 1)
-    const data = [{ type: 'heatmap', name: `S (r = ${r})`, x: xs, y: xs, dx: fr.w / r,
-        dy: fr.w / r, z: rows(f.S, r, r),
+    const data = [{ type: 'heatmap', name: `S (r = ${r})`, ...cellAxes(r, fr.w),
+        z: rows(f.S, r, r),
         customdata: f.S_err ? rows(f.S_err, r, r) : undefined, coloraxis: 'coloraxis',
         xaxis: 'x', yaxis: 'y', hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>` +
             `S = %{z:.6g}${f.S_err ? ' ± %{customdata:.2g}' : ''}<extra>fitted S</extra>` }];
@@ -80,11 +79,11 @@ export function mapPairFigure(f, wiener, pitch) {
 
 // S_err, 1 sigma, on its own scale.
 export function errFigure(f, pitch) {
-    const fr = pixelFrame(pitch), r = f.r, xs = centres(r, fr.w);
+    const fr = pixelFrame(pitch), r = f.r;
     const fig = plotFigure({ title: 'Uncertainty S_err (1σ)', testid: 'plot-Serr', height: 320,
         name: `S_err-r${r}`,
-        data: [{ type: 'heatmap', x: xs, y: xs, dx: fr.w / r, dy: fr.w / r,
-            z: rows(f.S_err, r, r), colorscale: MAGMA,
+        data: [{ type: 'heatmap', ...cellAxes(r, fr.w), z: rows(f.S_err, r, r),
+            colorscale: MAGMA,
             colorbar: { title: { text: 'S_err' }, thickness: 14 },
             hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>S_err = %{z:.3g}` +
                 '<extra></extra>' }],
