@@ -719,9 +719,9 @@ async function run(base, page, api) {
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'ipsd-web-'));
 fs.mkdirSync(SHOTS, { recursive: true });
 const watchdog = setTimeout(() => {
-    console.log('not ok - the test took over 240 s');
+    console.log('not ok - the test took over 420 s');
     process.exit(1);
-}, 240000);
+}, 420000);
 let daemon = null, context = null;
 const consoleErrors = [];
 try {
