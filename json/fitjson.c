@@ -59,6 +59,9 @@ static void fit_details(json_t *o, const fit_result_t *f, fit_method_t method)
     /* one per input point, in input order (the used ones, the saturated and the non-finite) */
     json_object_set_new(o, "residuals",
                         fitjson_array(f->resid, f->n_used + f->n_saturated + f->n_nonfinite));
+    /* the fitted model M_k + bias (DN) at the same points, comparable with the scan's signal_dn */
+    json_object_set_new(o, "model_dn",
+                        fitjson_array(f->model_dn, f->n_used + f->n_saturated + f->n_nonfinite));
     if (method != FIT_LINEAR) {
         json_object_set_new(o, "lm_chi2", fitjson_num(f->lm_chi2));
         json_object_set_new(o, "lm_iterations", json_integer(f->lm_iterations));

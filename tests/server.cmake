@@ -22,6 +22,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             calib_cache:90
             log:60
             security:60
+            static:60
             backup:240
             crash:150
             fitstop:120

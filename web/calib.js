@@ -1,13 +1,17 @@
 // calib.js: the lab's calibration database: a search across sensors (GET /api/calibrations with
 // its filters; each row links to its CSV and to its pixel), and the Pixel view: the current IPS
-// map of one sensor pixel and its history (GET .../calibration and .../history), each map with
-// who made it current, when and why, and the map it superseded.
+// map of one sensor pixel (S, the interpolated surface, S_err: Plotly, µm axes) with its
+// downloads (JSON, and CSV with positions in µm and the pitch), two maps compared side by side
+// with their difference (calib_maps.js), and the pixel's history (GET .../calibration and
+// .../history) as small multiples and a table: who made each map current, when and why, and the
+// map it superseded.
 import { get } from './api.js';
 import {
     clearError, errorBox, failure, field, fill, fmt, fmtTime, formBody, h, showError,
 } from './dom.js';
-import { mapFigures } from './maps.js';
-import { heatmap } from './plots.js';
+import { cellSource, compareFigure, historyFigure, mapFigure, wienerSource } from './calib_maps.js';
+import { purgeIn } from './charts.js';
+import { errFigure, surfaceFigure } from './fit_maps.js';
 
 const LIMIT = 50;
 const FILTERS = ['sensor', 'model', 'status', 'current', 'col_min', 'col_max', 'row_min',
@@ -135,13 +139,127 @@ export function renderCalibrations(root, params) {
     return () => {};
 }
 
-// ---- one pixel: current map and history ----
+// ---- one pixel: current map, comparisons, history ----
+
+// The calibration cal as CSV: one line per sub-pixel with its centre in µm and the pitch (the
+// API's CSV has the indices only); numbers as JavaScript prints them (shortest exact form).
+export function calibrationCsv(cal, pitch) {
+    const r = cal.r, w = pitch / r;
+    const lines = ['calibration_id,sensor_id,pixel_col,pixel_row,r,pitch_um,i,j,x_um,y_um,S,S_err'];
+    for (let j = 0; j < r; j++) {
+        for (let i = 0; i < r; i++) {
+            const k = j * r + i;
+            lines.push([cal.id, cal.sensor_id, cal.pixel.col, cal.pixel.row, r, pitch, i, j,
+                (i + 0.5) * w, (j + 0.5) * w, cal.S[k], cal.S_err ? cal.S_err[k] : '']
+                .map((v) => (v === null || v === undefined ? '' : String(v))).join(','));
+        }
+    }
+    return `${lines.join('\n')}\n`;
+}
+
+// The calibration as JSON: the API's document with the pitch and the sub-pixel centres (µm).
+export function calibrationJson(cal, pitch) {
+    const c = Array.from({ length: cal.r }, (_, i) => (i + 0.5) * pitch / cal.r);
+    return `${JSON.stringify({ ...cal, pitch_um: pitch, x_um: c, y_um: c }, null, 1)}\n`;
+}
+
+// A button that downloads text made on click as file name.
+function downloadButton(label, name, type, make, testid) {
+    return h('button', { type: 'button', class: 'small', 'data-testid': testid,
+        onclick: () => {
+            const url = URL.createObjectURL(new Blob([make()], { type }));
+            const a = h('a', { href: url, download: name, hidden: true });
+            document.body.append(a);
+            a.click();
+            a.remove();
+            setTimeout(() => URL.revokeObjectURL(url), 60000);
+        } }, label);
+}
+
+// The compare panel: two selects of map sources (this pixel's calibrations, the Wiener baseline
+// of the current map's fit, any calibration added by its number) and their figure.
+function comparePanel(hist, cur, pitch) {
+    const w = pitch || 1;
+    const options = new Map(); // value -> {label, load: () => source}
+    const date = (ms) => fmtTime(ms).slice(0, 16);
+    const addCal = (c, extra = '') => options.set(`cal:${c.id}`, { label: `#${c.id}${extra}, ` +
+        `r = ${c.r}, ${date(c.created_ms)}${c.current ? ' (current)' : ''}`,
+    load: async () => cellSource(`#${c.id} (r = ${c.r})`, c.S, c.r, w, c.S_err) });
+    for (const c of hist.items) addCal(c);
+    if (cur.fit_id) {
+        options.set(`wiener:${cur.fit_id}`, { label: `Wiener baseline of fit #${cur.fit_id} ` +
+            `(the current map's)`, load: async () => {
+            const f = await get(`/api/fits/${cur.fit_id}`);
+            const wn = f.result?.wiener;
+            if (!wn || wn.error || !Array.isArray(wn.S)) {
+                throw new Error(`fit #${cur.fit_id} has no Wiener baseline`);
+            }
+            return wienerSource(`Wiener of fit #${cur.fit_id}`, wn);
+        } });
+    }
+    const sel = (id, label) => h('label', { class: 'fld', for: id }, h('span', { class: 'lbl' },
+        label), h('select', { id, 'data-testid': id, style: 'min-width: 14rem; max-width: 100%' }));
+    const selA = sel('cmp-a', 'Map A'), selB = sel('cmp-b', 'Map B');
+    const fillSel = (lab, value) => {
+        const s = lab.querySelector('select'), keep = value ?? s.value;
+        fill(s, [...options].map(([v, o]) => h('option', { value: v }, o.label)));
+        s.value = keep;
+    };
+    const other = h('input', { type: 'number', min: 1, 'data-field': 'id', id: 'cmp-other',
+        inputmode: 'numeric' });
+    const err = errorBox();
+    const addForm = h('form', { class: 'inline-form', novalidate: true, 'data-testid': 'cmp-add',
+        'aria-label': 'Add a calibration to compare' },
+    h('div', { class: 'row-many' }, h('label', { class: 'fld', for: 'cmp-other' },
+        h('span', { class: 'lbl' }, 'Another calibration (#, e.g. of another pixel)'), other),
+    h('button', { type: 'submit' }, 'Add')), err);
+    const out = h('div', { class: 'pfig-slot', 'data-testid': 'compare-out' });
+    const draw = async () => {
+        purgeIn(out);
+        const oa = options.get(selA.querySelector('select').value);
+        const ob = options.get(selB.querySelector('select').value);
+        if (!oa || !ob) return;
+        try {
+            const [a, b] = await Promise.all([oa.load(), ob.load()]);
+            fill(out, compareFigure(a, b, pitch).fig);
+        } catch (ex) {
+            fill(out, failure(ex));
+        }
+    };
+    addForm.addEventListener('submit', async (e) => {
+        e.preventDefault();
+        clearError(addForm);
+        try {
+            const id = Number(other.value);
+            if (!Number.isInteger(id) || id < 1) {
+                throw Object.assign(new Error('a calibration number is a positive integer'),
+                    { field: 'id' });
+            }
+            const c = await get(`/api/calibrations/${id}`);
+            addCal(c, ` of pixel (${c.pixel.col}, ${c.pixel.row})` +
+                (c.sensor_id !== cur.sensor_id ? ` of sensor #${c.sensor_id}` : ''));
+            fillSel(selA);
+            fillSel(selB, `cal:${c.id}`);
+            await draw();
+        } catch (ex) {
+            showError(addForm, ex);
+        }
+    });
+    fillSel(selA, `cal:${cur.id}`);
+    const prev = hist.items.find((c) => c.id !== cur.id);
+    fillSel(selB, prev ? `cal:${prev.id}` : cur.fit_id ? `wiener:${cur.fit_id}` : `cal:${cur.id}`);
+    selA.querySelector('select').addEventListener('change', draw);
+    selB.querySelector('select').addEventListener('change', draw);
+    draw();
+    return [h('div', { class: 'row-many' }, selA, selB), addForm, out];
+}
 
 export function renderPixel(root, sensorId, col, row) {
     const base = `/api/sensors/${sensorId}/pixels/${col}/${row}`;
     fill(root, h('p', { class: 'muted' }, 'Loading…'));
     (async () => {
         const sensor = await get(`/api/sensors/${sensorId}`);
+        const pitch = sensor.pitch_um;
         const title = [h('p', { class: 'crumbs' },
             h('a', { href: `#/calibrations?sensor=${sensorId}` }, '← Calibrations')),
         h('h2', {}, `Pixel (${col}, ${row}) of ${sensor.model} ${sensor.serial}`)];
@@ -153,6 +271,7 @@ export function renderPixel(root, sensorId, col, row) {
             return;
         }
         const hist = await get(`${base}/history`);
+        purgeIn(root);
         fill(root, ...title,
             h('section', { class: 'panel', 'aria-labelledby': 'cur-h' },
                 h('h3', { id: 'cur-h' }, `Current calibration #${cur.id}`),
@@ -161,31 +280,48 @@ export function renderPixel(root, sensorId, col, row) {
                     `${cur.noise_model} noise, ` +
                     `λ = ${fmt(cur.optics.wavelength_nm)} nm, NA = ${fmt(cur.optics.na)}, ` +
                     `ipsd ${cur.software_version} · ${fmtTime(cur.created_ms)} · from `,
-                provenance(cur), ' · ', csvLink(cur)),
+                provenance(cur)),
                 h('p', { class: 'sub', 'data-testid': 'current-why' }, `Made current by ` +
                     `${cur.by ?? '–'}: ${cur.reason ?? '–'}`, cur.supersedes
                     ? ` (replaced #${cur.supersedes})` : ''),
-                h('div', { class: 'maps' }, mapFigures(cur.S, cur.S_err, cur.r,
-                    sensor.pitch_um, `/api/calibrations/${cur.id}/interp`))),
+                h('p', { class: 'downloads' }, 'Download: ',
+                    downloadButton('JSON', `calibration-${cur.id}.json`, 'application/json',
+                        () => calibrationJson(cur, pitch), 'download-json'), ' ',
+                    downloadButton('CSV (µm)', `calibration-${cur.id}-um.csv`, 'text/csv',
+                        () => calibrationCsv(cur, pitch), 'download-csv'), ' · ',
+                    csvLink(cur, 'the API\'s CSV'), h('span', { class: 'muted small' },
+                        ` (positions in µm from the pixel's top-left corner, y downward; ` +
+                        `pitch ${fmt(pitch)} µm)`)),
+                h('div', { class: 'maps' },
+                    mapFigure(cellSource('current', cur.S, cur.r, pitch, cur.S_err), pitch,
+                        'plot-cal-S', `Fitted sensitivity S (${cur.r}×${cur.r})`),
+                    surfaceFigure(`/api/calibrations/${cur.id}/interp`, pitch),
+                    cur.S_err ? errFigure(cur, pitch) : null)),
+            h('section', { class: 'panel', 'aria-labelledby': 'cmp-h' },
+                h('h3', { id: 'cmp-h' }, 'Compare two maps'),
+                h('p', { class: 'muted small' }, 'Two dates of this pixel, another pixel\'s ' +
+                    'calibration, or the forward-model map against the Wiener baseline; A and B ' +
+                    'on one colour scale, and A − B.'),
+                comparePanel(hist, cur, pitch)),
             h('section', { class: 'panel', 'aria-labelledby': 'hist-h' },
                 h('h3', { id: 'hist-h' }, `History (${hist.items.length})`),
+                hist.items.length ? historyFigure(hist.items, pitch) : null,
                 h('p', {}, h('a', { href: `${base}/history?format=csv`,
                     download: `pixel-${sensorId}-${col}-${row}-history.csv` }, 'history as CSV')),
-                h('table', { class: 'list', 'data-testid': 'history-table' },
-                    h('thead', {}, h('tr', {}, ['#', 'Map', 'r', 'Status', 'χ²/dof',
-                        'Made current', 'By', 'Why', 'Replaced', 'State', 'From', '']
-                        .map((t) => h('th', { scope: 'col' }, t)))),
-                    h('tbody', {}, hist.items.map((c) => h('tr',
-                        { class: c.current ? 'current' : null },
-                        h('td', {}, c.id),
-                        h('td', { class: 'thumb' }, heatmap({ values: c.S, nx: c.r, ny: c.r,
-                            size: 48, title: `Calibration #${c.id}`, thumb: true })),
-                        h('td', {}, c.r), h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
-                        h('td', {}, fmtTime(c.created_ms)), h('td', {}, c.by ?? '–'),
-                        h('td', { class: 'small' }, c.reason ?? '–'),
-                        h('td', {}, c.supersedes ? `#${c.supersedes}` : '–'),
-                        h('td', {}, c.current ? 'current' : `superseded by #${c.superseded_by}`),
-                        h('td', {}, provenance(c)), h('td', {}, csvLink(c))))))));
+                h('div', { class: 'table-wrap' }, h('table', { class: 'list',
+                    'data-testid': 'history-table' },
+                h('thead', {}, h('tr', {}, ['#', 'r', 'Status', 'χ²/dof',
+                    'Made current', 'By', 'Why', 'Replaced', 'State', 'From', '']
+                    .map((t) => h('th', { scope: 'col' }, t)))),
+                h('tbody', {}, hist.items.map((c) => h('tr',
+                    { class: c.current ? 'current' : null },
+                    h('td', {}, c.id),
+                    h('td', {}, c.r), h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
+                    h('td', {}, fmtTime(c.created_ms)), h('td', {}, c.by ?? '–'),
+                    h('td', { class: 'small' }, c.reason ?? '–'),
+                    h('td', {}, c.supersedes ? `#${c.supersedes}` : '–'),
+                    h('td', {}, c.current ? 'current' : `superseded by #${c.superseded_by}`),
+                    h('td', {}, provenance(c)), h('td', {}, csvLink(c)))))))));
     })().catch((err) => fill(root, failure(err)));
-    return () => {};
+    return () => purgeIn(root);
 }

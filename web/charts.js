@@ -5,7 +5,7 @@
 // web` (scripts/run.sh, scripts/test.sh) and loaded by index.html as window.Plotly before the
 // modules, from ipsd itself (no CDN: labs are often offline). Without it every figure says how
 // to install it (the rest of the page works). docs/web.md.
-import { h } from './dom.js';
+import { fmt, h } from './dom.js';
 
 // Colour scales, perceptually uniform and colour-blind safe: viridis for maps (Plotly's own),
 // magma (matplotlib's, 9 stops) for uncertainties, and blue-white-red (ColorBrewer RdBu, safe
@@ -107,6 +107,14 @@ export function outline(frame, k = '') {
         line: { color: '#111', width: 1.5 }, fillcolor: 'rgba(0,0,0,0)', layer: 'above' };
 }
 
+// A heatmap's cell positions: the n centres over [0, w] on both axes; one cell (r = 1) as x0 / dx
+// instead, since Plotly cannot infer a cell's size from one centre (it would draw a 1-unit square).
+export function cellAxes(n, w, ny = n) {
+    const c = (m) => Array.from({ length: m }, (_, i) => (i + 0.5) * w / m);
+    return { ...(n > 1 ? { x: c(n) } : { x0: w / 2, dx: w }),
+        ...(ny > 1 ? { y: c(ny) } : { y0: w / 2, dy: w }) };
+}
+
 // values (nx * ny, row-major y then x) as rows for a heatmap's z.
 export function rows(values, nx, ny) {
     return Array.from({ length: ny }, (_, j) => values.slice(j * nx, (j + 1) * nx));
@@ -123,4 +131,17 @@ export function jointRange(...arrays) {
         }
     }
     return lo === Infinity ? [0, 1] : lo === hi ? [lo - 0.5, hi + 0.5] : [lo, hi];
+}
+
+// The values of an nx x ny map as a table in a <details> (for keyboards and screen readers).
+export function valueTable(values, nx, ny) {
+    const rows = [];
+    for (let j = 0; j < ny; j++) {
+        rows.push(h('tr', {}, h('th', { scope: 'row' }, j),
+            Array.from({ length: nx }, (_, i) => h('td', {}, fmt(values[j * nx + i], 4)))));
+    }
+    return h('details', { class: 'values' }, h('summary', {}, 'Values'),
+        h('table', { class: 'num' }, h('thead', {}, h('tr', {}, h('th', {}, 'row \\ col'),
+            Array.from({ length: nx }, (_, i) => h('th', { scope: 'col' }, i)))),
+        h('tbody', {}, rows)));
 }

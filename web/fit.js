@@ -1,48 +1,78 @@
 // fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document): the chosen map S
 // (the recommended r by default, any r selectable) beside the Wiener-deconvolution baseline on one
 // colour scale, its uncertainties S_err, the interpolated map as a 3-D surface, and the measured
-// signal and normalised residuals at the spot positions (Plotly figures on um axes, fit_maps.js);
-// the model-selection plot (chi2, AIC, BIC against r, best r marked) with its table, the
-// F-test verdict (paper: reject H0 when p < 0.05), and whether the fit's map is its pixel's current
-// calibration, with the action that makes it so (POST /api/fits/{id}/promote, with a reason).
+// signal, the fitted model and the normalised residuals at the spot positions (Plotly figures on
+// um axes, fit_maps.js); the goodness of fit in words; the model-selection figure (AIC, BIC, chi2
+// and the cross-validation chi2 against r, the recommended r marked and its reason in words,
+// fit_select.js) with its table, the F-test verdict (paper: reject H0 when p < 0.05), whether the
+// fit's map is its pixel's current calibration, with the action that makes it so (POST
+// /api/fits/{id}/promote, with a reason), and a re-fit with other settings (fit_form.js).
 import { get, post } from './api.js';
 import { errorBox, failure, field, fill, fmt, fmtTime, h, onSubmit } from './dom.js';
 import { purgeIn } from './charts.js';
+import { buildFitForm } from './fit_form.js';
 import { errFigure, fitPoints, mapPairFigure, residualFigure, surfaceFigure } from './fit_maps.js';
-import { linePlot } from './plots.js';
+import { goodness, reasonText, selectionFigure } from './fit_select.js';
 import { requestRules, ruleAttrs } from './rules.js';
 
 const ALPHA = 0.05; // the paper's significance level for the F-test
 
-// The model-selection plots and table; note: the line under them that says which map the maps
-// above show (updated by the view when another r is chosen).
+// The model-selection figure, the recommended r's reason in words, and the table; note: the
+// line under them that says which map the maps above show (updated when another r is chosen).
 function selection(res, rec, note) {
     const fits = res.fits, best = res.best_r || {};
-    const pts = (k) => fits.map((f) => [f.r, f[k]]);
-    const marks = [];
-    if (best.aic) marks.push({ x: best.aic, label: 'AIC', cls: 'aic', row: 0 });
-    if (best.bic) marks.push({ x: best.bic, label: 'BIC', cls: 'bic', row: 1 });
-    if (rec) marks.push({ x: rec, label: 'recommended', cls: 'rec', row: 2 });
-    const xticks = fits.map((f) => f.r);
-    const chi = linePlot({ title: 'χ² against r (log scale)', xlabel: 'sub-pixels per axis r',
-        ylabel: 'χ²', log: true, xticks, marks,
-        series: [{ name: 'χ²', cls: 'chi2', points: pts('chi2') }] });
-    const ic = linePlot({ title: 'Information criteria against r', xlabel: 'sub-pixels per axis r',
-        ylabel: 'AIC, BIC', xticks, marks,
-        series: [{ name: 'AIC', cls: 'aic', points: pts('aic'), best: [best.aic] },
-            { name: 'BIC', cls: 'bic', points: pts('bic'), best: [best.bic] }] });
     const table = h('table', { class: 'list num', 'data-testid': 'sweep-table' },
-        h('thead', {}, h('tr', {}, ['r', 'params', 'χ²', 'χ²/dof', 'AIC', 'BIC', 'cond',
-            'status'].map((t) => h('th', { scope: 'col' }, t)))),
+        h('thead', {}, h('tr', {}, ['r', 'params', 'χ²', 'χ²/dof', 'p', 'CV χ²', 'AIC', 'BIC',
+            'cond', 'status'].map((t) => h('th', { scope: 'col' }, t)))),
         h('tbody', {}, fits.map((f) => h('tr', { class: [f.r === best.aic ? 'best-aic' : '',
             f.r === best.bic ? 'best-bic' : ''].join(' ').trim() || null },
         h('td', {}, f.r, f.r === rec ? h('span', { class: 'tag rec' }, 'rec.') : null,
             f.r === best.aic ? h('span', { class: 'tag aic' }, 'AIC') : null,
             f.r === best.bic ? h('span', { class: 'tag bic' }, 'BIC') : null),
         h('td', {}, f.params), h('td', {}, fmt(f.chi2, 6)), h('td', {}, fmt(f.chi2_red)),
+        h('td', {}, fmt(f.chi2_p, 2)), h('td', {}, fmt(f.cv_chi2, 6)),
         h('td', {}, fmt(f.aic, 6)), h('td', {}, fmt(f.bic, 6)), h('td', {}, fmt(f.cond, 3)),
         h('td', {}, f.status)))));
-    return [h('div', { class: 'plots' }, chi, ic), note, table];
+    return [selectionFigure(res, rec),
+        h('p', { 'data-testid': 'selection-reason' }, reasonText(res, rec)), note,
+        h('div', { class: 'table-wrap' }, table)];
+}
+
+// Re-fit of the fit's pixel with other settings (fit_form.js, POST /api/scans/{id}/fits), the
+// choice whether the new fit becomes the calibration included; once queued, a line follows the
+// job and links the new fit when it is done.
+function refitPanel(fit, scan, ctx) {
+    const box = h('div', { 'data-testid': 'refit' });
+    const state = h('p', { class: 'muted small', 'data-testid': 'refit-state', role: 'status' });
+    let stop = () => {};
+    requestRules('post', '/api/scans/{id}/fits').then((rule) => {
+        const form = buildFitForm(rule, scan, (reply) => {
+            const job = reply.job;
+            ctx?.announce?.(`Fit job #${job.id} queued`);
+            fill(state, `Fit job #${job.id} queued…`);
+            stop();
+            const check = async () => {
+                const j = await get(`/api/jobs/${job.id}`);
+                if (j.state === 'done' && j.fit_id) {
+                    stop();
+                    fill(state, `Fit job #${job.id} done: `, h('a', { href: `#/fits/${j.fit_id}`,
+                        'data-testid': 'refit-link' }, `fit #${j.fit_id}`),
+                    body.promote ? ' (asked to become the calibration)' : '');
+                } else if (j.state === 'failed' || j.state === 'cancelled') {
+                    stop();
+                    fill(state, `Fit job #${job.id} ${j.state}${j.error ? `: ${j.error}` : ''}`);
+                }
+            };
+            const body = { promote: form.querySelector('[data-field="promote"]').checked };
+            stop = ctx?.onJob ? ctx.onJob((ev) => {
+                if (ev.id === job.id) check().catch(() => {});
+            }) : () => {};
+            check().catch(() => {});
+        }, { title: 'Fit this pixel again with other settings', dcol: fit.dcol, drow: fit.drow });
+        fill(box, form, state);
+    }).catch((err) => fill(box, failure(err)));
+    box.cleanup = () => stop();
+    return box;
 }
 
 function ftestPanel(t) {
@@ -116,7 +146,8 @@ function calibrationPanel(fit) {
     return box;
 }
 
-export function renderFit(root, id) {
+export function renderFit(root, id, ctx) {
+    let refit = null;
     fill(root, h('p', { class: 'muted' }, `Loading fit #${id}…`));
     (async () => {
         const fit = await get(`/api/fits/${id}`);
@@ -164,15 +195,19 @@ export function renderFit(root, id) {
                 h('dt', {}, 'Map shown'), h('dd', { 'data-testid': 'shown-r' }, `r = ${f.r}`),
                 h('dt', {}, 'Fit status'), h('dd', { 'data-testid': 'map-status',
                     class: f.status === 'ok' ? 'ok' : 'warn' }, f.status),
-                h('dt', {}, 'χ² / dof'), h('dd', {}, fmt(f.chi2_red)),
+                h('dt', {}, 'Goodness of fit'), (() => {
+                    const g = goodness(f);
+                    return h('dd', { class: `small ${g.cls}`, 'data-testid': 'goodness',
+                        dataset: { poor: String(g.poor) } }, g.text);
+                })(),
                 h('dt', {}, 'I₀ (DN)'), h('dd', {}, `${fmt(f.I0, 6)} ± ${fmt(f.I0_err, 2)}`),
                 h('dt', {}, 'Condition number'), h('dd', {}, fmt(f.cond, 3)),
                 h('dt', {}, 'Points used'),
                 h('dd', {}, `${res.N ?? '–'} of ${res.n_points ?? '–'}`),
                 h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
                     `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`));
-            fill(note, `Dashed lines: the best r by AIC (${best.aic ?? '–'}), by BIC ` +
-                `(${best.bic ?? '–'}) and the recommended r (${rec ?? '–'}). The maps above ` +
+            fill(note, `Best r by AIC: ${best.aic ?? '–'}, by BIC: ${best.bic ?? '–'}; ` +
+                `recommended: ${rec ?? '–'}. The maps above ` +
                 `are r = ${f.r}` + (f.r === rec ? ', the recommended r: the map the fit offers ' +
                 'as its pixel\'s calibration.' : `; the map the fit offers as its pixel's ` +
                 `calibration is the recommended r = ${rec ?? '–'}.`));
@@ -227,8 +262,10 @@ export function renderFit(root, id) {
                 maps),
             h('section', { class: 'panel', 'aria-labelledby': 'sel-h' },
                 h('h3', { id: 'sel-h' }, 'Model selection'), fits.length ? selection(res, rec, note)
-                    : h('p', { class: 'muted' }, 'No sweep in this fit.')));
+                    : h('p', { class: 'muted' }, 'No sweep in this fit.')),
+            scan?.state === 'done' ? h('section', { class: 'panel', 'aria-labelledby': 'refit-h' },
+                h('h3', { id: 'refit-h' }, 'Re-fit'), refit = refitPanel(fit, scan, ctx)) : null);
         show();
     })().catch((err) => fill(root, failure(err)));
-    return () => {};
+    return () => refit?.cleanup();
 }

@@ -8,17 +8,21 @@ import { errorBox, field, h, onSubmit } from './dom.js';
 import { choices, ruleAttrs } from './rules.js';
 
 // rule: the rules of POST /api/scans/{id}/fits; scan: the scan (its id and sub-frame);
-// onQueued(reply) after a 202.
-export function buildFitForm(rule, scan, onQueued) {
+// onQueued(reply) after a 202; opts: the form's title and the pixel offsets to start from (the
+// Fit view's re-fit starts from its own pixel).
+export function buildFitForm(rule, scan, onQueued, opts = {}) {
     const err = errorBox();
     const int = (label, f, attrs = {}) => field(label, { 'data-field': f, 'data-type': 'int',
         type: 'number', step: 1, ...ruleAttrs(rule(f)), ...attrs });
     const h2 = Math.floor(scan.raster.sub_px / 2); // |dcol|, |drow| <= sub_px / 2
     const form = h('form', { class: 'inline-form', novalidate: true,
         'aria-label': 'Fit a pixel of this scan', 'data-testid': 'fit-form' },
-    h('h4', {}, 'Fit a pixel of the sub-frame'),
+    h('h4', {}, opts.title || 'Fit a pixel of the sub-frame'),
     h('div', { class: 'row-many' },
-        int('dcol', 'dcol', { min: -h2, max: h2 }), int('drow', 'drow', { min: -h2, max: h2 }),
+        int('dcol', 'dcol', { min: -h2, max: h2, ...(opts.dcol !== undefined
+            ? { value: opts.dcol } : {}) }),
+        int('drow', 'drow', { min: -h2, max: h2, ...(opts.drow !== undefined
+            ? { value: opts.drow } : {}) }),
         int('r min', 'r_min'), int('r max', 'r_max'),
         h('label', { class: 'fld' }, h('span', { class: 'lbl' }, 'σ model'),
             h('select', { 'data-field': 'sigma' }, choices(rule('sigma')))),

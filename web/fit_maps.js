@@ -6,16 +6,15 @@
 //   - the uncertainty S_err;
 //   - the interpolated map (GET /api/fits/{id}/interp, fit_interp_bicubic) as a 3-D surface, the
 //     paper's own figure;
-//   - the measured signal and the normalised residuals (signal - model) / sigma at the spot
-//     positions. The fit document has the residuals per point of its region in input order
+//   - the measured signal, the fitted model (fits[].model_dn) and the normalised residuals
+//     (signal - model) / sigma at the spot positions, side by side on one spatial scale. The fit document has the residuals per point of its region in input order
 //     (docs/contracts.md), not the positions: these come from the scan's pixel raster (GET
 //     /api/scans/{id}/pixels/{dcol}/{drow}?all=1) selected by the fit's region as
 //     fit_region_contains does (fit/region.c).
 import { get } from './api.js';
-import { valueTable } from './plots.js';
 import { failure, fill, fmt, h } from './dom.js';
 import { DIVERGING, MAGMA, VIRIDIS, jointRange, outline, pixelFrame, plotFigure, rows,
-    squareAxes } from './charts.js';
+    cellAxes, squareAxes, valueTable } from './charts.js';
 
 export const INTERP_N = 100; // points per axis of the interpolated map
 const EDGE_REL_TOL = 1e-6; // of the pitch: fit/region.c
@@ -32,10 +31,11 @@ const centres = (r, w) => Array.from({ length: r }, (_, i) => (i + 0.5) * w / r)
 // shared colour axis whose range spans both maps.
 export function mapPairFigure(f, wiener, pitch) {
     const fr = pixelFrame(pitch);
-    const r = f.r, xs = centres(r, fr.w);
+    const r = f.r;
     const hasW = wiener && !wiener.error && Array.isArray(wiener.S);
     const [cmin, cmax] = jointRange(f.S, hasW ? wiener.S : null);
-    const data = [{ type: 'heatmap', name: `S (r = ${r})`, x: xs, y: xs, z: rows(f.S, r, r),
+    const data = [{ type: 'heatmap', name: `S (r = ${r})`, ...cellAxes(r, fr.w),
+        z: rows(f.S, r, r),
         customdata: f.S_err ? rows(f.S_err, r, r) : undefined, coloraxis: 'coloraxis',
         xaxis: 'x', yaxis: 'y', hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>` +
             `S = %{z:.6g}${f.S_err ? ' ± %{customdata:.2g}' : ''}<extra>fitted S</extra>` }];
@@ -79,10 +79,11 @@ export function mapPairFigure(f, wiener, pitch) {
 
 // S_err, 1 sigma, on its own scale.
 export function errFigure(f, pitch) {
-    const fr = pixelFrame(pitch), r = f.r, xs = centres(r, fr.w);
+    const fr = pixelFrame(pitch), r = f.r;
     const fig = plotFigure({ title: 'Uncertainty S_err (1σ)', testid: 'plot-Serr', height: 320,
         name: `S_err-r${r}`,
-        data: [{ type: 'heatmap', x: xs, y: xs, z: rows(f.S_err, r, r), colorscale: MAGMA,
+        data: [{ type: 'heatmap', ...cellAxes(r, fr.w), z: rows(f.S_err, r, r),
+            colorscale: MAGMA,
             colorbar: { title: { text: 'S_err' }, thickness: 14 },
             hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>S_err = %{z:.3g}` +
                 '<extra></extra>' }],
@@ -155,11 +156,15 @@ export async function fitPoints(fit) {
     return out;
 }
 
-// The measured signal and the normalised residuals of map f at the spot positions, side by side
-// on the map's axes (um, the pixel outlined). pts: fitPoints' answer.
+// The measured signal, the fitted model at the same points (fits[].model_dn, DN, on the
+// signal's colour scale so that the two compare) and the normalised residuals (data - model) / σ
+// of map f, side by side on one spatial scale (the map's µm axes, one range for all three, the
+// pixel outlined). pts: fitPoints' answer. A fit stored before model_dn existed shows the signal
+// and the residuals only (σ is not in the document, so the model cannot be recovered from them).
 export function residualFigure(f, pts) {
     const fr = pixelFrame(pts.pitch);
     const resid = f.residuals || [];
+    const model = Array.isArray(f.model_dn) ? f.model_dn : null;
     const keep = resid.map((v, k) => k).filter((k) => Number.isFinite(resid[k]));
     // a marker about one raster step wide: the step from the sorted distinct x positions
     const ux = [...new Set(pts.x.filter(Number.isFinite).map((v) => v.toFixed(6)))]
@@ -168,42 +173,63 @@ export function residualFigure(f, pts) {
     const step = steps.length ? steps.sort((a, b) => a - b)[steps.length >> 1] : fr.w / 10;
     const [lo0, hi0] = jointRange(pts.x, pts.y, [0, fr.w]);
     const range = [lo0 - step / 2, hi0 + step / 2];
-    const size = Math.min(22, Math.max(3, 230 * step / (range[1] - range[0])));
+    const panels = model ? 3 : 2;
+    const size = Math.min(22, Math.max(3, (panels === 3 ? 170 : 230) * step /
+        (range[1] - range[0])));
     const marker = (color, axis) => ({ color, coloraxis: axis, symbol: 'square', size,
         line: { width: 0 } });
     const lim = Math.max(3, ...keep.map((k) => Math.abs(resid[k])));
+    const mk = model ? keep.filter((k) => Number.isFinite(model[k])) : [];
+    // signal and model on one DN scale spanning both
+    const [dmin, dmax] = jointRange(pts.signal, mk.map((k) => model[k]));
+    const ax = ['', 2, 3].slice(0, panels);
+    const resAx = ax[panels - 1];
     const data = [
         { type: 'scatter', mode: 'markers', name: 'signal', x: pts.x, y: pts.y,
             marker: marker(pts.signal, 'coloraxis'), xaxis: 'x', yaxis: 'y',
             hovertemplate: 'x %{x:.3f} µm, y %{y:.3f} µm<br>signal %{marker.color:.6g} DN' +
                 '<extra></extra>' },
+        model ? { type: 'scatter', mode: 'markers', name: 'model', x: mk.map((k) => pts.x[k]),
+            y: mk.map((k) => pts.y[k]), customdata: mk,
+            marker: marker(mk.map((k) => model[k]), 'coloraxis'), xaxis: 'x2', yaxis: 'y2',
+            hovertemplate: 'x %{x:.3f} µm, y %{y:.3f} µm<br>model %{marker.color:.6g} DN' +
+                '<extra>point %{customdata}</extra>' } : null,
         { type: 'scatter', mode: 'markers', name: 'residual', x: keep.map((k) => pts.x[k]),
             y: keep.map((k) => pts.y[k]), customdata: keep,
-            marker: marker(keep.map((k) => resid[k]), 'coloraxis2'), xaxis: 'x2', yaxis: 'y2',
-            hovertemplate: 'x %{x:.3f} µm, y %{y:.3f} µm<br>(data − model) / σ = ' +
-                '%{marker.color:.3f}<extra>point %{customdata}</extra>' },
-    ];
-    const layout = { ...squareAxes(fr, '', [0, 0.38], range),
-        ...squareAxes(fr, 2, [0.62, 1], range),
-        coloraxis: { colorscale: VIRIDIS, colorbar: { title: { text: 'DN' }, thickness: 12,
-            x: 0.4 } },
+            marker: marker(keep.map((k) => resid[k]), 'coloraxis2'), xaxis: `x${resAx}`,
+            yaxis: `y${resAx}`, hovertemplate: 'x %{x:.3f} µm, y %{y:.3f} µm<br>(data − model)' +
+                ' / σ = %{marker.color:.3f}<extra>point %{customdata}</extra>' },
+    ].filter(Boolean);
+    // side by side: three columns with the DN colour bar between the model and the residuals
+    const cols = panels === 3 ? [[0, 0.26], [0.32, 0.58], [0.74, 1]] : [[0, 0.38], [0.62, 1]];
+    const layout = { showlegend: false,
+        coloraxis: { colorscale: VIRIDIS, cmin: dmin, cmax: dmax, colorbar: { title:
+            { text: 'DN' }, thickness: 10, x: panels === 3 ? 0.595 : 0.4 } },
         coloraxis2: { colorscale: DIVERGING, cmin: -lim, cmax: lim,
-            colorbar: { title: { text: 'σ' }, thickness: 12 } },
-        shapes: [outline(fr, ''), outline(fr, 2)],
-        annotations: [subTitle('', 'Measured signal'), subTitle(2, 'Residual (data − model) / σ')],
-        showlegend: false };
+            colorbar: { title: { text: 'σ' }, thickness: 10 } },
+        shapes: ax.map((k) => outline(fr, k)),
+        annotations: [subTitle('', 'Measured signal'),
+            model ? subTitle(2, 'Fitted model') : null,
+            subTitle(resAx, '(data − model) / σ')].filter(Boolean) };
+    ax.forEach((k, c) => Object.assign(layout, squareAxes(fr, k, cols[c], range)));
+    // on a phone: one above the other, each colour bar beside its plots
+    const rowsY = panels === 3 ? [[0.72, 0.97], [0.38, 0.63], [0, 0.25]] : [[0.56, 0.96], [0, 0.4]];
+    const stackedLayout = {
+        coloraxis: { ...layout.coloraxis, colorbar: { ...layout.coloraxis.colorbar, x: 1.02,
+            y: panels === 3 ? 0.68 : 0.76, len: panels === 3 ? 0.62 : 0.42 } },
+        coloraxis2: { ...layout.coloraxis2, colorbar: { ...layout.coloraxis2.colorbar,
+            y: panels === 3 ? 0.125 : 0.2, len: panels === 3 ? 0.28 : 0.42 } } };
+    ax.forEach((k, c) => Object.assign(stackedLayout, squareAxes(fr, k, [0, 1], range,
+        rowsY[c])));
     const n = resid.length, out = n - keep.length;
     const chi = keep.reduce((a, k) => a + resid[k] * resid[k], 0);
-    // on a phone: the signal above the residuals, each colour bar beside its plot
-    const stacked = { height: 640, layout: { ...squareAxes(fr, '', [0, 1], range, [0.56, 0.96]),
-        ...squareAxes(fr, 2, [0, 1], range, [0, 0.4]),
-        coloraxis: { ...layout.coloraxis, colorbar: { ...layout.coloraxis.colorbar, x: 1.02,
-            y: 0.76, len: 0.42 } },
-        coloraxis2: { ...layout.coloraxis2, colorbar: { ...layout.coloraxis2.colorbar, y: 0.2,
-            len: 0.42 } } } };
-    return plotFigure({ title: `Measured signal and normalised residuals (r = ${f.r})`,
-        testid: 'plot-resid', data, layout, height: 340, name: `residuals-r${f.r}`, stacked,
-        note: `${keep.length} points fitted${out ? `, ${out} left out` : ''}; Σ residual² = ` +
-            `${fmt(chi, 5)} (the χ²). Residuals should scatter about 0 without a pattern; a ` +
-            'pattern at the pixel edges says the model misses something there.' });
+    return plotFigure({ title: `Measured signal, ${model ? 'fitted model ' : ''}and normalised ` +
+        `residuals (r = ${f.r})`, testid: 'plot-resid', data, layout, height: 340,
+    name: `residuals-r${f.r}`, stacked: { height: panels === 3 ? 960 : 640,
+        layout: stackedLayout },
+    note: `${keep.length} points fitted${out ? `, ${out} left out` : ''}; Σ residual² = ` +
+        `${fmt(chi, 5)} (the χ²). ${model ? 'Signal and model share one colour scale (DN). '
+        : 'This fit was stored before the model values were kept: no model panel. '}` +
+        'Residuals should scatter about 0 without a pattern; a pattern at the pixel edges says ' +
+        'the model misses something there.' });
 }

@@ -8,9 +8,13 @@
 // (GET /api/fits/{id}/interp) and the pixel's raster fetched independently (best r, status,
 // F-test; the Plotly figures' data read from their graph divs: the map S and the Wiener baseline
 // on one colour scale, axes in µm, the pixel outline, the 3-D surface of the interpolated map, the
-// residuals at their spot positions, a hover readout), the calibration search and its CSV link
-// (the pixel view's canvas heat map's colours), cancels a long scan, and checks that the page
-// logged no console errors.
+// measured signal, the fitted model and the residuals at their spot positions on one scale, a
+// hover readout, the AIC/BIC figure's recommended r and its reason, the goodness of fit), a bad
+// re-fit value (the API's message at its field, nothing queued) and a re-fit that becomes the
+// calibration, the calibration search and its CSV link, the pixel view (its Plotly surface, the
+// comparison of two maps whose difference the test recomputes from the API's two maps, the CSV
+// download's numbers against the API's), cancels a long scan, no sideways scrolling at 390 px,
+// and checks that the page logged no console errors.
 //
 // Deterministic on a busy machine: every wait is for a condition (on the page, or polled from
 // the API) with a generous deadline, never for a time; the scan cancelled from the page is far
@@ -18,8 +22,8 @@
 // the cancel comes a few seconds after the start).
 //
 // usage: node dashboard.test.mjs IPSD WEBDIR [SHOTDIR]   exit 0 pass, 1 fail, 77 skip (no
-// node_modules here or in WEBDIR (Plotly.js), or no chromium). Screenshots go to SHOTDIR
-// (default /tmp; ctest passes the build's tests/ directory) as ipsd-dashboard-*.png.
+// node_modules here or in WEBDIR (Plotly.js), or no chromium). Screenshots go to SHOTDIR (ctest:
+// BUILD/web-screenshots; default /tmp/ipsd-dashboard-screenshots).
 import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -28,10 +32,9 @@ import { fileURLToPath } from 'node:url';
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const CHROMIUM = '/usr/bin/chromium';
-const [ipsdBin, webDir, shotDir = '/tmp'] = process.argv.slice(2);
-// where the screenshots go (the build directory under ctest: tests/web.cmake)
-const shot = (name) => path.join(shotDir, `ipsd-dashboard-${name}.png`);
-const VIRIDIS_TOP = [0xfd, 0xe7, 0x25]; // the colour map's ends: a map's max and min cells
+const [ipsdBin, webDir, shotArg] = process.argv.slice(2);
+// screenshots of the main pages at 1280 px and 390 px, for people to look at
+const SHOTS = shotArg || path.join(os.tmpdir(), 'ipsd-dashboard-screenshots');
 const TOKEN = 'e2e-Token-7f3a'; // ipsd runs with --token: writes need it
 const WAIT = 30000; // ms: the deadline of a wait for something the page shows soon
 const LONG_WAIT = 90000; // ms: the deadline of a wait for a scan or a fit to finish
@@ -67,6 +70,10 @@ function check(cond, what, detail = '') {
     }
     return cond;
 }
+// The API's error message in words, as the dashboard shows it at a field: its JSON name replaced
+// by the input's label, or the label put first (the rule docs/web.md states).
+const inWordsTest = (e, label) => (e.message.includes(e.field)
+    ? e.message.split(e.field).join(label) : `${label}: ${e.message}`);
 const near = (a, b, rel) => Math.abs(a - b) <= rel * Math.max(Math.abs(a), Math.abs(b), 1e-300);
 
 // Polls fn() until it returns a truthy value (returned), up to ms; throws naming what.
@@ -123,23 +130,6 @@ async function typeInto(locator, text) {
     await locator.fill('');
     await locator.pressSequentially(String(text));
 }
-
-// Colours of a canvas: the number of distinct RGB values and the RGB at fractions (fx, fy).
-async function canvasInfo(page, selector, probes = []) {
-    return page.$eval(selector, (c, probes) => {
-        const ctx = c.getContext('2d');
-        const d = ctx.getImageData(0, 0, c.width, c.height).data;
-        const seen = new Set();
-        for (let k = 0; k < d.length; k += 4) seen.add((d[k] << 16) | (d[k + 1] << 8) | d[k + 2]);
-        const at = probes.map(([fx, fy]) => {
-            const x = Math.floor(fx * c.width), y = Math.floor(fy * c.height);
-            return Array.from(ctx.getImageData(x, y, 1, 1).data.slice(0, 3));
-        });
-        return { distinct: seen.size, at, width: c.width, height: c.height };
-    }, probes);
-}
-
-const sameColour = (a, b) => a.every((v, k) => Math.abs(v - b[k]) <= 2);
 
 // The schema of request body field FIELD ('raster.area_px') of METHOD PATH in the OpenAPI
 // document: $ref followed, allOf merged; undefined when the document has none.
@@ -327,7 +317,7 @@ async function checkScanPage(page, api, scan, sensor) {
         near(ov.data[0].y0, pitch / (2 * cal.r), 1e-12) && near(ov.data[0].dx, pitch / cal.r, 1e-12),
     'the sub-frame overview shows the POI\'s calibration in its place, the other pixels empty',
     JSON.stringify(ov.dataset));
-    await page.screenshot({ path: shot('scan'), fullPage: true });
+    await page.screenshot({ path: path.join(SHOTS, 'scan-1280.png'), fullPage: true });
 }
 
 async function run(base, page, api) {
@@ -549,7 +539,7 @@ async function run(base, page, api) {
 
     // the interpolated map (GET /api/fits/{id}/interp, fetched by the test too) as a surface
     const ip = (await api('GET', `/api/fits/${fitId}/interp?r=${r}&n=100`)).body;
-    const n = ip.n, at = (k) => [((k % n) + 0.5) / n, (Math.floor(k / n) + 0.5) / n];
+    const n = ip.n;
     const surf = await graph('plot-surface');
     check(ip.r === r && n === 100 && surf.data[0].type === 'surface' &&
         surf.data[0].z.length === n && same(flat(surf.data[0].z), ip.S),
@@ -568,20 +558,87 @@ async function run(base, page, api) {
     const resid = best.residuals;
     const kept = resid.map((_, k) => k).filter((k) => Number.isFinite(resid[k]));
     const rg = await graph('plot-resid');
-    const rTr = rg.data[1];
+    const rTr = rg.data.find((d) => d.name === 'residual');
+    const mTr = rg.data.find((d) => d.name === 'model');
+    const dTr = rg.data.find((d) => d.name === 'signal');
     check(px.x_um.length === resid.length && kept.length > 0 &&
         same(rTr.marker.color, kept.map((k) => resid[k])),
     'the residual plot shows the API\'s residuals', `${rTr.marker.color.length} plotted, ` +
         `${kept.length} finite of ${resid.length}; raster ${px.x_um.length} points`);
     check(same(rTr.x, kept.map((k) => px.x_um[k])) && same(rTr.y, kept.map((k) => px.y_um[k])),
         'each residual sits at its spot position (µm)');
-    check(title(rg.layout.xaxis2).includes('µm') && rg.layout.shapes.length === 2,
-        'the residuals share the maps\' µm axes, the pixel outlined');
+    const modelKept = kept.filter((k) => Number.isFinite(best.model_dn?.[k]));
+    check(mTr && modelKept.length === kept.length &&
+        same(mTr.marker.color, modelKept.map((k) => best.model_dn[k])) &&
+        same(mTr.x, modelKept.map((k) => px.x_um[k])),
+    'the model raster plots the API\'s model_dn at the spot positions',
+    mTr ? `${mTr.marker.color.length} plotted, ${modelKept.length} expected` : 'no model trace');
+    // the model is the signal less the residual times sigma: it must sit within a few sigma of
+    // the signal (sigma >= the read noise and < the signal's own size here)
+    check(modelKept.every((k) => Math.abs(px.signal_dn[k] - best.model_dn[k]) <
+        Math.max(1, Math.abs(resid[k])) * Math.abs(px.signal_dn[k]) + 1e-9),
+    'model and signal differ by no more than the residuals allow');
+    check(dTr.marker.coloraxis === 'coloraxis' && mTr?.marker.coloraxis === 'coloraxis' &&
+        rTr.marker.coloraxis === 'coloraxis2', 'signal and model share one colour scale');
+    const rangeOf = (ax) => JSON.stringify(rg.layout[ax].range);
+    check(['xaxis', 'xaxis2', 'xaxis3'].every((ax) => title(rg.layout[ax]).includes('µm') &&
+        rangeOf(ax) === rangeOf('xaxis')) && rg.layout.shapes.length === 3,
+    'signal, model and residuals side by side on one µm scale, the pixel outlined on each',
+    ['xaxis', 'xaxis2', 'xaxis3'].map(rangeOf).join(' '));
+
+    // model selection: AIC and BIC against r, the recommended r marked, its reason in words
+    const sel = await graph('plot-selection');
+    const aicTr = sel.data.find((d) => d.name === 'AIC');
+    const withAic = res.fits.filter((f) => Number.isFinite(f.aic));
+    check(aicTr && same(aicTr.x, withAic.map((f) => f.r)) &&
+        same(aicTr.y, withAic.map((f) => f.aic)), 'the AIC curve plots the API\'s AIC against r');
+    const recMarks = sel.layout.shapes.filter((sh) => sh.name === 'recommended');
+    check(recMarks.length > 0 && recMarks.every((sh) => sh.x0 === res.recommended_r &&
+        sh.x1 === res.recommended_r), 'the model-selection figure marks the recommended r = ' +
+        `${res.recommended_r}`, JSON.stringify(recMarks.map((sh) => sh.x0)));
+    const hasCv = res.fits.some((f) => Number.isFinite(f.cv_chi2));
+    check(!hasCv || sel.data.some((d) => d.name === 'cross-validation χ²'),
+        'the cross-validation χ² is drawn when the fit has it', String(hasCv));
+    const why = await text('selection-reason');
+    check(why.includes(`r = ${res.recommended_r}`) && why.includes(res.recommended_reason),
+        'the recommended r\'s reason is said in words', why);
+    const good = page.locator('[data-testid="goodness"]');
+    const poor = best.chi2_p < 1e-3;
+    const goodText = await good.textContent();
+    check(await good.getAttribute('data-poor') === String(poor) &&
+        goodText.includes(poor ? 'poor_fit' : 'consistent with the noise model'),
+    `the goodness of fit in words (p = ${best.chi2_p})`, goodText);
     const sErr = await graph('plot-Serr');
     check(same(flat(sErr.data[0].z), best.S_err), 'the S_err map plotted is the API\'s');
     check(await page.locator('[data-testid="sweep-table"] tbody tr').count() === res.fits.length,
         'the model-selection table has a row per r');
-    await page.screenshot({ path: shot('fit'), fullPage: true });
+    await page.screenshot({ path: path.join(SHOTS, 'fit-1280.png'), fullPage: true });
+
+    // the fit page's re-fit form: a bad value shows the API's message at its field, queues
+    // nothing
+    const refitForm = page.locator('[data-testid="refit"] [data-testid="fit-form"]');
+    await refitForm.waitFor({ timeout: WAIT });
+    check(await refitForm.locator('input[data-field="dcol"]').inputValue() === String(fit.dcol),
+        'the re-fit form starts from the fit\'s pixel');
+    const jobsBefore = (await api('GET', '/api/jobs?limit=1000')).body.total;
+    const rMaxRule = docRule(doc, 'post', '/api/scans/{id}/fits', 'r_max');
+    const tooBig = rMaxRule.maximum + 1;
+    await typeInto(refitForm.getByLabel('r max'), tooBig);
+    await refitForm.getByRole('button', { name: 'Queue fit' }).click();
+    const refitErr = refitForm.locator('[data-testid="field-error"]');
+    await refitErr.waitFor({ timeout: WAIT });
+    const badFit = await api('POST', `/api/scans/${scan.id}/fits`, { r_max: tooBig });
+    const rMaxInput = refitForm.locator('input[data-field="r_max"]');
+    check(badFit.status === 422 && badFit.body.error.field === 'r_max' &&
+        (await refitErr.textContent()) === inWordsTest(badFit.body.error, 'r max') &&
+        await rMaxInput.getAttribute('aria-invalid') === 'true' &&
+        await refitErr.evaluate((el, inp) => el.previousElementSibling === inp,
+            await rMaxInput.elementHandle()),
+    'a bad re-fit value shows the API\'s message right under its field',
+    `page: "${await refitErr.textContent()}", API: ${JSON.stringify(badFit.body)}`);
+    check((await api('GET', '/api/jobs?limit=1000')).body.total === jobsBefore,
+        'the bad re-fit queued nothing');
+    await typeInto(refitForm.getByLabel('r max'), rMaxRule.default);
 
     // the calibration database: the search lists the auto fit's calibration, with its CSV
     await page.getByRole('navigation').getByRole('link', { name: 'Calibrations' }).click();
@@ -605,14 +662,9 @@ async function run(base, page, api) {
     await page.locator('[data-testid="history-table"]').waitFor({ timeout: WAIT });
     check(await page.locator('[data-testid="history-table"] tbody tr').count() === 1,
         'the pixel view shows the history of the pixel');
-    const cal = (await api('GET', `/api/calibrations/${calId}/interp?n=100`)).body;
-    await page.locator('[data-testid="map-interp"] canvas.heat').waitFor({ timeout: WAIT });
-    const cMax = cal.S.indexOf(Math.max(...cal.S));
-    const calHeat = await canvasInfo(page, '[data-testid="map-interp"] canvas.heat',
-        [at(cMax)]);
-    check(cal.calibration_id === calId && sameColour(calHeat.at[0], VIRIDIS_TOP),
-        'the pixel view draws the calibration\'s interpolated map from the API',
-        JSON.stringify(calHeat.at));
+    const calS = await graph('plot-cal-S');
+    check(same(flat(calS.data[0].z), cals[0].S) && title(calS.layout.xaxis).includes('µm'),
+        'the pixel view plots the calibration\'s map S on µm axes');
 
     check((await page.locator('[data-testid="current-why"]').textContent())
         .includes(`automatic fit of scan ${scan.id}`), 'the pixel view says why its map is current');
@@ -645,6 +697,85 @@ async function run(base, page, api) {
         now.reason === 'checked by the dashboard test', 'the promoted re-fit is the calibration, ' +
         'with the reason typed', JSON.stringify([now.fit_id, now.by, now.supersedes, now.reason]));
 
+    // a re-fit from the Fit view that becomes the calibration ("promote": true)
+    const rf2 = page.locator('[data-testid="refit"] [data-testid="fit-form"]');
+    await rf2.waitFor({ timeout: WAIT });
+    await typeInto(rf2.getByLabel('r min'), 1);
+    await typeInto(rf2.getByLabel('r max'), 7);
+    await typeInto(rf2.getByLabel('F-test r'), 7);
+    await rf2.locator('[data-testid="fit-promote"]').check();
+    await rf2.getByRole('button', { name: 'Queue fit' }).click();
+    const link = page.locator('[data-testid="refit-link"]');
+    await link.waitFor({ timeout: LONG_WAIT });
+    const promotedFit = Number((await link.textContent()).replace(/\D/g, ''));
+    const pf = (await api('GET', `/api/fits/${promotedFit}`)).body;
+    const calNow = (await api('GET', `/api/sensors/${sensor.id}/pixels/${scan.poi.col}/` +
+        `${scan.poi.row}/calibration`)).body;
+    check(pf.calibration?.current === true && calNow.fit_id === promotedFit &&
+        calNow.supersedes === now.id, 'a re-fit with "becomes the calibration" ticked is the ' +
+        'pixel\'s calibration', JSON.stringify([promotedFit, pf.calibration, calNow.fit_id,
+            pf.params, pf.result?.recommended_r, pf.result?.recommended_reason, pf.state,
+            pf.result?.fits?.map((f) => [f.r, f.status])]));
+
+    // the pixel view: its current map as Plotly figures, two maps compared, the CSV download
+    const pixelView = `#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`;
+    await page.goto(`${base}/${pixelView}`);
+    const cmp = await graph('plot-compare');
+    const A = calNow, B = now; // the default comparison: the current map and the one before
+    const [zA, zB, zD] = cmp.data.map((d) => flat(d.z));
+    check(same(zA, A.S) && same(zB, B.S), 'the compare view shows the API\'s two maps, the ' +
+        'current one and the one it replaced');
+    // the difference recomputed here: same r cell by cell; else both on the lcm grid, each cell
+    // the sub-pixel under its centre
+    const gcd = (a, b) => (b ? gcd(b, a % b) : a);
+    const nC = A.r === B.r ? A.r : A.r * B.r / gcd(A.r, B.r);
+    const pick = (m, i, j) => m.S[Math.floor((j + 0.5) / nC * m.r) * m.r +
+        Math.floor((i + 0.5) / nC * m.r)];
+    const want = [];
+    for (let j = 0; j < nC; j++) for (let i = 0; i < nC; i++) want.push(pick(A, i, j) - pick(B, i, j));
+    check(zD.length === nC * nC && zD.every((v, k) => Math.abs(v - want[k]) <= 1e-12 *
+        Math.max(1, Math.abs(want[k]))), `the difference map is A − B of the API's maps ` +
+        `(r = ${A.r} and ${B.r}, on ${nC} × ${nC})`, JSON.stringify(zD.slice(0, 6)));
+    const cmpNote = await page.locator('figure:has([data-testid="plot-compare"])').textContent();
+    check(A.r === B.r ? cmpNote.includes('sub-pixel by sub-pixel')
+        : cmpNote.includes(`resampled onto a common ${nC} × ${nC} grid`),
+    'the compare view says whether it resampled', cmpNote);
+    check(/viridis/i.test(JSON.stringify(cmp.layout.coloraxis.colorscale)) &&
+        cmp.data[0].coloraxis === 'coloraxis' && cmp.data[1].coloraxis === 'coloraxis',
+    'A and B share one colour scale');
+    const hist = await graph('plot-history');
+    const histApi = (await api('GET', `/api/sensors/${sensor.id}/pixels/${scan.poi.col}/` +
+        `${scan.poi.row}/history`)).body.items;
+    check(hist.data.length === histApi.length && hist.data.every((d, k) =>
+        same(flat(d.z), histApi[k].S)), `the history as ${histApi.length} small multiples, the ` +
+        'API\'s maps newest first');
+    const calSurf = await graph('plot-surface');
+    const calIp = (await api('GET', `/api/calibrations/${A.id}/interp?n=100`)).body;
+    check(same(flat(calSurf.data[0].z), calIp.S), 'the pixel view\'s surface is the ' +
+        'calibration\'s interpolated map from the API');
+    const [dl] = await Promise.all([page.waitForEvent('download'),
+        page.locator('[data-testid="download-csv"]').click()]);
+    const csvText = fs.readFileSync(await dl.path(), 'utf8').trim().split('\n');
+    const head = csvText[0].split(',');
+    const col = (name) => head.indexOf(name);
+    const rowsCsv = csvText.slice(1).map((l) => l.split(','));
+    const pitchOk = rowsCsv.every((c) => Number(c[col('pitch_um')]) === sensor.pitch_um);
+    const valuesOk = rowsCsv.length === A.r * A.r && rowsCsv.every((c) => {
+        const i = Number(c[col('i')]), j = Number(c[col('j')]), k = j * A.r + i;
+        return Number(c[col('S')]) === A.S[k] && Number(c[col('S_err')]) === A.S_err[k] &&
+            near(Number(c[col('x_um')]), (i + 0.5) * sensor.pitch_um / A.r, 1e-12) &&
+            near(Number(c[col('y_um')]), (j + 0.5) * sensor.pitch_um / A.r, 1e-12);
+    });
+    check(dl.suggestedFilename().endsWith('.csv') && pitchOk && valuesOk,
+        'the CSV download has the API\'s S and S_err, positions in µm and the pitch',
+        `${dl.suggestedFilename()}: ${csvText.slice(0, 2).join(' | ')}`);
+    const [dj] = await Promise.all([page.waitForEvent('download'),
+        page.locator('[data-testid="download-json"]').click()]);
+    const js = JSON.parse(fs.readFileSync(await dj.path(), 'utf8'));
+    check(js.id === A.id && same(js.S, A.S) && js.pitch_um === sensor.pitch_um &&
+        js.x_um.length === A.r, 'the JSON download is the API\'s calibration with the pitch');
+    await page.screenshot({ path: path.join(SHOTS, 'pixel-1280.png'), fullPage: true });
+
     await page.goto(`${base}/#/scans`);
     await page.locator(`tr[data-scan-id="${scan.id}"]`).waitFor({ timeout: WAIT });
     check(await page.getByLabel('Token', { exact: true }).inputValue() === TOKEN,
@@ -674,7 +805,7 @@ async function run(base, page, api) {
         `${cancelled.points_done} / ${cancelled.raster.points_total}`);
     check(await page.locator(`tr[data-scan-id="${longId}"] button`).count() === 0,
         'a cancelled scan has no Cancel button');
-    await page.screenshot({ path: shot('scans') });
+    await page.screenshot({ path: path.join(SHOTS, 'scans-1280.png') });
 
     // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box, the
     // Fit view's plots drawn (their pairs stacked)
@@ -684,7 +815,7 @@ async function run(base, page, api) {
         [`#/fits/${fitId}`, '[data-testid="plot-resid"][data-state="ready"]'],
         ['#/calibrations', 'table.list tbody tr'],
         [`#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`,
-            '[data-testid="current-why"]']];
+            '[data-testid="plot-compare"][data-state="ready"]']];
     for (const [view, ready] of views) {
         await page.goto(`${base}/${view}`);
         await page.locator(ready).first().waitFor({ timeout: WAIT });
@@ -694,12 +825,20 @@ async function run(base, page, api) {
         if (view === `#/scans/${scan.id}`) {
             await page.locator('[data-testid="raster-map"][data-state="ready"]')
                 .waitFor({ timeout: WAIT });
-            await page.screenshot({ path: shot('scan-390'), fullPage: true });
         }
+        const shot = view.replace(/^#\//, '').replace(/\/\d+.*$/, '') || 'scans';
+        await page.screenshot({ path: path.join(SHOTS, `${shot}${/\d/.test(view) ? '-one' : ''}` +
+            '-390.png'), fullPage: true });
         if (view.startsWith('#/fits/')) {
             check(await page.locator('[data-testid="plot-maps"][data-stacked="true"]').count() ===
                 1 && await page.locator('[data-testid="plot-resid"][data-stacked="true"]')
-                .count() === 1, 'at 390 px the side-by-side plots stand one above the other');
+                .count() === 1 && await page.locator('[data-testid="plot-selection"]' +
+                '[data-stacked="true"]').count() === 1,
+            'at 390 px the side-by-side plots stand one above the other');
+        }
+        if (view.startsWith('#/sensors/')) {
+            check(await page.locator('[data-testid="plot-compare"][data-stacked="true"]')
+                .count() === 1, 'at 390 px the compared maps stand one above the other');
         }
     }
     await page.setViewportSize({ width: 1280, height: 800 });
@@ -708,6 +847,7 @@ async function run(base, page, api) {
 // ---- main ----
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'ipsd-web-'));
+fs.mkdirSync(SHOTS, { recursive: true });
 const watchdog = setTimeout(() => {
     console.log('not ok - the test took over 420 s');
     process.exit(1);
@@ -741,7 +881,7 @@ try {
     page.on('pageerror', (e) => consoleErrors.push(`uncaught: ${e.message}`));
     await run(base, page, api);
     // expected: the browser logs the 401 and the 422 of the refused requests as failed loads
-    const expected = (e) => /status of 422 .*\/api\/scans\)$/.test(e) ||
+    const expected = (e) => /status of 422 .*\/api\/scans(\/\d+\/fits)?\)$/.test(e) ||
         /status of 401 .*\/api\/sensors\)$/.test(e);
     const unexpected = consoleErrors.filter((e) => !expected(e));
     consoleErrors.filter(expected).forEach((e) => console.log(`# expected: ${e}`));
@@ -749,9 +889,9 @@ try {
 } catch (e) {
     failed++;
     console.log(`not ok - ${e.stack || e}`);
-    await context?.pages()[0]?.screenshot({ path: shot('failure'), fullPage: true })
-        .catch(() => {});
-    console.log(`# screenshot of the failure: ${shot('failure')}`);
+    const shot = path.join(SHOTS, 'failure.png');
+    await context?.pages()[0]?.screenshot({ path: shot, fullPage: true }).catch(() => {});
+    console.log(`# screenshot of the failure: ${shot}`);
     if (fs.existsSync(path.join(tmp, 'ipsd.log'))) {
         const log = fs.readFileSync(path.join(tmp, 'ipsd.log'), 'utf8');
         console.log(`# ipsd log:\n${log.slice(-3000)}`);
@@ -762,6 +902,6 @@ try {
     fs.rmSync(tmp, { recursive: true, force: true });
     clearTimeout(watchdog);
 }
-console.log(`# screenshots: ${['scans', 'scan', 'scan-390', 'fit'].map(shot).join(' ')}`);
+console.log(`# screenshots: ${SHOTS}`);
 console.log(`${passed} passed, ${failed} failed`);
 process.exit(failed ? 1 : 0);
