@@ -61,9 +61,8 @@ void api_h_scan_coverage(api_req_t *q)
                       drow, "col", col, "row", row, "status",
                       c->covered ? "covered" : SRV_NOT_COVERED, "reason",
                       c->covered ? json_null() : json_string(c->reason), "n_inside",
-                      (json_int_t)c->n_inside, "fit_id",
-                      f ? json_integer(f->id) : json_null(), "fit_r",
-                      f && f->map_sensor_id ? json_integer(f->map_r) : json_null(),
+                      (json_int_t)c->n_inside, "fit_id", f ? json_integer(f->id) : json_null(),
+                      "fit_r", f && f->map_sensor_id ? json_integer(f->map_r) : json_null(),
                       "calibration_id", calib_id));
     }
     api_reply_json(q, 200,

@@ -171,7 +171,9 @@ static int read_pixels(api_req_t *q, json_t *o, srv_fit_params_t *p)
                   "pixels must be \"all\" (every pixel the raster covers; got '%s')", pixels);
         return -1;
     }
-    const char *with = json_object_get(o, "dcol") ? "dcol" : json_object_get(o, "drow") ? "drow" : NULL;
+    const char *with = json_object_get(o, "dcol")   ? "dcol"
+                       : json_object_get(o, "drow") ? "drow"
+                                                    : NULL;
     if (with) {
         api_error(q, 422, "invalid", with, "%s names one pixel: it does not go with \"pixels\"",
                   with);
@@ -183,8 +185,8 @@ static int read_pixels(api_req_t *q, json_t *o, srv_fit_params_t *p)
 
 void api_h_scan_fit_create(api_req_t *q)
 {
-    static const char *const keys[] = {"dcol",          "drow", "pixels", FIT_OPTION_KEYS,
-                                       FIT_PROMOTE_KEYS, NULL};
+    static const char *const keys[] = {"dcol",          "drow",           "pixels",
+                                       FIT_OPTION_KEYS, FIT_PROMOTE_KEYS, NULL};
     srv_fit_params_t p = srv_fit_params_default();
     storage_scan_t sc;
     storage_t *st;

@@ -25,7 +25,7 @@ typedef struct scan_cover {
     int covered;     /* 1: fit it; 0: status "not_covered" with reason */
     size_t n_inside; /* raster positions strictly inside the pixel */
     double x_min_um, x_max_um, y_min_um, y_max_um; /* the raster's extent in the pixel's frame */
-    char reason[200]; /* why not covered ("" when covered) */
+    char reason[200];                              /* why not covered ("" when covered) */
 } scan_cover_t;
 
 /* The coverage of sub-frame pixel (dcol, drow) by the n stage positions (sx, sy) of a raster of

@@ -33,7 +33,7 @@
 struct all_watch {
     srv_worker_t *w;
     storage_job_t *job;
-    int k, n;          /* pixel k (0-based) of n */
+    int k, n; /* pixel k (0-based) of n */
     double last_beat, t0;
     int done_at_start; /* pixels stored before this run (for the ETA) */
 };
@@ -93,8 +93,8 @@ static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const stor
     scanfile_t sf;
     srv_fit_out_t out = {0};
     char *result = NULL, reason[SRV_REASON_MAX + 96];
-    srv_fit_hooks_t hooks = {.stop = &w->stop, .poll = on_poll, .progress = on_progress,
-                             .user = aw};
+    srv_fit_hooks_t hooks = {
+        .stop = &w->stop, .poll = on_poll, .progress = on_progress, .user = aw};
     /* every stored point: the fit takes its region (fit/region.h), Wiener the whole raster */
     int ret = srv_pixel_scan(w->st, sc, dcol, drow, 1, &sf, err);
     if (ret) return ret;
@@ -155,8 +155,12 @@ int srv_fitall_run(srv_worker_t *w, storage_job_t *job, const srv_fit_params_t *
     if (ret == 0 && n == 0)
         ret = err_set(err, -ENODATA, "scan %lld's raster covers no pixel of its sub-frame",
                       (long long)sc.id);
-    struct all_watch aw = {.w = w, .job = job, .k = job->points_done, .n = n,
-                           .last_beat = clock_mono_s(), .t0 = clock_mono_s(),
+    struct all_watch aw = {.w = w,
+                           .job = job,
+                           .k = job->points_done,
+                           .n = n,
+                           .last_beat = clock_mono_s(),
+                           .t0 = clock_mono_s(),
                            .done_at_start = job->points_done};
     /* every pixel stored already (cannot happen: the last one ends the job) */
     if (ret == 0 && aw.k >= n) ret = storage_job_finish(w->st, job->id, STORAGE_DONE, NULL, err);
@@ -177,8 +181,8 @@ int srv_fitall_run(srv_worker_t *w, storage_job_t *job, const srv_fit_params_t *
     }
     /* stopped: cancelled (nothing to do), else the shutdown: the job goes back to the queue
      * with its count of pixels done kept, to resume at the next pixel */
-    if (ret == -ECANCELED && storage_job_heartbeat(w->st, job->id, n ? (double)aw.k / n : 0, aw.k,
-                                                   NULL) == 0)
+    if (ret == -ECANCELED &&
+        storage_job_heartbeat(w->st, job->id, n ? (double)aw.k / n : 0, aw.k, NULL) == 0)
         storage_job_release(w->st, job->id, NULL);
     free(todo);
     free(cover);
