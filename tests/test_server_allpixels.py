@@ -32,11 +32,13 @@ STEP = 0.6       # um, on 6 um pixels: 10 steps a pixel
 INSIDE = (round(6 / STEP) - 1) ** 2  # positions strictly inside a covered pixel: 9 x 9
 COVERED = {(dc, dr) for dc in range(-2, 3) for dr in range(-2, 3)}
 # A calibration against the truth: the recommended map's sub-pixels lie within K_SIGMA of their
-# 1-sigma errors of the truth's sub-pixel mean, plus MODEL: the r x r map is a fit of a 30 x 30
-# cell scene seen through a 1.3 um spot, not its exact sub-pixel mean (the fidelity bench's
-# worst paperlike error at 9 x 9 points, bench/README.md, is of that size).
-K_SIGMA = 5
-MODEL = 0.05
+# 1-sigma errors of the truth's sub-pixel mean (625 values in all: 4 sigma leaves a Gaussian
+# excursion a chance of ~4 % over all of them), plus MODEL for the bias of an r x r map fitted to a
+# 30 x 30-cell scene seen through a 1.3 um spot (measured: the largest |S - truth| / S_err of the
+# 25 maps is 3.2, the median S_err 0.028, so a map mirrored or of another pixel's 25-30 % edge
+# dips would fail).
+K_SIGMA = 4
+MODEL = 0.02
 
 
 def truth_maps(ips, tmp):
@@ -87,7 +89,7 @@ def test(c, t, argv, daemons):
     c.ok(all(p["status"] == "not_covered" and p["reason"] and p["fit_id"] is None
              and p["calibration_id"] is None for p in out),
          "the others are not_covered, with a reason, no fit, no calibration")
-    c.ok("edge" in px[(3, 0)]["reason"], "the reason names the edge the raster misses")
+    c.ok("right edge" in px[(3, 0)]["reason"], "the reason names the edge the raster misses")
     c.eq(px[(0, 0)]["fit_id"], db.val("SELECT fit_id FROM jobs WHERE id = ?", auto),
          "the POI's fit is the automatic fit")
 
@@ -161,7 +163,7 @@ def test(c, t, argv, daemons):
          "and no calibration twice")
 
     # ---- the maps against the simulator's truth ----
-    worst = 0
+    worst, zmax, errs = 0, 0, []
     for dc, dr in sorted(COVERED):
         r = d.get("/api/sensors/%d/pixels/%d/%d/calibration" % (sensor, 40 + dc, 50 + dr))
         c.status(r, 200, "calibration of pixel (%+d, %+d)" % (dc, dr))
@@ -170,9 +172,12 @@ def test(c, t, argv, daemons):
         bad = [i for i, (s, e, tv) in enumerate(zip(m["S"], m["S_err"], T))
                if abs(s - tv) > K_SIGMA * e + MODEL]
         worst = max([worst] + [abs(s - tv) for s, tv in zip(m["S"], T)])
+        zmax = max([zmax] + [abs(s - tv) / e for s, e, tv in zip(m["S"], m["S_err"], T)])
+        errs += m["S_err"]
         c.ok(not bad, "pixel (%+d, %+d) r = %d matches the truth (%d sub-pixels off)"
              % (dc, dr, m["r"], len(bad)))
-    print("largest |S - truth| over the 25 maps: %.4f" % worst)
+    print("largest |S - truth| over the 25 maps: %.4f, largest |S - truth| / S_err: %.1f, "
+          "median S_err %.4f" % (worst, zmax, sorted(errs)[len(errs) // 2]))
     r = d.get("/api/scans/%d/coverage" % scan)
     cov = {(p["dcol"], p["drow"]): p for p in r.json()["pixels"]}
     c.ok(all(cov[k]["fit_id"] and cov[k]["calibration_id"] for k in COVERED),
