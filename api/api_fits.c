@@ -159,9 +159,34 @@ static void submit(api_req_t *q, storage_t *st, srv_fit_params_t *p)
         reply_job(q, st, job_id);
 }
 
+/* "pixels": "all" (every pixel the scan's raster covers, server/srv_fitall.c) instead of
+ * dcol / drow; -1 after replying. */
+static int read_pixels(api_req_t *q, json_t *o, srv_fit_params_t *p)
+{
+    const char *pixels = NULL;
+    if (api_get_str(q, o, "pixels", "pixels", 0, 16, &pixels)) return -1;
+    if (!pixels) return 0;
+    if (strcmp(pixels, "all") != 0) {
+        api_error(q, 422, "out_of_range", "pixels",
+                  "pixels must be \"all\" (every pixel the raster covers; got '%s')", pixels);
+        return -1;
+    }
+    const char *with = json_object_get(o, "dcol")   ? "dcol"
+                       : json_object_get(o, "drow") ? "drow"
+                                                    : NULL;
+    if (with) {
+        api_error(q, 422, "invalid", with, "%s names one pixel: it does not go with \"pixels\"",
+                  with);
+        return -1;
+    }
+    p->all_pixels = 1;
+    return 0;
+}
+
 void api_h_scan_fit_create(api_req_t *q)
 {
-    static const char *const keys[] = {"dcol", "drow", FIT_OPTION_KEYS, FIT_PROMOTE_KEYS, NULL};
+    static const char *const keys[] = {"dcol",          "drow",           "pixels",
+                                       FIT_OPTION_KEYS, FIT_PROMOTE_KEYS, NULL};
     srv_fit_params_t p = srv_fit_params_default();
     storage_scan_t sc;
     storage_t *st;
@@ -178,8 +203,8 @@ void api_h_scan_fit_create(api_req_t *q)
     int h = sc.sub_px / 2;
     if (api_no_unknown(q, o, "", keys) == 0 &&
         api_get_int(q, o, "dcol", "dcol", 0, -h, h, &dcol) == 0 &&
-        api_get_int(q, o, "drow", "drow", 0, -h, h, &drow) == 0 && read_options(q, o, &p) == 0 &&
-        read_promote(q, o, 0, &p) == 0) {
+        api_get_int(q, o, "drow", "drow", 0, -h, h, &drow) == 0 && read_pixels(q, o, &p) == 0 &&
+        read_options(q, o, &p) == 0 && read_promote(q, o, 0, &p) == 0) {
         if (sc.state != STORAGE_DONE) {
             api_error(q, 409, "conflict", NULL, "scan %lld is %s: only a done scan can be fitted",
                       (long long)id, storage_state_name(sc.state));

@@ -148,6 +148,7 @@ void api_h_scan_pixel(api_req_t *q);
 void api_h_scan_point(api_req_t *q);
 void api_h_scan_fits_list(api_req_t *q);
 void api_h_scan_fit_create(api_req_t *q);
+void api_h_scan_coverage(api_req_t *q);
 void api_h_fit_upload(api_req_t *q);
 void api_h_fit_get(api_req_t *q);
 void api_h_fit_interp(api_req_t *q);

@@ -25,6 +25,7 @@ static const api_route_t routes[] = {
     {"GET", "/api/scans/{id}/points/{index}", api_h_scan_point, 0},
     {"GET", "/api/scans/{id}/fits", api_h_scan_fits_list, 0},
     {"POST", "/api/scans/{id}/fits", api_h_scan_fit_create, 1},
+    {"GET", "/api/scans/{id}/coverage", api_h_scan_coverage, 0},
     {"POST", "/api/fits", api_h_fit_upload, 1},
     {"GET", "/api/fits/{id}", api_h_fit_get, 0},
     {"GET", "/api/fits/{id}/interp", api_h_fit_interp, 0},

@@ -13,7 +13,8 @@
  * published), fit.poll (inside a fit's long loops, where it polls its stop: each batch of
  * design-matrix rows, after each solve, each LM iteration), camera.frame (the simulated camera,
  * before each frame it captures: hold makes the camera stop answering until its frame timeout,
- * error makes the capture fail; no held file). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
+ * error makes the capture fail; no held file), fit.pixel (a fit of every pixel a scan covers,
+ * after each pixel's fit and the job's count are committed, before the next pixel). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
  * process kills itself with SIGKILL there: a kill -9 at a known point) or off. @N: only the N-th hit of that point since ipsd started, counted over all
  * jobs; without it, every hit. Several terms may name one point.
  *

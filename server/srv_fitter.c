@@ -25,6 +25,7 @@
 #include "server/srv_fit.h"
 #include "server/srv_setup.h"
 #include "srv_failpoint.h"
+#include "srv_fitall.h"
 #include "srv_int.h"
 
 #define FIT_NICE 10 /* CFS weight 110 against the HTTP threads' 1024 */
@@ -180,14 +181,19 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
     srv_worker_begin(w, job->id);
     srv_publish_job(w->srv, job, "fit", 0, NAN);
     int ret = srv_fit_params_parse(job->params, &p, &err);
+    if (ret == 0 && p.all_pixels) { /* every pixel the scan covers: srv_fitall.c */
+        ret = srv_fitall_run(w, job, &p, &err);
+        goto end;
+    }
     if (ret == 0) ret = load_input(w->st, &p, &in, &err);
     if (ret == 0) ret = srv_fit_run(&in.sf.scan, &p, &hooks, &out, &err);
     if (ret == 0) ret = srv_failpoint(w, "fit.before_store", &err); /* test hook */
     /* the fit and the job's done in one transaction (cancelled meanwhile: nothing stored) */
     if (ret == 0) ret = store(w->st, job->id, &p, &in, &out, &err);
     if (ret == 0) srv_failpoint(w, "fit.after_store", NULL); /* test hook: the job is done */
+end:
     if (ret == -ECANCELED) {
-        stopped(w->st, job->id);
+        if (!p.all_pixels) stopped(w->st, job->id); /* srv_fitall_run gives its job back itself */
     } else if (ret) {
         fprintf(stderr, "ipsd: fit job %lld failed: %s\n", (long long)job->id, err.msg);
         storage_job_finish(w->st, job->id, STORAGE_FAILED, err.msg, NULL);

@@ -117,6 +117,7 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
     }
     if (p->region.kind == FIT_REGION_MARGIN)
         json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
+    if (p->all_pixels) json_object_set_new(o, "pixels", json_string("all"));
     char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
     json_decref(o);
     return text;
@@ -163,6 +164,8 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     opt_int(json_object_get(o, "pixel"), "row", &p->pixel_row);
     p->wiener = json_is_true(json_object_get(o, "wiener"));
     p->fit_geometry = json_is_true(json_object_get(o, "fit_geometry"));
+    p->all_pixels = (x = json_object_get(o, "pixels")) && json_is_string(x) &&
+                    strcmp(json_string_value(x), "all") == 0;
     if ((x = json_object_get(o, "geometry_r")) && json_is_integer(x))
         p->geometry_r = (int)json_integer_value(x);
     p->opts.nonneg = json_is_true(json_object_get(o, "nonneg"));

@@ -50,6 +50,9 @@ typedef struct srv_fit_params {
     fit_region_t region;  /* the points fitted (fit/region.h): inside (the paper's) */
     int fit_geometry;     /* fit R, dx, dy first (fit/geometry.h) at geometry_r (0: default) */
     int geometry_r;
+    /* every pixel of the scan's sub-frame its raster covers (instrument/scan_cover.h), one fit
+     * each, instead of (dcol, drow): "pixels": "all" (server/srv_fitall.c) */
+    int all_pixels;
 } srv_fit_params_t;
 
 /* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload, not

@@ -69,6 +69,43 @@ int storage_fit_store_done(storage_t *st, const storage_fit_t *fit, const storag
     return fit_store(st, fit, calib, promote, job_id, 1, fit_id, calib_id, err);
 }
 
+int storage_fit_store_unit(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                           int promote, int64_t job_id, int done_before, int total,
+                           int64_t *fit_id, int64_t *calib_id, err_t *err)
+{
+    int64_t fid = 0, cid = 0;
+    if (!st || !fit) return err_set(err, -EINVAL, "fit store unit: NULL argument");
+    if (job_id <= 0 || done_before < 0 || done_before >= total)
+        return err_set(err, -EINVAL, "fit store unit: job %lld unit %d of %d", (long long)job_id,
+                       done_before + 1, total);
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    /* first the job's count: a job cancelled meanwhile, or whose unit is stored already (an
+     * earlier run's), stores nothing */
+    if ((ret = stg_job_step(st, job_id, done_before, (double)(done_before + 1) / total, err)))
+        goto out;
+    if (done_before + 1 == total && (ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err)))
+        goto out;
+    if ((ret = stg_fit_insert(st, fit, &fid, err))) goto out;
+    if (calib) {
+        storage_calib_t c = *calib; /* shallow: only the two ids change */
+        c.fit_id = fid;
+        if (!c.scan_id) c.scan_id = fit->scan_id;
+        if ((ret = stg_calib_check(st, &c, err)) || (ret = stg_fit_map_insert(st, fid, &c, err)))
+            goto out;
+        if (promote) ret = stg_calib_insert(st, &c, &cid, err);
+    }
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        return ret;
+    }
+    if (fit_id) *fit_id = fid;
+    if (calib_id) *calib_id = cid;
+    return 0;
+}
+
 int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
                     int64_t job_id, int64_t *fit_id, int64_t *calib_id, err_t *err)
 {

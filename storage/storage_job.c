@@ -258,6 +258,30 @@ int storage_job_release(storage_t *st, int64_t id, err_t *err)
     return sqlite3_changes(st->db) ? 0 : not_running(st, id, "job release", err);
 }
 
+int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_JOB_STEP, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    stg_bind_int(q, 2, from, &rc);
+    stg_bind_int(q, 3, from + 1, &rc);
+    stg_bind_double(q, 4, progress, &rc);
+    stg_bind_int(q, 5, storage_now_ms(st), &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "job step");
+    }
+    if ((ret = stg_run(st, q, err, "job step"))) return ret;
+    if (sqlite3_changes(st->db)) return 0;
+    ret = not_running(st, id, "job step", err);
+    /* running, but at another count: this unit was stored by an earlier run */
+    if (ret == -ESTALE && strstr(err ? err->msg : "", "is running"))
+        return err_set(err, -ESTALE, "job step: job %lld has not done exactly %d units",
+                       (long long)id, from);
+    return ret;
+}
+
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
 {
     sqlite3_stmt *q;

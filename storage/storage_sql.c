@@ -291,6 +291,9 @@ const char *const stg_sql[STG_N] = {
     [STG_JOB_LIST] =
         "SELECT " STG_JOB_COLS " FROM jobs " JOB_FILTER " ORDER BY id DESC LIMIT ?4 OFFSET ?5",
     [STG_JOB_SET_FIT] = "UPDATE jobs SET fit_id = ?2 WHERE id = ?1",
+    /* one unit of a running job done: only from the count the caller read (no unit twice) */
+    [STG_JOB_STEP] = "UPDATE jobs SET points_done = ?3, progress = ?4, heartbeat_ms = ?5 "
+                     "WHERE id = ?1 AND state = 'running' AND points_done = ?2",
 
     [STG_FIT_INSERT] = "INSERT INTO fits (scan_id, dcol, drow, noise_model, best_r_aic, "
                        "best_r_bic, f_value, p_value, result, created_ms) "

@@ -750,6 +750,63 @@ static void test_fit_store_done(void)
     storage_close(st);
 }
 
+/* One pixel of a fit of every pixel (storage_fit_store_unit): the job's count moves by one from
+ * the value given, so a unit is never stored twice; the last unit ends the job; a release (the
+ * shutdown) keeps the count; a cancelled job stores nothing. */
+static void test_fit_store_unit(void)
+{
+    storage_t *st = open_db("fitunit.db");
+    int64_t sensor = make_sensor(st, "IMX-FU", "1"), scan = make_running_scan(st, sensor);
+    int64_t a, b;
+    err_t err = {{0}};
+    storage_job_t j;
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &a, NULL) == 0);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &b, NULL) == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == a);
+    storage_job_free(&j);
+    storage_fit_t f = {.scan_id = scan, .noise_model = "paper", .best_r_aic = 1, .best_r_bic = 1,
+                       .f_value = NAN, .p_value = NAN, .result = "{}"};
+    double S[1] = {1.0}, E[1] = {0.5};
+    storage_calib_t c = {.sensor_id = sensor, .pixel_col = 7, .pixel_row = 8, .r = 1, .S = S,
+                         .S_err = E, .I0 = NAN, .chi2_red = NAN, .status = "ok",
+                         .noise_model = "paper", .wavelength_um = NAN, .na = NAN,
+                         .spot_radius_um = NAN};
+    CHECK(storage_fit_store_unit(st, &f, &c, 1, a, 0, 3, NULL, NULL, NULL) == 0);
+    CHECK(storage_job_get(st, a, &j, NULL) == 0);
+    CHECK(j.state == STORAGE_RUNNING && j.points_done == 1 && fabs(j.progress - 1.0 / 3) < 1e-12);
+    storage_job_free(&j);
+    /* unit 0 again (a rerun that did not know): refused, nothing stored */
+    CHECK(storage_fit_store_unit(st, &f, &c, 1, a, 0, 3, NULL, NULL, &err) == -ESTALE);
+    CHECK(raw_int("fitunit.db", "SELECT count(*) FROM fits") == 1);
+    CHECK(raw_int("fitunit.db", "SELECT count(*) FROM calibrations") == 1);
+    CHECK(storage_fit_store_unit(st, &f, &c, 0, a, 3, 3, NULL, NULL, &err) == -EINVAL);
+    /* the shutdown gives the job back with its count; claimed again, it goes on */
+    CHECK(storage_job_release(st, a, NULL) == 0);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == a);
+    CHECK(j.points_done == 1);
+    storage_job_free(&j);
+    f.dcol = 1; /* not promoted: a map, no calibration */
+    CHECK(storage_fit_store_unit(st, &f, &c, 0, a, 1, 3, NULL, NULL, NULL) == 0);
+    CHECK(raw_int("fitunit.db", "SELECT count(*) FROM fit_maps") == 2);
+    CHECK(raw_int("fitunit.db", "SELECT count(*) FROM calibrations") == 1);
+    int changed = 0;
+    CHECK(storage_job_cancel(st, a, &changed, NULL) == 0 && changed);
+    CHECK(storage_fit_store_unit(st, &f, &c, 1, a, 2, 3, NULL, NULL, &err) == -ECANCELED);
+    CHECK(raw_int("fitunit.db", "SELECT count(*) FROM fits") == 2);
+    CHECK(raw_int("fitunit.db", "SELECT points_done FROM jobs WHERE id = 1") == 2);
+    /* the last unit ends the job as done, in its transaction */
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == b);
+    storage_job_free(&j);
+    CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 0, 2, NULL, NULL, NULL) == 0);
+    CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 1, 2, NULL, NULL, NULL) == 0);
+    CHECK(storage_job_get(st, b, &j, NULL) == 0);
+    CHECK(j.state == STORAGE_DONE && j.points_done == 2 && j.progress == 1 && j.fit_id == 0);
+    storage_job_free(&j);
+    CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 2, 3, NULL, NULL, &err) == -ESTALE);
+    CHECK(raw_int("fitunit.db", "SELECT count(*) FROM fits") == 4);
+    storage_close(st);
+}
+
 static void check_calib_search(storage_t *st, int64_t a, const int64_t *ids, int64_t t2);
 
 static void test_calibrations(void)
@@ -1185,6 +1242,7 @@ int main(void)
     test_gate();
     test_fits();
     test_fit_store_done();
+    test_fit_store_unit();
     test_calibrations();
     test_pagination();
     test_migrate_v1();
