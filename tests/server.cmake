@@ -27,6 +27,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             fitstop:120
             storfault:240
             camfault:120
+            stage:300
             )
         string(REPLACE ":" ";" t ${t})
         list(GET t 0 name)
