@@ -91,6 +91,7 @@ const char *stage_backend(const stage_t *stage)
 
 const char *stage_identity(const stage_t *stage)
 {
+    if (stage->ops == &stage_follow_ops) return stage_follow_identity(stage->impl);
     return stage->ops == &stage_gcs_ops ? stage_gcs_idn(stage->impl) : "";
 }
 

@@ -58,7 +58,8 @@ typedef struct stage_sim_config {
 stage_sim_config_t stage_sim_config_default(void);
 
 /* Opens stage id of backend ("sim": a simulated stage with the default configuration, id
- * ignored; "gcs": id is the stage string without its "gcs:"). *out is the caller's (stage_close). Returns 0, -EINVAL (unknown backend) or -ENOMEM. */
+ * ignored; "gcs": id is the stage string without its "gcs:"). *out is the caller's (stage_close).
+ * Returns 0, -EINVAL (unknown backend) or -ENOMEM. */
 int stage_open(const char *backend, const char *id, stage_t **out, err_t *err);
 
 /* Opens the stage a stage string names (above). Returns 0, -EINVAL (bad string, named in err),
@@ -75,8 +76,8 @@ int stage_url_check(const char *url, int *is_sim, err_t *err);
  * stage is the shadow) from a real stage. */
 int stage_open_follow(stage_t *lead, stage_t *shadow, stage_t **out, err_t *err);
 
-/* The backend's name ("sim", "gcs", "follow") and, for a GCS stage, the controller's *IDN?
- * reply ("" otherwise). Borrowed, valid until stage_close. */
+/* The backend's name ("sim", "gcs", "follow") and, for a GCS stage (or a follower of one), the
+ * controller's *IDN? reply ("" otherwise). Borrowed, valid until stage_close. */
 const char *stage_backend(const stage_t *stage);
 const char *stage_identity(const stage_t *stage);
 

@@ -81,3 +81,8 @@ int stage_follow_new(stage_t *lead, stage_t *shadow, void **impl, err_t *err)
     *impl = f;
     return 0;
 }
+
+const char *stage_follow_identity(void *impl)
+{
+    return stage_identity(((struct follow *)impl)->lead);
+}

@@ -44,19 +44,31 @@ struct gcs {
 static const char *gcs_error_text(int code)
 {
     switch (code) {
-    case 0: return "no error";
-    case 1: return "parameter syntax error";
-    case 2: return "unknown command";
-    case 3: return "command length out of limits or command buffer overrun";
-    case 5: return "unallowable move attempted on unreferenced axis, or move attempted with "
-                   "servo off";
-    case 7: return "position out of limits";
-    case 8: return "velocity out of limits";
-    case 10: return "controller was stopped by command";
-    case 15: return "invalid axis identifier";
-    case 17: return "parameter out of range";
-    case 23: return "illegal axis";
-    default: return "see the controller's error code list";
+    case 0:
+        return "no error";
+    case 1:
+        return "parameter syntax error";
+    case 2:
+        return "unknown command";
+    case 3:
+        return "command length out of limits or command buffer overrun";
+    case 5:
+        return "unallowable move attempted on unreferenced axis, or move attempted with "
+               "servo off";
+    case 7:
+        return "position out of limits";
+    case 8:
+        return "velocity out of limits";
+    case 10:
+        return "controller was stopped by command";
+    case 15:
+        return "invalid axis identifier";
+    case 17:
+        return "parameter out of range";
+    case 23:
+        return "illegal axis";
+    default:
+        return "see the controller's error code list";
     }
 }
 
@@ -213,13 +225,16 @@ static int gcs_connect(struct gcs *g, err_t *err)
         int found = 0;
         char copy[512];
         strcpy(copy, sai);
-        for (char *save = NULL, *t = strtok_r(copy, "\n", &save); t; t = strtok_r(NULL, "\n", &save))
+        for (char *save = NULL, *t = strtok_r(copy, "\n", &save); t;
+             t = strtok_r(NULL, "\n", &save))
             found |= strcmp(t, g->url.axes[a]) == 0;
         if (found) continue;
         for (char *c = sai; *c; c++)
             if (*c == '\n') *c = ' ';
-        return err_set(err, -EINVAL, "GCS stage: axis %s is not an axis of the controller "
-                                         "(SAI?: %.100s)", g->url.axes[a], sai);
+        return err_set(err, -EINVAL,
+                       "GCS stage: axis %s is not an axis of the controller "
+                       "(SAI?: %.100s)",
+                       g->url.axes[a], sai);
     }
     char stale[64]; /* an error left from before us is not ours */
     if ((ret = query(g, "ERR?", stale, sizeof stale, err))) return ret;

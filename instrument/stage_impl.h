@@ -37,5 +37,6 @@ const char *stage_gcs_idn(void *impl);
 /* The follower (stage_follow.c): a lead stage that a shadow stage follows. */
 extern const struct stage_ops stage_follow_ops;
 int stage_follow_new(stage_t *lead, stage_t *shadow, void **impl, err_t *err);
+const char *stage_follow_identity(void *impl); /* the lead's stage_identity */
 
 #endif

@@ -33,7 +33,7 @@ static int wait_fd(int fd, short events, double deadline)
         if (left <= 0) return -ETIMEDOUT;
         struct pollfd p = {.fd = fd, .events = events};
         int r = poll(&p, 1, (int)(left * 1000) + 1);
-        if (r > 0) return 0; /* readable, writable, or hung up: the read or write says which */
+        if (r > 0) return 0;  /* readable, writable, or hung up: the read or write says which */
         if (r == 0) continue; /* rounding: the loop checks the deadline again */
         if (errno != EINTR) return -EIO;
     }
@@ -45,8 +45,7 @@ static int open_tcp(const stage_url_t *u, stage_link_t *l, err_t *err)
     snprintf(port, sizeof port, "%d", u->port);
     struct addrinfo hints = {.ai_family = AF_UNSPEC, .ai_socktype = SOCK_STREAM}, *res;
     int g = getaddrinfo(u->host, port, &hints, &res);
-    if (g)
-        return err_set(err, -ENOENT, "stage controller %s: %s", l->name, gai_strerror(g));
+    if (g) return err_set(err, -ENOENT, "stage controller %s: %s", l->name, gai_strerror(g));
     int ret = -ECONNREFUSED;
     double deadline = clock_mono_s() + u->timeout_s;
     for (struct addrinfo *a = res; a; a = a->ai_next) {
@@ -80,13 +79,20 @@ static int open_tcp(const stage_url_t *u, stage_link_t *l, err_t *err)
 static speed_t speed_of(int baud)
 {
     switch (baud) {
-    case 9600: return B9600;
-    case 19200: return B19200;
-    case 38400: return B38400;
-    case 57600: return B57600;
-    case 230400: return B230400;
-    case 460800: return B460800;
-    default: return B115200;
+    case 9600:
+        return B9600;
+    case 19200:
+        return B19200;
+    case 38400:
+        return B38400;
+    case 57600:
+        return B57600;
+    case 230400:
+        return B230400;
+    case 460800:
+        return B460800;
+    default:
+        return B115200;
     }
 }
 
@@ -94,8 +100,8 @@ static int open_serial(const stage_url_t *u, stage_link_t *l, err_t *err)
 {
     int fd = open(u->device, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
     if (fd < 0)
-        return err_set(err, errno == ENOENT ? -ENOENT : -EIO, "stage controller %s: %s",
-                       l->name, strerror(errno));
+        return err_set(err, errno == ENOENT ? -ENOENT : -EIO, "stage controller %s: %s", l->name,
+                       strerror(errno));
     struct termios t;
     if (tcgetattr(fd, &t)) {
         int e = errno;
@@ -184,8 +190,7 @@ int stage_link_read_line(stage_link_t *l, char *buf, size_t n, double timeout_s,
             if (len > 0 && l->buf[len - 1] == '\r') len--;
             int ret = (int)len;
             if (len >= n) {
-                ret = err_set(err, -EOVERFLOW, "stage controller %s: reply line too long",
-                              l->name);
+                ret = err_set(err, -EOVERFLOW, "stage controller %s: reply line too long", l->name);
             } else {
                 memcpy(buf, l->buf, len);
                 buf[len] = 0;

@@ -88,7 +88,8 @@ static int one_option(char *kv, stage_url_t *u, err_t *err)
         if (parse_ll(v, &n) == 0)
             for (size_t i = 0; i < sizeof bauds / sizeof bauds[0]; i++)
                 ok |= n == bauds[i];
-        if (!ok) return bad(err, "baud= must be 9600, 19200, 38400, 57600, 115200, 230400 or 460800", v);
+        if (!ok)
+            return bad(err, "baud= must be 9600, 19200, 38400, 57600, 115200, 230400 or 460800", v);
         u->baud = (int)n;
         return 0;
     }

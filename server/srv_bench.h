@@ -19,9 +19,9 @@
 #include "storage/storage.h"
 
 typedef struct srv_bench {
-    sim_t *sim;     /* the simulated bench (NULL for libcamera); owns cam and its own stage */
-    cam_t *cam;     /* borrowed from sim, or owned (libcamera) */
-    stage_t *stage; /* borrowed from sim (sim stage), or owned */
+    sim_t *sim;        /* the simulated bench (NULL for libcamera); owns cam and its own stage */
+    cam_t *cam;        /* borrowed from sim, or owned (libcamera) */
+    stage_t *stage;    /* borrowed from sim (sim stage), or owned */
     stage_pos_t start; /* where the scan procedure starts: the POI's centre, focus guess */
 } srv_bench_t;
 

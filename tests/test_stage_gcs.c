@@ -4,7 +4,8 @@
  * (servo on, referencing, limits from TMN?/TMX?), moves read back with POS?, both units, the
  * travel limits, controller errors with their GCS codes (5 servo off, 7 out of limits, 10 stopped),
  * a connection dropped mid-move (an error, then a reconnection), a controller that stops
- * answering (a timeout, never a hang), and the stage strings' syntax. Expected values are the
+ * answering (a timeout, never a hang), the follower (the simulated bench's stage following the
+ * reported position), and the stage strings' syntax. Expected values are the
  * emulator's configuration (travel in mm, positions commanded), not the backend's.
  * The emulator exits when its stdin closes: no test leaves it running, nothing waits on a clock
  * but the one hung-controller case, which waits its 0.2 s reply timeout. */
@@ -80,8 +81,8 @@ static void url_of(const emu_t *e, const char *opts, char *url, size_t n)
         snprintf(url, n, "gcs:tcp://127.0.0.1:%s?poll_ms=0%s%s", e->where + 4, *opts ? "&" : "",
                  opts);
     else
-        snprintf(url, n, "gcs:serial:%s?baud=115200&poll_ms=0%s%s", e->where + 4,
-                 *opts ? "&" : "", opts);
+        snprintf(url, n, "gcs:serial:%s?baud=115200&poll_ms=0%s%s", e->where + 4, *opts ? "&" : "",
+                 opts);
 }
 
 /* Opens the stage on a new emulator. */
@@ -150,8 +151,7 @@ static void test_units_axes(void)
     if (st) {
         stage_limits_t lim;
         CHECK(stage_get_limits(st, &lim, NULL) == 0);
-        CHECK(lim.min.x_um == 0 && lim.max.y_um == 100 && lim.min.z_um == 0 &&
-              lim.max.z_um == 0);
+        CHECK(lim.min.x_um == 0 && lim.max.y_um == 100 && lim.min.z_um == 0 && lim.max.z_um == 0);
         stage_pos_t p, t = {12.5, 99.75, 0};
         CHECK(stage_move(st, &t, NULL) == 0 && stage_get_position(st, &p, NULL) == 0);
         CHECK_NEAR(p.x_um, 12.5, 0, 1e-7);
@@ -184,8 +184,8 @@ static void test_controller_errors(const char *transport)
     int ret;
     /* MOV #2 refused with 7 (the controller's own limit), MOV #3 stopped (10); after MOV #4 the
      * servo trips, so MOV #5 is refused with 5 */
-    const char *opts[] = {transport, "--fail", "MOV:2:7", "--fail", "MOV:3:10", "--servo-trip",
-                          "2", NULL};
+    const char *opts[] = {transport,  "--fail",       "MOV:2:7", "--fail",
+                          "MOV:3:10", "--servo-trip", "2",       NULL};
     stage_t *st = open_on(&e, opts, "", &ret, &err);
     CHECK(ret == 0);
     if (st) {
@@ -259,6 +259,40 @@ static void test_pty_faults(void)
     emu_stop(&e);
 }
 
+/* The follower: a simulated stage (the simulated bench's) following the GCS stage's reported
+ * position; its travel is the intersection (sim: +-50 mm in x, y, +-5 mm in z; emulator: +-25 mm).
+ */
+static void test_follow(void)
+{
+    emu_t e;
+    err_t err;
+    int ret;
+    const char *opts[] = {"--tcp=0", NULL};
+    stage_t *lead = open_on(&e, opts, "", &ret, &err), *shadow, *st;
+    CHECK(ret == 0);
+    if (lead) {
+        CHECK(stage_open("sim", NULL, &shadow, NULL) == 0);
+        CHECK(stage_open_follow(lead, shadow, &st, &err) == 0);
+        CHECK(strcmp(stage_backend(st), "follow") == 0 && strstr(stage_identity(st), "emulator"));
+        stage_limits_t lim;
+        CHECK(stage_get_limits(st, &lim, NULL) == 0);
+        CHECK(lim.min.x_um == -25000 && lim.max.y_um == 25000 && lim.min.z_um == -5000 &&
+              lim.max.z_um == 5000);
+        stage_pos_t t = {183.3, 183.9, -1.25}, p, q;
+        CHECK(stage_move(st, &t, NULL) == 0);
+        CHECK(stage_get_position(st, &p, NULL) == 0 && stage_get_position(shadow, &q, NULL) == 0);
+        CHECK_NEAR(p.x_um, 183.3, 0, 1e-4);
+        CHECK(q.x_um == p.x_um && q.y_um == p.y_um && q.z_um == p.z_um); /* the reported one */
+        t.z_um = 6000; /* inside the controller's travel, outside the shadow's */
+        CHECK(stage_move(st, &t, &err) == -ERANGE && strstr(err.msg, "z ="));
+        CHECK(stage_home(st, NULL) == 0 && stage_get_position(shadow, &q, NULL) == 0);
+        CHECK(q.x_um == 0 && q.y_um == 0 && q.z_um == 0);
+        stage_close(st); /* closes the lead */
+        stage_close(shadow);
+    }
+    emu_stop(&e);
+}
+
 /* Stage strings: the syntax, and errors that say what is wrong. */
 static void test_urls(void)
 {
@@ -266,10 +300,9 @@ static void test_urls(void)
     int sim = -1;
     CHECK(stage_url_check("sim", &sim, NULL) == 0 && sim == 1);
     CHECK(stage_url_check("gcs:tcp://lab-stage.example:50000", &sim, NULL) == 0 && sim == 0);
-    CHECK(stage_url_check("gcs:tcp://[::1]:50000?unit=um&axes=X,Y,Z&timeout=0.5", NULL, NULL) ==
-          0);
-    CHECK(stage_url_check("gcs:serial:/dev/ttyUSB0?baud=115200&move_timeout=120&reference=0",
-                          NULL, NULL) == 0);
+    CHECK(stage_url_check("gcs:tcp://[::1]:50000?unit=um&axes=X,Y,Z&timeout=0.5", NULL, NULL) == 0);
+    CHECK(stage_url_check("gcs:serial:/dev/ttyUSB0?baud=115200&move_timeout=120&reference=0", NULL,
+                          NULL) == 0);
     static const struct {
         const char *url, *says;
     } bad[] = {
@@ -323,6 +356,7 @@ int main(void)
     test_controller_errors("--tcp=0");
     test_controller_errors("--pty");
     test_drop_tcp();
+    test_follow();
     test_pty_faults();
     CHECK_DONE();
 }

@@ -26,8 +26,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int is_sim = -1;
     int ret = stage_url_check(s, &is_sim, &err);
     must(ret == 0 || ret == -EINVAL, "stage_url_check answers 0 or -EINVAL");
-    if (ret) must(err.msg[0] != 0, "an error says what is wrong");
-    else if (is_sim) must(strcmp(s, "sim") == 0, "only 'sim' is the simulated stage");
+    if (ret)
+        must(err.msg[0] != 0, "an error says what is wrong");
+    else if (is_sim)
+        must(strcmp(s, "sim") == 0, "only 'sim' is the simulated stage");
     else
         must(strncmp(s, "gcs:tcp://", 10) == 0 || strncmp(s, "gcs:serial:/", 12) == 0,
              "an accepted stage string names a gcs link");
