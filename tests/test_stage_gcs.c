@@ -8,7 +8,8 @@
  * reported position), and the stage strings' syntax. Expected values are the
  * emulator's configuration (travel in mm, positions commanded), not the backend's.
  * The emulator exits when its stdin closes: no test leaves it running, nothing waits on a clock
- * but the one hung-controller case, which waits its 0.2 s reply timeout. */
+ * but the one hung-controller case, which waits its reply timeout twice (1.5 s: long
+ * enough that a busy machine never makes the emulator miss it before it falls silent). */
 #include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
@@ -236,7 +237,7 @@ static void test_pty_faults(void)
     err_t err;
     int ret;
     const char *opts[] = {"--pty", "--silent-after-mov", "2", NULL};
-    stage_t *st = open_on(&e, opts, "timeout=0.2", &ret, &err);
+    stage_t *st = open_on(&e, opts, "timeout=1.5", &ret, &err);
     CHECK(ret == 0);
     if (st) {
         stage_pos_t a = {1, 2, 3}, p;
