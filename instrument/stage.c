@@ -1,13 +1,30 @@
-/* stage.c: the motion stage interface's dispatch over its backends (see stage.h). */
+/* stage.c: the motion stage interface's dispatch over its backends (see stage.h): the simulated
+ * stage (stage_sim.c), PI GCS 2.0 controllers (stage_gcs.c) and the follower (stage_follow.c). */
 #include "instrument/stage.h"
 
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fit/gslerr.h"
 #include "stage_impl.h"
+#include "stage_url.h"
+
+/* A handle over a backend's state; on failure the state is closed. */
+static int wrap(const struct stage_ops *ops, void *impl, stage_t **out, err_t *err)
+{
+    stage_t *s = calloc(1, sizeof *s);
+    if (!s) {
+        ops->close(impl);
+        return err_set(err, -ENOMEM, "out of memory for the stage");
+    }
+    s->ops = ops;
+    s->impl = impl;
+    *out = s;
+    return 0;
+}
 
 int stage_open_sim(const stage_sim_config_t *cfg, stage_t **out, err_t *err)
 {
@@ -16,26 +33,66 @@ int stage_open_sim(const stage_sim_config_t *cfg, stage_t **out, err_t *err)
     void *impl;
     int rc = stage_sim_new(cfg, &impl, err);
     if (rc) return rc;
-    stage_t *s = calloc(1, sizeof *s);
-    if (!s) {
-        stage_sim_ops.close(impl);
-        return err_set(err, -ENOMEM, "out of memory for the stage");
-    }
-    s->ops = &stage_sim_ops;
-    s->impl = impl;
-    *out = s;
-    return 0;
+    return wrap(&stage_sim_ops, impl, out, err);
 }
 
 int stage_open(const char *backend, const char *id, stage_t **out, err_t *err)
 {
-    (void)id;
     *out = NULL;
     if (!backend || strcmp(backend, "sim") == 0) {
         stage_sim_config_t cfg = stage_sim_config_default();
         return stage_open_sim(&cfg, out, err);
     }
-    return err_set(err, -EINVAL, "unknown stage backend '%s' (sim)", backend);
+    if (strcmp(backend, "gcs") == 0) {
+        char url[1100];
+        if (!id || snprintf(url, sizeof url, "gcs:%s", id) >= (int)sizeof url)
+            return err_set(err, -EINVAL, "gcs stage: need an address");
+        return stage_open_url(url, out, err);
+    }
+    return err_set(err, -EINVAL, "unknown stage backend '%s' (sim, gcs)", backend);
+}
+
+int stage_url_check(const char *url, int *is_sim, err_t *err)
+{
+    stage_url_t u;
+    int ret = stage_url_parse(url, &u, err);
+    if (ret == 0 && is_sim) *is_sim = u.backend == STAGE_URL_SIM;
+    return ret;
+}
+
+int stage_open_url(const char *url, stage_t **out, err_t *err)
+{
+    *out = NULL;
+    stage_url_t u;
+    int ret = stage_url_parse(url, &u, err);
+    if (ret) return ret;
+    if (u.backend == STAGE_URL_SIM) return stage_open("sim", NULL, out, err);
+    void *impl;
+    if ((ret = stage_gcs_new(&u, &impl, err))) return ret;
+    return wrap(&stage_gcs_ops, impl, out, err);
+}
+
+int stage_open_follow(stage_t *lead, stage_t *shadow, stage_t **out, err_t *err)
+{
+    *out = NULL;
+    void *impl;
+    int ret = stage_follow_new(lead, shadow, &impl, err);
+    if (ret) {
+        stage_close(lead);
+        return ret;
+    }
+    return wrap(&stage_follow_ops, impl, out, err);
+}
+
+const char *stage_backend(const stage_t *stage)
+{
+    return stage->ops->backend;
+}
+
+const char *stage_identity(const stage_t *stage)
+{
+    if (stage->ops == &stage_follow_ops) return stage_follow_identity(stage->impl);
+    return stage->ops == &stage_gcs_ops ? stage_gcs_idn(stage->impl) : "";
 }
 
 void stage_close(stage_t *stage)

@@ -1,6 +1,23 @@
 /* stage.h: the motion stage interface: absolute moves in x, y, z (micrometres), position read
- * back, homing and travel limits. The default backend is the simulated stage ("sim"); a driver for
- * a real controller plugs in through stage_impl.h like the camera backends do.
+ * back, homing and travel limits. Backends: the simulated stage ("sim", the default) and PI
+ * controllers speaking GCS 2.0 over TCP or a serial line ("gcs", stage_gcs.c); a driver for
+ * another controller plugs in through stage_impl.h like the camera backends do.
+ *
+ * The stage string (ipsd --stage, stage_open_url) names a backend and its connection:
+ *   sim
+ *   gcs:tcp://HOST:PORT[?OPTIONS]          (PI's controllers listen on port 50000)
+ *   gcs:serial:/dev/DEVICE[?OPTIONS]       (raw 8N1; a pseudo-terminal works too)
+ * OPTIONS, joined by &: unit=mm|um (the controller's position unit, mm), axes=A,B[,C] (the GCS
+ * axis identifiers of x, y and z: 1,2,3; with two axes z is fixed at 0), baud=N (serial: 115200),
+ * timeout=S (a reply within S seconds: 5), move_timeout=S (a move or referencing on target
+ * within S: 60), poll_ms=N (pause between on-target polls: 10), reference=0|1 (reference
+ * unreferenced axes with FRF at opening: 1; 0 refuses to open them instead).
+ *
+ * Errors of a GCS stage: -ERANGE outside the travel (TMN? .. TMX?, checked before moving, or
+ * the controller's error 7), -EPERM a move the controller refuses now (error 5: servo off or
+ * axis unreferenced), -EIO another controller error or a lost connection, -ETIMEDOUT no reply
+ * within timeout= or not on target within move_timeout=. Controller errors carry the GCS code
+ * and its text in err. After a lost connection the next call reconnects.
  *
  * The simulated stage reports the position it was commanded to (an open-loop stage without
  * encoders) while its true position, which the simulated bench's optics use, differs by
@@ -41,8 +58,28 @@ typedef struct stage_sim_config {
 stage_sim_config_t stage_sim_config_default(void);
 
 /* Opens stage id of backend ("sim": a simulated stage with the default configuration, id
- * ignored). *out is the caller's (stage_close). Returns 0, -EINVAL (unknown backend) or -ENOMEM. */
+ * ignored; "gcs": id is the stage string without its "gcs:"). *out is the caller's (stage_close).
+ * Returns 0, -EINVAL (unknown backend) or -ENOMEM. */
 int stage_open(const char *backend, const char *id, stage_t **out, err_t *err);
+
+/* Opens the stage a stage string names (above). Returns 0, -EINVAL (bad string, named in err),
+ * a connection error (-ECONNREFUSED, -ENOENT, -ETIMEDOUT, -EIO) or a controller error. */
+int stage_open_url(const char *url, stage_t **out, err_t *err);
+
+/* Checks a stage string without opening anything; *is_sim (may be NULL) says whether it names
+ * the simulated stage. Returns 0 or -EINVAL with err saying what is wrong. */
+int stage_url_check(const char *url, int *is_sim, err_t *err);
+
+/* A stage that moves lead and, after each of its moves, moves shadow to the position lead
+ * reports; its position is lead's, its travel the intersection of both. It takes lead (closed
+ * with it, also on failure) and borrows shadow. Used to drive the simulated bench's optics (its
+ * stage is the shadow) from a real stage. */
+int stage_open_follow(stage_t *lead, stage_t *shadow, stage_t **out, err_t *err);
+
+/* The backend's name ("sim", "gcs", "follow") and, for a GCS stage (or a follower of one), the
+ * controller's *IDN? reply ("" otherwise). Borrowed, valid until stage_close. */
+const char *stage_backend(const stage_t *stage);
+const char *stage_identity(const stage_t *stage);
 
 /* Opens a simulated stage with cfg. Returns 0, -EINVAL (bad configuration) or -ENOMEM. */
 int stage_open_sim(const stage_sim_config_t *cfg, stage_t **out, err_t *err);

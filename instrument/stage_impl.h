@@ -27,4 +27,16 @@ double stage_sim_time(void *impl);
 void stage_sim_add_time(void *impl, double seconds);
 int stage_sim_new(const stage_sim_config_t *cfg, void **impl, err_t *err);
 
+/* The GCS 2.0 backend (stage_gcs.c): opened from a parsed stage string (connects, references,
+ * reads the limits); stage_gcs_idn is the controller's *IDN? reply. */
+struct stage_url;
+extern const struct stage_ops stage_gcs_ops;
+int stage_gcs_new(const struct stage_url *u, void **impl, err_t *err);
+const char *stage_gcs_idn(void *impl);
+
+/* The follower (stage_follow.c): a lead stage that a shadow stage follows. */
+extern const struct stage_ops stage_follow_ops;
+int stage_follow_new(stage_t *lead, stage_t *shadow, void **impl, err_t *err);
+const char *stage_follow_identity(void *impl); /* the lead's stage_identity */
+
 #endif

@@ -94,7 +94,7 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
     int ret = 0;
     if ((ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
                                    &srv->failpoints, err)) ||
-        (ret = srv_bench_check(cfg->bench, err)) || (ret = lock_db(srv, err)) ||
+        (ret = srv_bench_check(cfg->bench, cfg->stage, err)) || (ret = lock_db(srv, err)) ||
         (ret = storage_gate_new(&srv->gate)) || (ret = arm_storage_hooks(srv, err)) ||
         (ret = srv_dbpool_open(cfg->db_path, srv->gate, &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||

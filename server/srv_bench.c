@@ -5,12 +5,27 @@
 #include <stdlib.h>
 #include <string.h>
 
-int srv_bench_check(const char *kind, err_t *err)
+/* A real stage answers: opened and closed again. */
+static int check_stage(const char *stage, err_t *err)
 {
+    int is_sim;
+    err_t e;
+    if (stage_url_check(stage, &is_sim, &e)) return err_set(err, -EINVAL, "--stage: %s", e.msg);
+    if (is_sim) return 0;
+    stage_t *st;
+    int ret = stage_open_url(stage, &st, &e);
+    stage_close(st);
+    return ret ? err_set(err, ret, "--stage: %s", e.msg) : 0;
+}
+
+int srv_bench_check(const char *kind, const char *stage, err_t *err)
+{
+    int ret = check_stage(stage, err);
+    if (ret) return ret;
     if (strcmp(kind, "sim") == 0) return 0;
     cam_info_t *infos = NULL;
     size_t n = 0;
-    int ret = cam_list(kind, &infos, &n, err);
+    ret = cam_list(kind, &infos, &n, err);
     free(infos);
     if (ret) return ret;
     if (n == 0) return err_set(err, -ENODEV, "--bench %s: no camera found by libcamera", kind);
@@ -46,20 +61,27 @@ static int open_sim(const storage_sensor_t *sn, const storage_scan_t *sc,
     return 0;
 }
 
-int srv_bench_open(const char *kind, const storage_sensor_t *sn, const storage_scan_t *sc,
-                   const srv_scan_params_t *p, int (*frame_fault)(void *, unsigned long long),
-                   void *ctx, double timeout_s, srv_bench_t *b, err_t *err)
+int srv_bench_open(const char *kind, const char *stage, const storage_sensor_t *sn,
+                   const storage_scan_t *sc, const srv_scan_params_t *p,
+                   int (*frame_fault)(void *, unsigned long long), void *ctx, double timeout_s,
+                   srv_bench_t *b, err_t *err)
 {
     memset(b, 0, sizeof *b);
-    int ret;
+    int ret, sim_stage_only = 1;
+    if ((ret = stage_url_check(stage, &sim_stage_only, err))) return ret;
     if (strcmp(kind, "sim") == 0) {
         ret = open_sim(sn, sc, p, frame_fault, ctx, b, err);
-        return ret ? ret : cam_set_timeout(b->cam, timeout_s, err);
+        if (ret == 0) ret = cam_set_timeout(b->cam, timeout_s, err);
+        if (ret || sim_stage_only) return ret;
+        /* a real stage leads, the simulated bench's stage follows what it reports */
+        stage_t *lead;
+        if ((ret = stage_open_url(stage, &lead, err))) return ret;
+        return stage_open_follow(lead, sim_stage(b->sim), &b->stage, err);
     }
     ret = cam_open(kind, NULL, &b->cam, err);
     if (ret == 0) ret = cam_set_timeout(b->cam, timeout_s, err);
-    if (ret == 0) ret = stage_open("sim", NULL, &b->stage, err);
-    /* no stage driver: the POI's centre in stage coordinates is its sensor position */
+    if (ret == 0) ret = stage_open_url(stage, &b->stage, err);
+    /* no calibrated mount: the POI's centre in stage coordinates is its sensor position */
     b->start =
         (stage_pos_t){(sc->poi_col + 0.5) * sn->pitch_um, (sc->poi_row + 0.5) * sn->pitch_um, 0};
     return ret;
@@ -69,6 +91,7 @@ void srv_bench_close(srv_bench_t *b)
 {
     if (!b) return;
     if (b->sim) {
+        if (b->stage != sim_stage(b->sim)) stage_close(b->stage); /* a follower of a real stage */
         sim_close(b->sim);
     } else {
         cam_close(b->cam);

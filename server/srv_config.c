@@ -11,6 +11,7 @@
 
 #include "base/opts.h"
 #include "base/parse.h"
+#include "instrument/stage.h"
 #include "server/srv_token.h"
 
 #ifndef IPSD_WEB_DIR
@@ -24,6 +25,11 @@ static const char usage[] =
     "  --db FILE            SQLite database (default var/ipsd.db; its directory must exist)\n"
     "  --bench sim|libcamera  the instrument: the simulated bench (default) or a libcamera\n"
     "                       camera (fails at start when none is found)\n"
+    "  --stage STAGE        the motion stage the bench's camera works with: sim (default) or a\n"
+    "                       PI GCS 2.0 controller, gcs:tcp://HOST:PORT[?OPTIONS] or\n"
+    "                       gcs:serial:/dev/DEVICE[?OPTIONS] (OPTIONS: unit=mm|um, axes=A,B[,C],\n"
+    "                       baud=N, timeout=S, move_timeout=S, poll_ms=N, reference=0|1; see\n"
+    "                       docs/operations.md); fails at start when it does not answer\n"
     "  --workers N          fit worker threads (default 2)\n"
     "  --http-threads N     HTTP thread pool size (default 2)\n"
     "  --token FILE         writes (POST, DELETE) need 'Authorization: Bearer TOKEN', TOKEN one\n"
@@ -83,6 +89,7 @@ srv_config_t srv_config_default(void)
     snprintf(c.host, sizeof c.host, "127.0.0.1");
     snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
     snprintf(c.bench, sizeof c.bench, "sim");
+    snprintf(c.stage, sizeof c.stage, "sim");
     struct stat sb;
     snprintf(c.web_dir, sizeof c.web_dir, "%s",
              stat(IPSD_WEB_DIR, &sb) == 0 && S_ISDIR(sb.st_mode) ? IPSD_WEB_DIR : "web");
@@ -151,6 +158,7 @@ enum {
     O_LISTEN = 256,
     O_DB,
     O_BENCH,
+    O_STAGE,
     O_WORKERS,
     O_HTTP,
     O_TOKEN,
@@ -180,6 +188,7 @@ static const struct option opts[] = {
     {"listen", required_argument, NULL, O_LISTEN},
     {"db", required_argument, NULL, O_DB},
     {"bench", required_argument, NULL, O_BENCH},
+    {"stage", required_argument, NULL, O_STAGE},
     {"workers", required_argument, NULL, O_WORKERS},
     {"http-threads", required_argument, NULL, O_HTTP},
     {"token", required_argument, NULL, O_TOKEN},
@@ -242,6 +251,14 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--bench must be sim or libcamera (got '%s')", arg);
         snprintf(cfg->bench, sizeof cfg->bench, "%s", arg);
         return 0;
+    case O_STAGE: {
+        err_t e;
+        if (strlen(arg) >= sizeof cfg->stage)
+            return err_set(err, -EINVAL, "--stage: too long");
+        if (stage_url_check(arg, NULL, &e)) return err_set(err, -EINVAL, "--stage: %s", e.msg);
+        snprintf(cfg->stage, sizeof cfg->stage, "%s", arg);
+        return 0;
+    }
     case O_WORKERS:
     case O_HTTP:
         if (parse_long(arg, 1, 64, &v))

@@ -1,6 +1,6 @@
-/* srv_config.h: ipsd's configuration: the command line (listen address, database, bench, worker
- * counts, token files, web directory, limits, logs, CORS, backups) parsed and checked into one
- * plain struct (no pointers: it is copied by value). */
+/* srv_config.h: ipsd's configuration: the command line (listen address, database, bench, stage,
+ * worker counts, token files, web directory, limits, logs, CORS, backups) parsed and checked into
+ * one plain struct (no pointers: it is copied by value). */
 #ifndef IPSD_SERVER_SRV_CONFIG_H
 #define IPSD_SERVER_SRV_CONFIG_H
 
@@ -26,6 +26,7 @@ typedef struct srv_config {
     int port;                     /* 0: any free port (see port_file) */
     char db_path[SRV_PATH_MAX];   /* "var/ipsd.db" */
     char bench[16];               /* "sim" or "libcamera" */
+    char stage[1024];             /* --stage: "sim" or a stage string (instrument/stage.h) */
     int workers;                  /* fit worker threads (2) */
     int http_threads;             /* HTTP thread pool size (2) */
     srv_token_t tokens[SRV_TOKENS_MAX]; /* --token (write) and --read-token (read) digests */

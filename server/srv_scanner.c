@@ -190,7 +190,7 @@ static int begin(struct scan_run *r)
     /* the job must still be ours (not cancelled meanwhile) before the scan is marked running */
     if ((ret = storage_job_heartbeat(r->st, r->job->id, r->job->progress, r->job->points_done,
                                      &r->err)) ||
-        (ret = srv_bench_open(r->srv->cfg.bench, &r->sensor, &r->scan, &p,
+        (ret = srv_bench_open(r->srv->cfg.bench, r->srv->cfg.stage, &r->sensor, &r->scan, &p,
                               r->srv->failpoints ? srv_failpoint_frame : NULL, r->srv,
                               r->srv->cfg.camera_timeout_s, &r->bench, &r->err)))
         return ret;

@@ -2,6 +2,15 @@
 # backend) and the end-to-end `ips simulate` -> `ips fit` test.
 ipsd_add_test(test_scene ipsinstr)
 ipsd_add_test(test_stage ipsinstr)
+# the GCS 2.0 stage backend against the emulated PI controller tests/gcs_emulator.py (python3)
+find_package(Python3 COMPONENTS Interpreter)
+if(Python3_Interpreter_FOUND)
+    ipsd_add_test(test_stage_gcs ipsinstr)
+    target_compile_definitions(test_stage_gcs PRIVATE
+        IPSD_GCS_EMULATOR="${CMAKE_CURRENT_SOURCE_DIR}/gcs_emulator.py"
+        IPSD_PYTHON3="${Python3_EXECUTABLE}")
+    set_tests_properties(test_stage_gcs PROPERTIES TIMEOUT 300) # 14 emulator starts: 41 s at load 20
+endif()
 ipsd_add_test(test_cam_sim ipsinstr)
 ipsd_add_test(test_scan ipsinstr)
 ipsd_add_test(test_scan_cover ipsinstr) # which pixels a raster covers (issue 12)

@@ -1,0 +1,166 @@
+/* stage_url.c: parsing the stage string (stage_url.h; syntax in stage.h). Hand-written: the
+ * string is a small fixed grammar (BACKEND:LINK with key=value options), not a general URI. */
+#include "stage_url.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/parse.h"
+
+/* The baud rates termios offers that serial motion controllers use. */
+static const int bauds[] = {9600, 19200, 38400, 57600, 115200, 230400, 460800};
+
+static int bad(err_t *err, const char *what, const char *text)
+{
+    return err_set(err, -EINVAL, "%s (got '%.120s')", what, text);
+}
+
+/* "A,B[,C]": GCS axis identifiers, 1..8 characters of [A-Za-z0-9_-]. */
+static int parse_axes(const char *v, stage_url_t *u, err_t *err)
+{
+    int n = 0;
+    const char *p = v;
+    for (;;) {
+        size_t len = strcspn(p, ",");
+        if (n == STAGE_URL_AXES || len == 0 || len >= STAGE_URL_AXIS_LEN)
+            return bad(err, "axes= needs 2 or 3 comma-separated GCS axis names of 1..8 characters",
+                       v);
+        for (size_t i = 0; i < len; i++) {
+            char c = p[i];
+            if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                  c == '_' || c == '-'))
+                return bad(err, "axes= names are letters, digits, _ and -", v);
+        }
+        memcpy(u->axes[n], p, len);
+        u->axes[n][len] = 0;
+        n++;
+        if (!p[len]) break;
+        p += len + 1;
+    }
+    if (n < 2) return bad(err, "axes= needs 2 or 3 comma-separated GCS axis names", v);
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < i; j++)
+            if (strcmp(u->axes[i], u->axes[j]) == 0) return bad(err, "axes= repeats an axis", v);
+    u->n_axes = n;
+    return 0;
+}
+
+/* A number of seconds in (0, 3600]. */
+static int parse_seconds(const char *key, const char *v, double *out, err_t *err)
+{
+    double s;
+    if (parse_double(v, &s) || !(s > 0 && s <= 3600))
+        return err_set(err, -EINVAL, "%s= must be seconds in (0, 3600] (got '%.60s')", key, v);
+    *out = s;
+    return 0;
+}
+
+static int one_option(char *kv, stage_url_t *u, err_t *err)
+{
+    char *eq = strchr(kv, '=');
+    if (!eq) return bad(err, "options are key=value", kv);
+    *eq = 0;
+    const char *k = kv, *v = eq + 1;
+    long long n;
+    if (strcmp(k, "unit") == 0) {
+        if (strcmp(v, "mm") && strcmp(v, "um")) return bad(err, "unit= must be mm or um", v);
+        u->unit_um = v[0] == 'm' ? 1000.0 : 1.0;
+        return 0;
+    }
+    if (strcmp(k, "axes") == 0) return parse_axes(v, u, err);
+    if (strcmp(k, "timeout") == 0) return parse_seconds(k, v, &u->timeout_s, err);
+    if (strcmp(k, "move_timeout") == 0) return parse_seconds(k, v, &u->move_timeout_s, err);
+    if (strcmp(k, "poll_ms") == 0) {
+        if (parse_ll(v, &n) || n < 0 || n > 10000) return bad(err, "poll_ms= must be 0..10000", v);
+        u->poll_ms = (int)n;
+        return 0;
+    }
+    if (strcmp(k, "reference") == 0) {
+        if (strcmp(v, "0") && strcmp(v, "1")) return bad(err, "reference= must be 0 or 1", v);
+        u->reference = v[0] == '1';
+        return 0;
+    }
+    if (strcmp(k, "baud") == 0) {
+        if (u->link != STAGE_LINK_SERIAL) return bad(err, "baud= is for serial lines only", v);
+        int ok = 0;
+        if (parse_ll(v, &n) == 0)
+            for (size_t i = 0; i < sizeof bauds / sizeof bauds[0]; i++)
+                ok |= n == bauds[i];
+        if (!ok)
+            return bad(err, "baud= must be 9600, 19200, 38400, 57600, 115200, 230400 or 460800", v);
+        u->baud = (int)n;
+        return 0;
+    }
+    return err_set(err, -EINVAL,
+                   "unknown option '%.40s' (unit, axes, timeout, move_timeout, poll_ms, "
+                   "reference, baud)",
+                   k);
+}
+
+/* "HOST:PORT" or "[V6]:PORT". */
+static int parse_host_port(const char *hp, stage_url_t *u, err_t *err)
+{
+    const char *colon = strrchr(hp, ':');
+    const char *host = hp;
+    size_t hlen = colon ? (size_t)(colon - hp) : 0;
+    if (hlen >= 2 && hp[0] == '[' && hp[hlen - 1] == ']') {
+        host++;
+        hlen -= 2;
+    }
+    long long port;
+    if (!colon || hlen == 0 || hlen >= sizeof u->host || parse_ll(colon + 1, &port) || port < 1 ||
+        port > 65535)
+        return bad(err, "need gcs:tcp://HOST:PORT with a port 1..65535", hp);
+    memcpy(u->host, host, hlen);
+    u->host[hlen] = 0;
+    u->port = (int)port;
+    return 0;
+}
+
+int stage_url_parse(const char *text, stage_url_t *u, err_t *err)
+{
+    memset(u, 0, sizeof *u);
+    u->baud = 115200;
+    u->unit_um = 1000.0; /* GCS 2.0 stages mostly report millimetres */
+    strcpy(u->axes[0], "1");
+    strcpy(u->axes[1], "2");
+    strcpy(u->axes[2], "3");
+    u->n_axes = 3;
+    u->timeout_s = 5;
+    u->move_timeout_s = 60;
+    u->poll_ms = 10;
+    u->reference = 1;
+    if (!text || strcmp(text, "sim") == 0) {
+        u->backend = STAGE_URL_SIM;
+        return 0;
+    }
+    if (strncmp(text, "gcs:", 4))
+        return bad(err, "need sim, gcs:tcp://HOST:PORT[?OPTIONS] or gcs:serial:DEVICE[?OPTIONS]",
+                   text);
+    u->backend = STAGE_URL_GCS;
+    char buf[1024];
+    if (strlen(text) >= sizeof buf) return err_set(err, -EINVAL, "stage string too long");
+    strcpy(buf, text + 4);
+    char *query = strchr(buf, '?');
+    if (query) *query++ = 0;
+    int ret;
+    if (strncmp(buf, "tcp://", 6) == 0) {
+        u->link = STAGE_LINK_TCP;
+        ret = parse_host_port(buf + 6, u, err);
+    } else if (strncmp(buf, "serial:", 7) == 0) {
+        u->link = STAGE_LINK_SERIAL;
+        const char *dev = buf + 7;
+        if (dev[0] != '/' || strlen(dev) >= sizeof u->device)
+            return bad(err, "need gcs:serial:/dev/DEVICE (an absolute path)", text);
+        strcpy(u->device, dev);
+        ret = 0;
+    } else {
+        return bad(err, "need gcs:tcp://HOST:PORT or gcs:serial:DEVICE", text);
+    }
+    if (ret || !query) return ret;
+    for (char *save = NULL, *kv = strtok_r(query, "&", &save); kv; kv = strtok_r(NULL, "&", &save))
+        if ((ret = one_option(kv, u, err))) return ret;
+    return 0;
+}
