@@ -129,11 +129,53 @@ static int is_json_type(const char *ct)
     return n == 16 && strncasecmp(ct, "application/json", 16) == 0;
 }
 
+/* The request's own limits (defect 11 of issue 10): libmicrohttpd answers a request line or header
+ * fields that overflow its per-connection buffer (MHD_OPTION_CONNECTION_MEMORY_LIMIT) itself,
+ * with 414 or 431 and a short HTML body that no option of 0.9.75 replaces. So the buffer is
+ * made larger than the limits ipsd enforces here: a target over API_MAX_TARGET or header fields
+ * over API_MAX_HEADERS get the JSON error, and only a request beyond the buffer still gets
+ * libmicrohttpd's answer (docs/api.md). 8 KiB and 16 KiB are nginx's and Apache's defaults for a
+ * request line and more than any client of ipsd sends; the buffer bounds a connection's memory
+ * (docs/operations.md: times --max-connections). */
+#define API_MAX_TARGET (8u << 10)
+#define API_MAX_HEADERS (16u << 10)
+#define API_CONN_MEMORY (64u << 10)
+
+/* MHD_get_connection_values' iterator: adds a field's "key: value\r\n" (or "key=value&") size. */
+static enum MHD_Result add_field_size(void *cls, enum MHD_ValueKind kind, const char *key,
+                                      const char *value)
+{
+    (void)kind;
+    *(size_t *)cls += strlen(key) + (value ? strlen(value) : 0) + 4;
+    return MHD_YES;
+}
+
+/* Refuses (414 / 431, the JSON error) a request over the limits above; 0 when within them. The
+ * target is measured decoded (path and query arguments), a lower bound of the bytes sent. */
+static int check_size(api_req_t *q, const char *url)
+{
+    size_t target = strlen(url), fields = 0;
+    MHD_get_connection_values(q->conn, MHD_GET_ARGUMENT_KIND, add_field_size, &target);
+    if (target > API_MAX_TARGET) {
+        api_error(q, 414, "uri_too_long", NULL, "the request target is longer than %u bytes",
+                  API_MAX_TARGET);
+        return -1;
+    }
+    MHD_get_connection_values(q->conn, MHD_HEADER_KIND, add_field_size, &fields);
+    if (fields > API_MAX_HEADERS) {
+        api_error(q, 431, "header_fields_too_large",
+                  NULL, "the request's header fields are larger than %u bytes", API_MAX_HEADERS);
+        return -1;
+    }
+    return 0;
+}
+
 /* The checks of the first callback; replies and returns -1 to refuse the request. */
 static int check_request(api_req_t *q, const char *method, const char *url)
 {
     const srv_config_t *cfg = srv_config(q->srv);
     int path_known = 0, write = strcmp(method, "GET") && strcmp(method, "HEAD");
+    if (check_size(q, url)) return -1;
     if (cfg->cors_origin[0] && strcmp(method, "OPTIONS") == 0 &&
         MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, "Access-Control-Request-Method")) {
         preflight(q, url); /* before the token: a preflight never carries one */
@@ -393,7 +435,8 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
         MHD_OPTION_EXTERNAL_LOGGER, http_log, NULL, MHD_OPTION_SOCK_ADDR, (struct sockaddr *)&ss,
         MHD_OPTION_THREAD_POOL_SIZE, (unsigned)cfg->http_threads, MHD_OPTION_NOTIFY_COMPLETED,
         on_completed, h, MHD_OPTION_NOTIFY_CONNECTION, api_conns_notify, h->conns,
-        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60, MHD_OPTION_CONNECTION_LIMIT,
+        MHD_OPTION_CONNECTION_TIMEOUT, (unsigned)60, MHD_OPTION_CONNECTION_MEMORY_LIMIT,
+        (size_t)API_CONN_MEMORY, MHD_OPTION_CONNECTION_LIMIT,
         (unsigned)cfg->max_connections, MHD_OPTION_PER_IP_CONNECTION_LIMIT,
         (unsigned)cfg->max_per_client, MHD_OPTION_UNESCAPE_CALLBACK, api_unescape_keep_nul, NULL,
         MHD_OPTION_END);

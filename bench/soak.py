@@ -42,16 +42,18 @@ def rss_mb(pid):
 class Stats:
     def __init__(self):
         self.lock = threading.Lock()
-        self.lat = []
+        self.lat = {}  # kind (read, sensor, fit) -> latencies in ms
         self.errors = {}
         self.count = 0
 
     def add(self, ms, status, what):
+        """status 0: the request failed below HTTP (a reset or a timeout)."""
         with self.lock:
             self.count += 1
-            self.lat.append(ms)
-            if status >= 400 and not (status == 409 and what == "sensor"):
-                self.errors[(what, status)] = self.errors.get((what, status), 0) + 1
+            self.lat.setdefault(what, []).append(ms)
+            if (status >= 400 or status == 0) and not (status == 409 and what == "sensor"):
+                key = (what, status or "socket")
+                self.errors[key] = self.errors.get(key, 0) + 1
 
 
 def main():
@@ -127,33 +129,43 @@ def main():
                  "/api/sensors/%d/pixels/10/10/history?limit=200" % sensor]
 
         def timed(c, what, method, path, body=None):
+            """One request, counted; a failure below HTTP counts as an error and reconnects."""
             t = time.monotonic()
-            s, data = call(c, method, path, body)
+            try:
+                s, data = call(c[0], method, path, body)
+            except (OSError, http.client.HTTPException):
+                s, data = 0, b""
+                c[0].close()
+                c[0] = conn()
             stats.add((time.monotonic() - t) * 1e3, s, what)
             return s, data
 
         def reader(k):
-            c = conn()
+            c = [conn()]
             i = k
             while not stop.is_set():
                 timed(c, "read", "GET", reads[i % len(reads)])
                 i += 1
 
         def writer():
-            c = conn()
+            c = [conn()]
             i = 1
             while not stop.is_set():
                 timed(c, "sensor", "POST", "/api/sensors", {"model": "SOAK", "serial": str(i)})
                 i += 1
                 time.sleep(0.01)
 
+        fit_jobs = []
+
         def fitter():
-            c = conn()
+            c = [conn()]
             for i in range(FITS):
                 if stop.is_set():
                     break
                 body = fit_body if i % 2 else dict(fit_body, scan=dense, r_max=12)
-                timed(c, "fit", "POST", "/api/fits", body)
+                s, data = timed(c, "fit", "POST", "/api/fits", body)
+                if s == 202:
+                    fit_jobs.append(json.loads(data)["job"]["id"])
                 time.sleep(0.05)
 
         threads = [threading.Thread(target=reader, args=(k,)) for k in range(READERS)]
@@ -171,18 +183,36 @@ def main():
         end_rss = rss_mb(proc.pid)
         time.sleep(IDLE)
         idle_rss = rss_mb(proc.pid)
-        lat = sorted(stats.lat)
+        # the submitted fits' end states (a job that failed is an error too, not only a 5xx)
+        c = conn()
+        ends = {}
+        for job in fit_jobs:
+            st, data = call(c, "GET", "/api/jobs/%d" % job)
+            state = json.loads(data)["state"] if st == 200 else "http %d" % st
+            ends[state] = ends.get(state, 0) + 1
+        c.close()
 
-        def pct(p):
+        def pct(lat, p):
             return lat[min(len(lat) - 1, int(p / 100.0 * len(lat)))] if lat else float("nan")
         mid = samples[len(samples) // 2][1]
         peak = max(r for _, r in samples)
         print("ipsd soak: %.0f s of load, %d requests (%.0f/s), %d readers, 1 writer, fits"
               % (load_s, stats.count, stats.count / load_s, READERS))
-        print("  latency ms: p50 %.2f  p99 %.2f  max %.1f" % (pct(50), pct(99), lat[-1]))
+        print("  %-7s %9s %8s %8s %8s %8s" % ("kind", "requests", "per s", "p50 ms", "p99 ms",
+                                              "max ms"))
+        every = sorted(x for v in stats.lat.values() for x in v)
+        for what, lat in sorted(stats.lat.items()) + [("all", every)]:
+            lat = sorted(lat)
+            print("  %-7s %9d %8.1f %8.2f %8.2f %8.1f" % (what, len(lat), len(lat) / load_s,
+                                                         pct(lat, 50), pct(lat, 99), lat[-1]))
         print("  errors: %s" % (stats.errors or "none"))
+        print("  fits submitted: %d; their jobs now: %s" % (len(fit_jobs), ends or "none"))
         print("  RSS MB: start %.1f  middle %.1f  end %.1f  peak %.1f  after %.0f s idle %.1f"
               % (samples[0][1], mid, end_rss, peak, IDLE, idle_rss))
+        # flat: the second half of the load must not keep growing what the first half reached
+        print("  RSS growth, middle to end: %+.1f MB (%+.0f %%); every 10 s: %s"
+              % (end_rss - mid, 100 * (end_rss - mid) / mid,
+                 " ".join("%.0f" % r for t, r in samples[::10])))
     finally:
         if proc:
             proc.terminate()

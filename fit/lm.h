@@ -15,7 +15,8 @@ typedef struct lm_result {
 
 /* A: n x m row-major design matrix, y: measured signal minus bias, sigma: uncertainties.
  * S (m) and *I0 hold the start on entry (the paper starts from S = 1) and the result on exit.
- * stop (may be NULL) is polled at every evaluation of the residuals (each iteration's).
+ * stop (may be NULL) is polled (stop.h, site "lm") before each iteration, each Jacobian and each
+ * evaluation of the residuals.
  * Returns 0, -ENOMEM, -ECANCELED (stopped), or -EDOM when GSL reports a failure other than
  * non-convergence. */
 int lm_fit(const double *A, const double *sigma, const double *y, size_t n, size_t m, double *S,

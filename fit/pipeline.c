@@ -260,7 +260,8 @@ int fit_pipeline_run(const fit_scan_t *scan, const fit_pipeline_opts_t *opts,
     memset(out, 0, sizeof *out);
     fit_pipeline_opts_t o = opts ? *opts : fit_pipeline_opts_default();
     if (watch && watch->poll) /* every step's long loops poll the watch (stop.h) */
-        o.fit.stop = (fit_stop_t){.poll = watch->poll, .arg = watch->params};
+        o.fit.stop = (fit_stop_t){.poll = watch->poll, .arg = watch->params,
+                                  .poll_at = watch->poll_at};
     int rc = check_opts(scan, &o, err);
     if (rc) return rc;
     double t0 = clock_mono_ms();

@@ -88,6 +88,8 @@ typedef struct fit_watch {
     /* Inside the steps' long loops (stop.h): nonzero stops the run (-ECANCELED). Keep it cheap
      * (an atomic load): it runs many times per step. NULL: only the stop above. */
     int (*poll)(void *params);
+    /* Optional: the same poll at a named place (stop.h's poll_at, FIT_STOP_SITE_*). */
+    int (*poll_at)(void *params, const char *site);
 } fit_watch_t;
 
 /* The outcome of an optional part. */

@@ -11,7 +11,8 @@
  * the F-test, the Wiener baseline), fit.before_store (a fit computed, before the transaction that
  * stores it), fit.after_store (after that transaction committed, before the job's end is
  * published), fit.poll (inside a fit's long loops, where it polls its stop: each batch of
- * design-matrix rows, after each solve, each LM iteration), camera.frame (the simulated camera,
+ * design-matrix rows, after each solve, each LM iteration), fit.poll.lm (the polls of fit.poll
+ * inside the LM only: each iteration, Jacobian and residual; hit after fit.poll), camera.frame (the simulated camera,
  * before each frame it captures: hold makes the camera stop answering until its frame timeout,
  * error makes the capture fail; no held file), fit.pixel (a fit of every pixel a scan covers,
  * after each pixel's fit and the job's count are committed, before the next pixel). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the

@@ -41,6 +41,15 @@ static int watch_poll(void *params)
     return h->poll && h->poll(h->user);
 }
 
+/* The same at a named place of the fit (fit/stop.h's sites): the caller's poll_at, else poll. */
+static int watch_poll_at(void *params, const char *site)
+{
+    const srv_fit_hooks_t *h = params;
+    if (!h->poll_at) return watch_poll(params);
+    if (h->stop && atomic_load_explicit(h->stop, memory_order_relaxed)) return 1;
+    return h->poll_at(h->user, site);
+}
+
 static void watch_progress(int done, int total, const fit_step_t *step, void *params)
 {
     (void)step;
@@ -113,7 +122,7 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
                               .wiener = p->wiener, .region = p->region,
                               .fit_geometry = p->fit_geometry, .geometry_r = p->geometry_r};
     fit_watch_t watch = {.stop = watch_stop, .progress = watch_progress, .params = (void *)hooks,
-                         .poll = watch_poll};
+                         .poll = watch_poll, .poll_at = watch_poll_at};
     fit_pipeline_t pl;
     double t0 = clock_mono_ms();
     int ret = fit_pipeline_run(scan, &po, hooks ? &watch : NULL, &pl, err);

@@ -32,6 +32,8 @@ typedef struct srv_fit_hooks {
     int (*poll)(void *user); /* also inside those loops (a test hook; may be NULL): nonzero stops */
     void (*progress)(double fraction, void *user);
     void *user;
+    /* optional: poll's place-aware form, for the polls at a named place (fit/stop.h's sites) */
+    int (*poll_at)(void *user, const char *site);
 } srv_fit_hooks_t;
 
 /* Fits scan as p asks (r range, options, F-test, Wiener). A failing F-test or Wiener baseline

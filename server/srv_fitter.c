@@ -161,6 +161,19 @@ static int on_poll(void *user)
     return fw->w->srv->failpoints && srv_failpoint(fw->w, "fit.poll", NULL) != 0;
 }
 
+/* The same at a named place of the fit: fit.poll, then the place's own point fit.poll.SITE
+ * (fit.poll.lm: inside the LM), so a test can hold a fit inside one loop whatever the count of
+ * the polls before it. */
+static int on_poll_at(void *user, const char *site)
+{
+    struct fit_watch *fw = user;
+    if (!fw->w->srv->failpoints) return 0;
+    if (on_poll(user)) return 1;
+    char name[32];
+    snprintf(name, sizeof name, "fit.poll.%s", site);
+    return srv_failpoint(fw->w, name, NULL) != 0;
+}
+
 /* After a stopped fit: cancelled by the user (nothing to do), else the shutdown (or a cancel
  * meant for a previous job): the job goes back to the queue and runs again. */
 static void stopped(storage_t *st, int64_t id)
@@ -176,8 +189,8 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
     srv_fit_out_t out = {0};
     err_t err = {{0}};
     struct fit_watch fw = {.w = w, .job = job, .last_beat = clock_mono_s()};
-    srv_fit_hooks_t hooks = {.stop = &w->stop, .poll = on_poll, .progress = on_progress,
-                             .user = &fw};
+    srv_fit_hooks_t hooks = {.stop = &w->stop, .poll = on_poll, .poll_at = on_poll_at,
+                             .progress = on_progress, .user = &fw};
     srv_worker_begin(w, job->id);
     srv_publish_job(w->srv, job, "fit", 0, NAN);
     int ret = srv_fit_params_parse(job->params, &p, &err);

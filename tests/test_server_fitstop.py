@@ -6,7 +6,8 @@ ended (progress 0). The hold ends only through the worker's stop flag, so the jo
 that the stop set by the cancel (or by SIGTERM) unwinds the fit from inside its loop: the job is
 cancelled with nothing stored and the worker takes the next job; at SIGTERM ipsd exits 0 and the
 job goes back to the queue, then runs to done at the next start. The latency is measured in
-bench (the report), not asserted here. Then the fit request's limits: --max-fit-points (413
+bench (the report), not asserted here. The same inside the LM (the point fit.poll.lm, hit only by
+the LM's own polls): a cancel and a SIGTERM there end the fit from inside its iterations. Then the fit request's limits: --max-fit-points (413
 naming scan.x_um) and --max-fit-r (422 naming r_max, ftest_r or geometry_r)."""
 import math
 import subprocess
@@ -59,6 +60,39 @@ def test(c, t, argv, daemons):
     d.start("--workers", "1")
     c.ok(d.wait_job(job, "done"), "it runs again to done")
     c.eq(db.val("SELECT count(*) FROM fits"), 2, "and stores its one fit")
+    c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+
+    # inside the LM: the point fit.poll.lm is hit only by the polls inside lm.c (each iteration,
+    # Jacobian and residual), so a hold there is a fit inside its LM whatever the count of the
+    # design-matrix and solve polls before it. Its 3rd hit is past the start (init's residual and
+    # Jacobian): inside the iterations of the first r. A cancel there ends the hold through the
+    # stop flag, and the fit unwinds from the LM with nothing stored.
+    d.start("--workers", "1", failpoints="fit.poll.lm=hold@3")
+    body = upload_body(400, 6)
+    body.update(method="lm")
+    job = d.post("/api/fits", body).json()["job"]["id"]
+    c.ok(d.wait_held("fit.poll.lm", job), "an LM fit held at a poll inside its LM")
+    c.ok("failpoint fit.poll.lm: holding job %d at hit 3" % job in d.log_text(),
+         "the log names the LM's poll and its hit")
+    j = d.get("/api/jobs/%d" % job).json()
+    c.eq((j["state"], j["progress"]), ("running", 0.0), "running inside the first r's LM")
+    c.status(d.post("/api/jobs/%d/cancel" % job), 200, "cancel the fit inside its LM")
+    c.ok(d.wait_hold_ended("fit.poll.lm", job), "the cancel's stop flag ended the hold in the LM")
+    c.ok(d.wait_job(job, "cancelled"), "the job is cancelled")
+    c.eq(db.one("SELECT state, fit_id IS NULL FROM jobs WHERE id = ?", job), ("cancelled", 1),
+         "the fit cancelled in its LM stored nothing")
+    c.eq(db.val("SELECT count(*) FROM fits"), 2, "no fit was added")
+    c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+    # SIGTERM inside the LM: the fit unwinds from there, ipsd exits 0, the job is given back
+    d.start("--workers", "1", failpoints="fit.poll.lm=hold@3")
+    job = d.post("/api/fits", body).json()["job"]["id"]
+    c.ok(d.wait_held("fit.poll.lm", job), "a second LM fit held inside its LM")
+    c.eq(d.stop_term(), 0, "SIGTERM inside the LM: exit status 0")
+    c.eq(db.one("SELECT state, attempts, fit_id IS NULL FROM jobs WHERE id = ?", job),
+         ("queued", 0, 1), "the fit stopped in its LM given back: queued, nothing stored")
+    d.start("--workers", "1")
+    c.ok(d.wait_job(job, "done"), "it runs again to done")
+    c.eq(db.val("SELECT count(*) FROM fits"), 3, "and stores its one fit")
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
     # the limits of a fit request (--max-fit-points, --max-fit-r): 413 / 422 naming the field
