@@ -332,10 +332,37 @@ struct line_pair {
     int k, l;     /* spot in the batch, line index */
 };
 
-static int cmp_pair(const void *p, const void *q)
+/* Sorts p[0..np) by w, ascending and stably, through tmp (np entries): an LSD radix sort on the
+ * bits of w, one byte a pass, skipping the bytes all keys share (the exponent's, mostly). w > 0
+ * and finite, so its bits order as unsigned integers do; stable like glibc's merge sort, so the
+ * order is the one qsort gave, in a fraction of its time (qsort with its comparison callback was
+ * 7 % of the reference fit's instructions, callgrind). */
+static void sort_pairs(struct line_pair *p, struct line_pair *tmp, size_t np)
 {
-    double a = ((const struct line_pair *)p)->w, b = ((const struct line_pair *)q)->w;
-    return (a > b) - (a < b);
+    size_t count[8][256] = {{0}};
+    for (size_t q = 0; q < np; q++) {
+        uint64_t b;
+        memcpy(&b, &p[q].w, sizeof b);
+        for (int d = 0; d < 8; d++) count[d][(b >> (8 * d)) & 255]++;
+    }
+    for (int d = 0; d < 8; d++) {
+        uint64_t b0;
+        if (!np) return;
+        memcpy(&b0, &p[0].w, sizeof b0);
+        if (count[d][(b0 >> (8 * d)) & 255] == np) continue; /* one byte value: nothing moves */
+        size_t at = 0;
+        for (int v = 0; v < 256; v++) {
+            size_t c = count[d][v];
+            count[d][v] = at;
+            at += c;
+        }
+        for (size_t q = 0; q < np; q++) {
+            uint64_t b;
+            memcpy(&b, &p[q].w, sizeof b);
+            tmp[count[d][(b >> (8 * d)) & 255]++] = p[q];
+        }
+        memcpy(p, tmp, sizeof *p * np);
+    }
 }
 
 struct work {
@@ -349,7 +376,8 @@ struct work {
     double *gs;               /* [node]: signed node values of the row being assembled */
     struct target *tg;        /* the targets of one sweep */
     size_t tg_cap;
-    struct line_pair *pairs;
+    struct line_pair *pairs;  /* n1 * batch of them, then as many for sort_pairs */
+    size_t batch;
     struct sweep sw;
 };
 
@@ -416,7 +444,7 @@ static int direction_pass(const struct cheb *ch, const fit_design_opts_t *o, str
             if (w < FIT_CORNER_TINY) continue; /* its nodes are axis corners */
             wk->pairs[np++] = (struct line_pair){w, k, l};
         }
-    qsort(wk->pairs, (size_t)np, sizeof *wk->pairs, cmp_pair);
+    sort_pairs(wk->pairs, wk->pairs + (size_t)wk->n1 * wk->batch, (size_t)np);
     for (int g0 = 0; g0 < np;) {
         int g1 = g0;
         while (g1 < np && wk->pairs[g1].w == wk->pairs[g0].w) g1++;
@@ -516,7 +544,8 @@ static int work_alloc(struct work *wk, size_t batch)
     size_t nodes = (size_t)wk->n1 * wk->n1, cells = (size_t)wk->r * wk->r;
     double *buf = malloc(sizeof(double) * (4 * nodes * batch + nodes));
     wk->need = malloc((nodes + cells) * batch);
-    wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch);
+    wk->batch = batch;
+    wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch * 2); /* and sort_pairs' */
     wk->wq[0] = buf;
     if (!buf || !wk->need || !wk->pairs) return -ENOMEM;
     wk->wq[1] = buf + nodes * batch;
