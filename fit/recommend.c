@@ -91,8 +91,9 @@ static int largest_determined(const fit_sweep_t *sw)
 
 /* Step 3 (recommend.h): r_cv against r_cv - 1 and r_cv + 1 by the expected error. */
 static int refine(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double scale, int r_cv,
-                  double *err_best)
+                  double *err_best, int *vetoed)
 {
+    *vetoed = 0;
     const fit_result_t *f0 = &sw->fits[r_cv - sw->r_min];
     int r_best = r_cv;
     *err_best = fit_map_expected_error(f0, scale, o->noise_weight, NULL, NULL);
@@ -104,7 +105,10 @@ static int refine(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double s
         if (r > r_cv && !(f->chi2 <= f0->chi2)) continue; /* misaligned with what r_cv resolves */
         /* too coarse: misfits the points beyond their own scatter (the noise model's absolute
          * sigma, hence FIT_POOR_FIT, is off by sqrt(G) under the paper's model) */
-        if (r < r_cv && !(f->chi2_red <= o->coarse_misfit * scale * scale)) continue;
+        if (r < r_cv && !(f->chi2_red <= o->coarse_misfit * scale * scale)) {
+            *vetoed = r;
+            continue;
+        }
         double e = fit_map_expected_error(f, scale, o->noise_weight, NULL, NULL);
         if (e < *err_best) *err_best = e, r_best = r;
     }
@@ -152,6 +156,7 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
         }
         if (f->cv_chi2 < cv_min) cv_min = f->cv_chi2, r_cv = r;
     }
+    out->noise_scale = scale;
     if (!r_cv) {
         snprintf(out->reason, sizeof out->reason,
                  "no fit of r = %d..%d has a map that can be trusted (see each fit's status)",
@@ -159,9 +164,11 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
         return;
     }
     double err;
-    out->r = refine(sw, &o, scale, r_cv, &err);
+    out->r = refine(sw, &o, scale, r_cv, &err, &out->vetoed);
     int escaped = out->r == r_cv && escape_misfit(sw, &o, scale, r_cv);
     if (escaped) out->r = r_cv + 1;
+    out->r_cv = r_cv;
+    out->step = escaped ? 4 : out->r != r_cv ? 3 : 2;
     const fit_result_t *f = &sw->fits[out->r - sw->r_min];
     double noise, contrast, res;
     fit_map_noise_contrast(f, &noise, &contrast);

@@ -58,6 +58,12 @@ typedef struct fit_recommendation {
     int r;            /* recommended r, 0 when no fit of the sweep has an admissible map */
     int range_edge;   /* AIC or BIC picked r_max or the largest r the points determine */
     char reason[320]; /* one sentence for people */
+    /* how the rule got there, for the evidence harness (bench/fidelity.c --explain): */
+    int r_cv;           /* step 2's pick (0: none) */
+    int step;           /* the step that decided: 2 (r_cv kept), 3 (a neighbour's smaller
+                           expected error), 4 (the misfit escape to r_cv + 1); 0: no pick */
+    int vetoed;         /* r_cv - 1 when step 3 left it out as misfitting the points, else 0 */
+    double noise_scale; /* the data's scatter relative to the noise model's sigma */
 } fit_recommendation_t;
 
 /* Applies the rule to a finished sweep (opts NULL: the defaults). */
