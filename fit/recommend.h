@@ -20,8 +20,10 @@
  *      not speak against it: r_cv + 1 only if it fits the points at least as well as r_cv (a
  *      finer grid that fits worse is misaligned with structure r_cv resolves exactly, e.g. a
  *      dead third of the pixel), r_cv - 1 (>= 2) only if its reduced chi2 is at most
- *      coarse_misfit times the data's own scatter (noise_scale^2): a coarser map that misfits
- *      the points has an error the resolution estimate does not see;
+ *      coarse_misfit times the data's own scatter (noise_scale^2), or at most coarse_near times
+ *      r_cv's own reduced chi2: a coarser map that misfits the points has an error the
+ *      resolution estimate does not see, unless r_cv misfits them about as much (then the
+ *      misfit says nothing about which of the two is closer to the truth);
  *   4. when step 3 keeps r_cv but r_cv misfits the points, its reduced chi2 above escape_misfit
  *      times both r_cv + 1's and their scatter, while r_cv + 1 fits them better, has noise at
  *      most escape_noise_to_contrast of its contrast and an expected error at most
@@ -50,6 +52,8 @@ typedef struct fit_recommend_opts {
     double escape_noise_to_contrast; /* r_cv + 1's admissibility in step 4 (0.5) */
     double escape_error_ratio; /* step 4 only when r_cv + 1's expected error (fit_map_expected_
                                   error) <= this x r_cv's (2); <= 0: no step 4 */
+    double coarse_near;       /* r_cv - 1 also competes when its chi2_red <= this x r_cv's own
+                                 (1.15): it misfits hardly more than r_cv does; <= 0: never */
 } fit_recommend_opts_t;
 
 fit_recommend_opts_t fit_recommend_opts_default(void);

@@ -224,6 +224,11 @@ static void test_refine(void)
     fit_recommend(&sw, NULL, &rec);
     CHECK(rec.r_cv == 3 && rec.vetoed == 2 && rec.r != 2);
     CHECK(fabs(rec.noise_scale - sqrt(100.0 / 98)) < 1e-12);
+    /* unless r_cv misfits about as much: r = 2's 10 within 1.15 times r = 3's 9 */
+    f[2].chi2_red = 9, f[2].chi2 = 810;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r_cv == 3 && rec.vetoed == 0);
+    f[2].chi2_red = 100.0 / 90, f[2].chi2 = 100;
     f[1].chi2_red = 100.0 / 95, f[1].chi2 = 100, f[1].cv_chi2 = 200, f[2].cv_chi2 = 300;
     /* without step 3 (noise_weight 0) the leave-one-out pick stands */
     f[2].chi2 = 100;
