@@ -6,10 +6,12 @@
  * (instrument/fidelity.h). --tune measures a grid of the rule's two settings instead.
  * A benchmark: it prints, it never fails on numbers.
  * Usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max R] [--seeds N] [--first-seed S]
- * [--raster I] [--scene NAME] [--sigma MODEL] [--dump FILE] (the fits' noise model, default
- * shot+read: the physically consistent one, numerics.md; seeds S..S+N-1, 1..3 by default, the
- * seeds the rule was chosen on: --first-seed 4 gives held-out ones; --dump writes every fit of
- * every case for studying rules offline). */
+ * [--raster I] [--scene NAME] [--sigma MODEL] [--dump FILE] [--explain] (the fits' noise model,
+ * default shot+read: the physically consistent one, numerics.md; seeds S..S+N-1, 1..3 by default,
+ * the seeds the rule was chosen on: --first-seed 4 gives held-out ones; --dump writes every fit of
+ * every case for studying rules offline; --explain prints, under every case whose recommendation
+ * misses the best r by more than 1.1x, the criteria the rule weighed for each r: reduced chi2,
+ * leave-one-out chi2 per point, noise, contrast, resolution error and expected error). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -68,6 +70,7 @@ struct run {
     int quick, tune, r_max, seeds, first_seed, raster; /* raster: index + 1, 0 all */
     const char *scene;                                  /* NULL: every family */
     FILE *dump;
+    int explain;
     fit_noise_t noise;
     fit_recommend_opts_t rules[FID_MAX_RULES];
     int n_rules;
@@ -79,6 +82,7 @@ static int parse(int argc, char **argv, struct run *u)
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--quick") == 0) u->quick = 1;
         else if (strcmp(argv[i], "--tune") == 0) u->tune = 1;
+        else if (strcmp(argv[i], "--explain") == 0) u->explain = 1;
         else if (strcmp(argv[i], "--sigma") == 0 && i + 1 < argc &&
                  fit_noise_parse(argv[i + 1], &u->noise) == 0)
             i++;
@@ -103,10 +107,11 @@ static int parse(int argc, char **argv, struct run *u)
         else {
             fprintf(stderr, "usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max 1..%d] "
                             "[--seeds N] [--first-seed S] [--raster 1..%zu] [--scene NAME] "
-                            "[--sigma paper|shot+read] [--dump FILE]\n"
+                            "[--sigma paper|shot+read] [--dump FILE] [--explain]\n"
                             "  seeds S..S+N-1 (default 1..3); --raster: 9x9, 13x13, 19x19, "
                             "51x51 full; --dump: every fit's map, S_err and chi2 and the "
-                            "case's rms by r, as text, for studying rules offline\n",
+                            "case's rms by r, as text, for studying rules offline; --explain: "
+                            "the rule's criteria by r under every case it misses\n",
                     FID_R_MAX, N_RASTERS);
             return 2;
         }
@@ -132,12 +137,68 @@ static int parse(int argc, char **argv, struct run *u)
     return 0;
 }
 
+/* --explain: what the default rule weighed in the last sweep, by r (the sweep is freed before
+ * fid_run returns, so the callback keeps it). */
+struct explain {
+    fit_recommendation_t rec;
+    int r_min, r_max;
+    struct {
+        int has_map, flags;
+        double chi2_red, cv_per_point, noise, contrast, resolution, expected;
+    } by_r[FID_R_MAX + 1];
+};
+
+static void explain_sweep(const fit_sweep_t *sw, struct explain *x)
+{
+    fit_recommend(sw, NULL, &x->rec);
+    fit_recommend_opts_t o = fit_recommend_opts_default();
+    x->r_min = sw->r_min;
+    x->r_max = sw->r_max < FID_R_MAX ? sw->r_max : FID_R_MAX;
+    for (int r = sw->r_min; r <= x->r_max; r++) {
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        double noise, contrast, res = NAN;
+        fit_map_noise_contrast(f, &noise, &contrast);
+        x->by_r[r].has_map = f->S != NULL;
+        x->by_r[r].flags = (int)f->flags;
+        x->by_r[r].chi2_red = f->chi2_red;
+        x->by_r[r].cv_per_point = f->cv_chi2 / (double)f->n_used;
+        x->by_r[r].noise = noise * x->rec.noise_scale;
+        x->by_r[r].contrast = contrast;
+        x->by_r[r].expected =
+            fit_map_expected_error(f, x->rec.noise_scale, o.noise_weight, NULL, &res);
+        x->by_r[r].resolution = res;
+    }
+}
+
+static void explain_print(const struct explain *x, const fid_result_t *f)
+{
+    const fit_recommendation_t *c = &x->rec;
+    printf("    rule: r_cv = %d, decided by step %d, scatter^2 %.3f%s", c->r_cv, c->step,
+           c->noise_scale * c->noise_scale, c->vetoed ? ", vetoed as misfitting: r = " : "");
+    if (c->vetoed) printf("%d", c->vetoed);
+    printf("\n    %3s %6s %9s %9s %8s %8s %8s %8s %8s\n", "r", "flags", "chi2_red", "loo/N",
+           "noise", "contrast", "resol", "expected", "rms");
+    for (int r = x->r_min; r <= x->r_max; r++)
+        if (x->by_r[r].has_map)
+            printf("    %3d %6d %9.3f %9.3f %8.4f %8.4f %8.4f %8.4f %8.4f%s\n", r, x->by_r[r].flags,
+                   x->by_r[r].chi2_red, x->by_r[r].cv_per_point, x->by_r[r].noise,
+                   x->by_r[r].contrast, x->by_r[r].resolution, x->by_r[r].expected, f->rms[r],
+                   r == f->r_best ? "  best" : r == c->r ? "  recommended" : "");
+}
+
+struct sweep_ctx {
+    FILE *dump;
+    struct explain *explain;
+};
+
 /* --dump: one line per fit of the sweep ("F r flags n_used params chi2 chi2_red cv_chi2
  * S[r*r] S_err[r*r]"), then the case line from main ("C scene raster flux seed rms[1..r_max]"). */
-static void dump_sweep(const fit_sweep_t *sw, void *ctx)
+static void on_sweep(const fit_sweep_t *sw, void *ctx)
 {
-    FILE *fp = ctx;
-    for (int r = sw->r_min; r <= sw->r_max; r++) {
+    const struct sweep_ctx *k = ctx;
+    if (k->explain) explain_sweep(sw, k->explain);
+    FILE *fp = k->dump;
+    for (int r = sw->r_min; fp && r <= sw->r_max; r++) {
         const fit_result_t *f = &sw->fits[r - sw->r_min];
         fprintf(fp, "F %d %u %zu %d %.9g %.9g %.9g", r, f->flags, f->n_used, f->params, f->chi2,
                 f->chi2_red, f->cv_chi2);
@@ -242,6 +303,8 @@ int main(int argc, char **argv)
     struct tally t[N_RASTERS], ts[N_SCENES];
     memset(t, 0, sizeof t);
     memset(ts, 0, sizeof ts);
+    static struct explain ex;
+    struct sweep_ctx sctx = {.dump = u.dump, .explain = u.explain ? &ex : NULL};
     double t0 = clock_mono_s();
     printf("map rms error against the simulator's truth (mean-1 maps, 240 x 240 samples)\n");
     printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s %3s | %7s %7s %7s %7s | %7s | rms by r = "
@@ -259,8 +322,8 @@ int main(int argc, char **argv)
                                     .flux_scale = fluxes[fi], .seed = (unsigned long)seed,
                                     .noise = u.noise, .rules = u.rules,
                                     .n_rules = u.n_rules,
-                                    .on_sweep = u.dump ? dump_sweep : NULL,
-                                    .on_sweep_ctx = u.dump};
+                                    .on_sweep = u.dump || u.explain ? on_sweep : NULL,
+                                    .on_sweep_ctx = &sctx};
                     fid_result_t f;
                     err_t err;
                     if (fid_run(&c, u.r_max, &f, &err)) {
@@ -277,9 +340,11 @@ int main(int argc, char **argv)
                     }
                     tally_case(&t[ri], &f, u.n_rules);
                     tally_case(&ts[si], &f, u.n_rules);
-                    if (ratio(&f, f.r_rec[0]) > OK_RATIO)
+                    if (ratio(&f, f.r_rec[0]) > OK_RATIO) {
                         printf("  ^ recommended r = %d is %.2fx the best r = %d\n", f.r_rec[0],
                                ratio(&f, f.r_rec[0]), f.r_best);
+                        if (u.explain) explain_print(&ex, &f);
+                    }
                 }
     print_summary(t, ts, &u);
     printf("\ntotal %.1f s\n", clock_mono_s() - t0);

@@ -20,8 +20,10 @@
  *      not speak against it: r_cv + 1 only if it fits the points at least as well as r_cv (a
  *      finer grid that fits worse is misaligned with structure r_cv resolves exactly, e.g. a
  *      dead third of the pixel), r_cv - 1 (>= 2) only if its reduced chi2 is at most
- *      coarse_misfit times the data's own scatter (noise_scale^2): a coarser map that misfits
- *      the points has an error the resolution estimate does not see;
+ *      coarse_misfit times the data's own scatter (noise_scale^2), or at most coarse_near times
+ *      r_cv's own reduced chi2: a coarser map that misfits the points has an error the
+ *      resolution estimate does not see, unless r_cv misfits them about as much (then the
+ *      misfit says nothing about which of the two is closer to the truth);
  *   4. when step 3 keeps r_cv but r_cv misfits the points, its reduced chi2 above escape_misfit
  *      times both r_cv + 1's and their scatter, while r_cv + 1 fits them better, has noise at
  *      most escape_noise_to_contrast of its contrast and an expected error at most
@@ -29,11 +31,12 @@
  *      biased by more than the next one's extra noise (narrow structure, such as the paper's
  *      edge dips, that the resolution estimate underrates); the error ratio keeps the
  *      checkerboard out (a noise-dominated r_cv + 1 that fits the points).
- * Measured (bench/fidelity.c, the README's table; seeds 1-3 chose the settings, 4-9 held out):
- * within 1.1x of the best map in hindsight in 168 of 168 cases on seeds 1-3 (worst 1.09x), 166
- * and 166 of 168 on seeds 4-6 and 7-9 (worst 1.32x, 1.12x), against 120 and 14.6x for BIC,
- * 71 and 5700x for AIC on seeds 1-3. The rule before (step 4 against the scatter only, no error
- * ratio): 167, 162, 165 (1.14x, 1.32x, and a 5.3x checkerboard on seed 9).
+ * Measured (bench/fidelity.c, the README's table; seeds 1-3 chose the settings, 4-9 held out,
+ * 10-12 held out until they showed the miss the near-misfit clause of step 3 fixes, 13-15 run once
+ * after it): within 1.1x of the best map in hindsight in 168, 166, 166, 167 and 165 of 168 cases
+ * (worst 1.09x, 1.32x, 1.12x, 1.13x, 4.8x: a dead corner whose exact r = 3 map has rms 0.001, r = 6
+ * 0.005), against 120 and 14.6x for BIC, 71 and 5700x for AIC on seeds 1-3. The rule before (no
+ * near-misfit clause): the same on seeds 1-9, 166 (1.58x) on 10-12.
  * Pure, thread-safe. */
 #ifndef IPSD_FIT_RECOMMEND_H
 #define IPSD_FIT_RECOMMEND_H
@@ -50,6 +53,8 @@ typedef struct fit_recommend_opts {
     double escape_noise_to_contrast; /* r_cv + 1's admissibility in step 4 (0.5) */
     double escape_error_ratio; /* step 4 only when r_cv + 1's expected error (fit_map_expected_
                                   error) <= this x r_cv's (2); <= 0: no step 4 */
+    double coarse_near;       /* r_cv - 1 also competes when its chi2_red <= this x r_cv's own
+                                 (1.15): it misfits hardly more than r_cv does; <= 0: never */
 } fit_recommend_opts_t;
 
 fit_recommend_opts_t fit_recommend_opts_default(void);
@@ -58,6 +63,12 @@ typedef struct fit_recommendation {
     int r;            /* recommended r, 0 when no fit of the sweep has an admissible map */
     int range_edge;   /* AIC or BIC picked r_max or the largest r the points determine */
     char reason[320]; /* one sentence for people */
+    /* how the rule got there, for the evidence harness (bench/fidelity.c --explain): */
+    int r_cv;           /* step 2's pick (0: none) */
+    int step;           /* the step that decided: 2 (r_cv kept), 3 (a neighbour's smaller
+                           expected error), 4 (the misfit escape to r_cv + 1); 0: no pick */
+    int vetoed;         /* r_cv - 1 when step 3 left it out as misfitting the points, else 0 */
+    double noise_scale; /* the data's scatter relative to the noise model's sigma */
 } fit_recommendation_t;
 
 /* Applies the rule to a finished sweep (opts NULL: the defaults). */

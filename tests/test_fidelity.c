@@ -15,20 +15,27 @@ static const struct {
     int grid;
     double step;
     unsigned long seed; /* 0: seed 1 under the paper's noise model; else this seed, shot+read */
+    double flux;        /* photon level relative to the bench's default */
 } cases[] = {
-    {"paperlike", 9, 0.6, 0},   /* the paper's raster: AIC and BIC pick r = 8 here */
-    {"paperlike", 13, 0.42, 0}, /* a finer raster: BIC picks the r = 9 checkerboard */
-    {"uniform", 9, 0.6, 0},     {"deadcorner", 9, 0.6, 0}, {"edge", 19, 0.3, 0},
-    {"dip", 13, 0.42, 0},
-    {"gradient", 9, 0.6, 0},    /* smooth: the leave-one-out pick alone stops one r short */
-    {"paperlike", 19, 0.3, 9}, /* r = 9 once passed step 4 here (noise 11x r = 8's): 5.3x */
+    {"paperlike", 9, 0.6, 0, 1},   /* the paper's raster: AIC and BIC pick r = 8 here */
+    {"paperlike", 13, 0.42, 0, 1}, /* a finer raster: BIC picks the r = 9 checkerboard */
+    {"uniform", 9, 0.6, 0, 1},     {"deadcorner", 9, 0.6, 0, 1}, {"edge", 19, 0.3, 0, 1},
+    {"dip", 13, 0.42, 0, 1},
+    {"gradient", 9, 0.6, 0, 1},    /* smooth: the leave-one-out pick alone stops one r short */
+    {"paperlike", 19, 0.3, 9, 1},  /* r = 9 once passed step 4 here (noise 11x r = 8's): 5.3x */
+    /* a held-out miss of the 1.1x target at a tenth of the light: one r short (r = 5 against
+     * r = 6, 1.12x), the two expected errors 7 % apart; kept within 1.2x */
+    {"gradient", 13, 0.42, 9, 0.1},
+    /* r_cv = 8 and r = 7 both misfit the points (reduced chi2 2.84, 3.08, scatter 1.03): r = 7
+     * is the better map (0.036 against 0.057), once vetoed as misfitting: 1.58x */
+    {"edge", 19, 0.3, 10, 1},
 };
 
 int main(void)
 {
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         fid_case_t c = {.scene = cases[i].scene, .grid = cases[i].grid, .step_um = cases[i].step,
-                        .flux_scale = 1, .seed = cases[i].seed ? cases[i].seed : 1,
+                        .flux_scale = cases[i].flux, .seed = cases[i].seed ? cases[i].seed : 1,
                         .noise = cases[i].seed ? FIT_NOISE_SHOT_READ : FIT_NOISE_PAPER};
         fid_result_t f;
         err_t err;

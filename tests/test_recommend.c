@@ -211,9 +211,25 @@ static void test_refine(void)
     fit_recommend(&sw, NULL, &rec);
     CHECK(rec.r == 3);
     CHECK(strstr(rec.reason, "expected map error") != NULL);
+    CHECK(rec.r_cv == 2 && rec.step == 3 && rec.vetoed == 0);
     f[2].chi2 = 150;
     fit_recommend(&sw, NULL, &rec);
     CHECK(rec.r == 2);
+    CHECK(rec.r_cv == 2 && rec.step == 2);
+    /* r_cv = 3 (the tilt resolved best) with r = 2 misfitting: its reduced chi2 10 against the
+     * scatter 1.03 (the smallest reduced chi2, r = 1's 100 / 98 at N/4 dof) is over 1.5 times:
+     * vetoed, whatever its expected error */
+    f[2].chi2 = 100, f[1].cv_chi2 = 400, f[2].cv_chi2 = 200;
+    f[1].chi2_red = 10, f[1].chi2 = 950;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r_cv == 3 && rec.vetoed == 2 && rec.r != 2);
+    CHECK(fabs(rec.noise_scale - sqrt(100.0 / 98)) < 1e-12);
+    /* unless r_cv misfits about as much: r = 2's 10 within 1.15 times r = 3's 9 */
+    f[2].chi2_red = 9, f[2].chi2 = 810;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r_cv == 3 && rec.vetoed == 0);
+    f[2].chi2_red = 100.0 / 90, f[2].chi2 = 100;
+    f[1].chi2_red = 100.0 / 95, f[1].chi2 = 100, f[1].cv_chi2 = 200, f[2].cv_chi2 = 300;
     /* without step 3 (noise_weight 0) the leave-one-out pick stands */
     f[2].chi2 = 100;
     fit_recommend_opts_t o = fit_recommend_opts_default();
@@ -260,6 +276,7 @@ static void test_escape(void)
     fit_recommend(&sw, NULL, &rec);
     CHECK(rec.r == 3);
     CHECK(strstr(rec.reason, "misfits the points") != NULL);
+    CHECK(rec.r_cv == 2 && rec.step == 4);
     fit_recommend_opts_t o = fit_recommend_opts_default();
     o.escape_error_ratio = 1.1; /* below e3 / e2 = 1.18: a noisier r + 1 than allowed */
     fit_recommend(&sw, &o, &rec);
