@@ -68,7 +68,8 @@ function refitPanel(fit, scan, ctx) {
                 if (ev.id === job.id) check().catch(() => {});
             }) : () => {};
             check().catch(() => {});
-        }, { title: 'Fit this pixel again with other settings', dcol: fit.dcol, drow: fit.drow });
+        }, { title: 'Fit this pixel again with other settings', dcol: fit.dcol, drow: fit.drow,
+            single: true });
         fill(box, form, state);
     }).catch((err) => fill(box, failure(err)));
     box.cleanup = () => stop();

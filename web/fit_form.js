@@ -2,7 +2,9 @@
 // (POST /api/scans/ID/fits). The bounds and defaults of r and the noise models come from the
 // server's rules (rules.js); the pixel offsets are bounded by the scan's own sub-frame. The fit
 // becomes the pixel's calibration only when "becomes the calibration" is ticked (default off: a
-// re-fit is stored as a fit, and can be promoted later from its Fit view).
+// re-fit is stored as a fit, and can be promoted later from its Fit view). On the Scan view the
+// form can also fit every pixel the raster covers ("pixels": "all", one job, docs/api.md): the
+// pixel offsets are then disabled (not sent).
 import { post } from './api.js';
 import { errorBox, field, h, onSubmit } from './dom.js';
 import { choices, ruleAttrs } from './rules.js';
@@ -18,6 +20,7 @@ export function buildFitForm(rule, scan, onQueued, opts = {}) {
     const form = h('form', { class: 'inline-form', novalidate: true,
         'aria-label': 'Fit a pixel of this scan', 'data-testid': 'fit-form' },
     h('h4', {}, opts.title || 'Fit a pixel of the sub-frame'),
+    opts.single ? null : pixelsChoice(rule),
     h('div', { class: 'row-many' },
         int('dcol', 'dcol', { min: -h2, max: h2, ...(opts.dcol !== undefined
             ? { value: opts.dcol } : {}) }),
@@ -41,6 +44,21 @@ export function buildFitForm(rule, scan, onQueued, opts = {}) {
             ...ruleAttrs(rule('reason')), placeholder: 'e.g. r ≤ 4 is what we use' }),
         h('input', { type: 'hidden', 'data-field': 'by', value: 'dashboard' })),
     err, h('button', { type: 'submit' }, 'Queue fit'));
+    const which = form.querySelector('[data-field="pixels"]');
+    which?.addEventListener('change', () => {
+        for (const f of ['dcol', 'drow']) {
+            form.querySelector(`[data-field="${f}"]`).disabled = which.value === 'all';
+        }
+    });
     onSubmit(form, async (body) => onQueued(await post(`/api/scans/${scan.id}/fits`, body)));
     return form;
+}
+
+// The choice between one pixel (dcol, drow) and every pixel the scan's raster covers.
+function pixelsChoice(rule) {
+    return h('div', { class: 'row-many' }, h('label', { class: 'fld', title:
+        rule('pixels')?.description || '' }, h('span', { class: 'lbl' }, 'Pixels'),
+    h('select', { 'data-field': 'pixels', 'data-testid': 'fit-pixels' },
+        h('option', { value: '' }, 'the pixel dcol, drow'),
+        h('option', { value: 'all' }, 'every pixel the raster covers'))));
 }

@@ -179,9 +179,12 @@ export function renderScan(root, id, ctx) {
             const f = j.fit_id ? byFit.get(j.fit_id) : null;
             const px = j.params || {};
             return h('tr', { dataset: { jobId: j.id, state: j.state } },
-                h('td', {}, `#${j.id}`), h('td', {}, `(${px.dcol ?? 0}, ${px.drow ?? 0})`),
-                h('td', {}, stateBadge(j.state), j.error ? h('div', { class: 'err' }, j.error)
-                    : null),
+                h('td', {}, `#${j.id}`), h('td', {}, px.pixels === 'all' ? 'every covered pixel'
+                    : `(${px.dcol ?? 0}, ${px.drow ?? 0})`),
+                h('td', {}, stateBadge(j.state), px.pixels === 'all'
+                    ? h('div', { class: 'muted', 'data-testid': 'pixels-done' },
+                        `${j.points_done ?? 0} pixels stored (${Math.round(100 * (j.progress ?? 0))} %)`)
+                    : null, j.error ? h('div', { class: 'err' }, j.error) : null),
                 h('td', {}, f ? h('a', { href: `#/fits/${f.id}`, 'data-testid': 'fit-link' },
                     `Fit #${f.id}`) : '–'),
                 h('td', { class: 'num' }, f ? `${f.best_r.aic ?? '–'} / ${f.best_r.bic ?? '–'}`

@@ -442,6 +442,12 @@ async function run(base, page, api) {
         ['r_max', 'value'], ['ftest_r', 'value']], 'fit form');
     check(!(await fitForm.locator('[data-testid="fit-promote"]').isChecked()),
         'fit form: "becomes the calibration" is off by default');
+    const pixSel = fitForm.locator('[data-testid="fit-pixels"]');
+    await pixSel.selectOption('all');
+    check(await fitForm.locator('input[data-field="dcol"]').isDisabled() &&
+        await fitForm.locator('input[data-field="drow"]').isDisabled(),
+    'fit form: "every pixel the raster covers" disables (and does not send) the pixel offsets');
+    await pixSel.selectOption('');
     await checkScanPage(page, api, scan, sensor);
     await fitLink.click();
     await page.locator('[data-testid="best-r-bic"]').waitFor({ timeout: WAIT });
