@@ -3,8 +3,7 @@
  * calibrations, or a map in the body), the PSF (Airy or Gaussian), the star's position and the
  * pointing jitter (an rms drawn into a series, or the series itself, with measured fluxes to
  * correct) go to fit/jitter.h; the reply is json/jitterjson.h's document, the `ips jitter` one.
- * Computed in the HTTP thread: bounded by the limits below (100000 samples on a 7 x 7 aperture
- * of r <= 64 maps). */
+ * Computed in the HTTP thread: bounded by the limits below (at most 1e7 samples x map cells). */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -21,6 +20,9 @@
 #define MAX_SAMPLES 100000
 #define MAX_APERTURE 3 /* half-width: up to 7 x 7 pixels */
 #define MAX_MAP_R 64
+/* samples x cells of the aperture's maps: the work of one request, ~0.2 us each for the Airy PSF
+ * (2 s at the bound), so that no request holds an HTTP thread for long */
+#define MAX_WORK 1e7
 
 /* What the request names, and what it owns. */
 struct req {
@@ -302,6 +304,16 @@ void api_h_jitter(api_req_t *q)
     if (pos && (api_get_num(q, pos, "x", "position_um.x", 0, -1e4, 1e4, 0, &r.s.x0_um) ||
                 api_get_num(q, pos, "y", "position_um.y", 0, -1e4, 1e4, 0, &r.s.y0_um)))
         goto out;
+    double work = 0;
+    for (size_t p = 0; p < r.s.n_pixels; p++)
+        work += r.px[p].S ? (double)r.px[p].r * r.px[p].r : 1;
+    if (work * (double)r.n > MAX_WORK) {
+        api_error(q, 422, "out_of_range", "jitter.samples",
+                  "%zu samples on %g map cells is too much work for one request (samples x "
+                  "cells at most %g)",
+                  r.n, work, MAX_WORK);
+        goto out;
+    }
     json_t *doc;
     err_t err = {{0}};
     int ret = jitterjson_run(&r.s, r.dx, r.dy, r.n, r.measured, samples, &doc, &err);
