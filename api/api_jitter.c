@@ -3,7 +3,7 @@
  * calibrations, or a map in the body), the PSF (Airy or Gaussian), the star's position and the
  * pointing jitter (an rms drawn into a series, or the series itself, with measured fluxes to
  * correct) go to fit/jitter.h; the reply is json/jitterjson.h's document, the `ips jitter` one.
- * Computed in the HTTP thread: bounded by the limits below (at most 1e7 samples x map cells). */
+ * Computed in the HTTP thread: bounded by the limits below (at most 5e6 samples x map cells). */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -20,9 +20,9 @@
 #define MAX_SAMPLES 100000
 #define MAX_APERTURE 3 /* half-width: up to 7 x 7 pixels */
 #define MAX_MAP_R 64
-/* samples x cells of the aperture's maps: the work of one request, ~0.2 us each for the Airy PSF
- * (2 s at the bound), so that no request holds an HTTP thread for long */
-#define MAX_WORK 1e7
+/* samples x cells of the aperture's maps: the work of one request, 0.2-1 us each for the Airy PSF
+ * (1-4 s at the bound), so that no request holds an HTTP thread for long */
+#define MAX_WORK 5e6
 
 /* What the request names, and what it owns. */
 struct req {

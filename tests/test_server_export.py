@@ -257,6 +257,10 @@ def test(c, t, argv, daemons):
             "jitter.dy_um", "dx and dy of different lengths")
     c.error(d.post("/api/jitter", {"calibration_id": 999, "jitter": {"rms_um": 1}}), 404,
             "calibration_id", "unknown calibration")
+    c.error(d.post("/api/jitter", {"map": {"r": 64, "S": [1.0] * 4096}, "pitch_um": PITCH,
+                                   "psf": {"kind": "gauss", "sigma_um": 1},
+                                   "jitter": {"rms_um": 1, "samples": 100000}}), 422,
+            "jitter.samples", "too much work for one request")
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
 
