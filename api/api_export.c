@@ -18,15 +18,28 @@
 /* The header view of a stored calibration of a sensor (borrowed pointers into c). */
 static fitsmap_t map_of(const storage_calib_t *c, const storage_sensor_t *sn)
 {
-    return (fitsmap_t){.r = c->r, .S = c->S, .S_err = c->S_err, .pitch_um = sn->pitch_um,
-                       .pixel_col = c->pixel_col, .pixel_row = c->pixel_row,
-                       .wavelength_um = c->wavelength_um, .na = c->na,
-                       .spot_radius_um = c->spot_radius_um, .I0 = c->I0,
-                       .chi2_red = c->chi2_red, .status = c->status,
-                       .noise_model = c->noise_model, .software_version = c->software_version,
-                       .calib_id = c->id, .sensor_id = c->sensor_id, .scan_id = c->scan_id,
-                       .fit_id = c->fit_id, .created_ms = c->created_ms,
-                       .current = c->superseded_by == 0, .by = c->by, .reason = c->reason};
+    return (fitsmap_t){.r = c->r,
+                       .S = c->S,
+                       .S_err = c->S_err,
+                       .pitch_um = sn->pitch_um,
+                       .pixel_col = c->pixel_col,
+                       .pixel_row = c->pixel_row,
+                       .wavelength_um = c->wavelength_um,
+                       .na = c->na,
+                       .spot_radius_um = c->spot_radius_um,
+                       .I0 = c->I0,
+                       .chi2_red = c->chi2_red,
+                       .status = c->status,
+                       .noise_model = c->noise_model,
+                       .software_version = c->software_version,
+                       .calib_id = c->id,
+                       .sensor_id = c->sensor_id,
+                       .scan_id = c->scan_id,
+                       .fit_id = c->fit_id,
+                       .created_ms = c->created_ms,
+                       .current = c->superseded_by == 0,
+                       .by = c->by,
+                       .reason = c->reason};
 }
 
 /* Writes maps and replies with the file (application/fits, RFC 4047), named filename. */
@@ -35,9 +48,12 @@ static void reply_fits(api_req_t *q, const storage_sensor_t *sn, const fitsmap_t
 {
     char creator[64];
     snprintf(creator, sizeof creator, "ipsd %s", IPSD_VERSION);
-    fitsmap_file_t file = {.creator = creator, .sensor_id = sn->id,
-                           .sensor_model = sn->model, .sensor_serial = sn->serial,
-                           .pitch_um = sn->pitch_um, .date_ms = clock_wall_ms()};
+    fitsmap_file_t file = {.creator = creator,
+                           .sensor_id = sn->id,
+                           .sensor_model = sn->model,
+                           .sensor_serial = sn->serial,
+                           .pitch_um = sn->pitch_um,
+                           .date_ms = clock_wall_ms()};
     void *buf;
     size_t len;
     err_t err = {{0}};
@@ -149,7 +165,8 @@ void api_h_sensor_calibs_fits(api_req_t *q)
             api_error(q, 500, "internal", NULL, "out of memory");
         } else {
             qsort(l.items, l.n, sizeof *l.items, by_pixel);
-            for (size_t k = 0; k < l.n; k++) maps[k] = map_of(&l.items[k], &sn);
+            for (size_t k = 0; k < l.n; k++)
+                maps[k] = map_of(&l.items[k], &sn);
             char name[96];
             snprintf(name, sizeof name, "ipsd-sensor-%lld-calibrations.fits", (long long)sensor);
             reply_fits(q, &sn, maps, l.n, name);

@@ -30,15 +30,16 @@ struct req {
     fit_jitter_pixel_t px[(2 * MAX_APERTURE + 1) * (2 * MAX_APERTURE + 1)];
     storage_calib_t calibs[(2 * MAX_APERTURE + 1) * (2 * MAX_APERTURE + 1)];
     size_t n_calibs;
-    double *map;               /* an inline map */
+    double *map; /* an inline map */
     double *dx, *dy, *measured;
     size_t n;
-    double spot_radius_um;     /* optics of the reference calibration (default Airy PSF) */
+    double spot_radius_um; /* optics of the reference calibration (default Airy PSF) */
 };
 
 static void req_free(struct req *r)
 {
-    for (size_t k = 0; k < r->n_calibs; k++) storage_calib_free(&r->calibs[k]);
+    for (size_t k = 0; k < r->n_calibs; k++)
+        storage_calib_free(&r->calibs[k]);
     free(r->map);
     free(r->dx);
     free(r->dy);
@@ -46,8 +47,7 @@ static void req_free(struct req *r)
 }
 
 /* A JSON array of numbers of length n (n 0: any length up to max, into *n); -1 after replying. */
-static int get_array(api_req_t *q, json_t *a, const char *path, size_t max, size_t *n,
-                     double **out)
+static int get_array(api_req_t *q, json_t *a, const char *path, size_t max, size_t *n, double **out)
 {
     if (!json_is_array(a)) {
         api_error(q, 400, "bad_type", path, "%s must be an array of numbers", path);
@@ -56,11 +56,11 @@ static int get_array(api_req_t *q, json_t *a, const char *path, size_t max, size
     size_t len = json_array_size(a);
     if (len < 1 || len > max || (*n && len != *n)) {
         if (*n)
-            api_error(q, 422, "out_of_range", path, "%s must have %zu numbers (got %zu)", path,
-                      *n, len);
+            api_error(q, 422, "out_of_range", path, "%s must have %zu numbers (got %zu)", path, *n,
+                      len);
         else
-            api_error(q, 422, "out_of_range", path, "%s must have 1..%zu numbers (got %zu)",
-                      path, max, len);
+            api_error(q, 422, "out_of_range", path, "%s must have 1..%zu numbers (got %zu)", path,
+                      max, len);
         return -1;
     }
     double *v = malloc(sizeof(double) * len);
@@ -202,8 +202,8 @@ static int read_psf(api_req_t *q, json_t *o, struct req *r)
         r->s.psf = (fit_psf_t){FIT_PSF_AIRY, r->spot_radius_um};
         return 0;
     }
-    static const char *const keys[] = {"kind", "radius_um", "wavelength_nm", "na", "sigma_um",
-                                       NULL};
+    static const char *const keys[] = {"kind", "radius_um", "wavelength_nm",
+                                       "na",   "sigma_um",  NULL};
     const char *kind = "airy";
     double R = NAN, wl = NAN, na = NAN, sigma = NAN;
     err_t err = {{0}};
@@ -289,9 +289,9 @@ void api_h_jitter(api_req_t *q)
 {
     json_t *o = api_body_object(q);
     if (!o) return;
-    static const char *const keys[] = {"calibration_id", "sensor_id", "col", "row", "aperture",
-                                       "map", "pitch_um", "psf", "position_um", "jitter",
-                                       "measured", "samples", NULL};
+    static const char *const keys[] = {
+        "calibration_id", "sensor_id", "col",      "row",     "aperture", "map", "pitch_um", "psf",
+        "position_um",    "jitter",    "measured", "samples", NULL};
     struct req r = {0};
     r.s.pixels = r.px;
     json_t *pos;

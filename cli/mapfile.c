@@ -63,7 +63,8 @@ static int one_map(json_t *o, const char *what, mapfile_map_t *m, err_t *err)
         return err_set(err, -EINVAL, "%s: S and S_err must be %zu numbers", what, n);
     }
     if (!E)
-        for (size_t k = 0; k < n; k++) m->S_err[k] = NAN;
+        for (size_t k = 0; k < n; k++)
+            m->S_err[k] = NAN;
     json_t *px = json_object_get(o, "pixel"), *opt = json_object_get(o, "optics");
     m->col = (int)id(px, "col");
     m->row = (int)id(px, "row");
@@ -94,8 +95,8 @@ static json_t *fit_of(json_t *doc, int r, err_t *err)
     if (r <= 0) r = (int)id(json_object_get(doc, "best_r"), "bic");
     json_t *fits = json_object_get(doc, "fits"), *f;
     size_t k;
-    json_array_foreach(fits, k, f) if (id(f, "r") == r && json_is_array(json_object_get(f, "S")))
-        return f;
+    json_array_foreach(fits, k,
+                       f) if (id(f, "r") == r && json_is_array(json_object_get(f, "S"))) return f;
     err_set(err, -EINVAL, "the fit document has no map at r = %d", r);
     return NULL;
 }

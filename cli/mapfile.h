@@ -13,18 +13,18 @@
 
 typedef struct mapfile_map {
     int r;
-    double *S, *S_err;          /* r*r each (S_err NaN where the file has none) */
-    int col, row;               /* sensor pixel; 0 when the file does not say */
-    double wavelength_um, na, spot_radius_um, I0, chi2_red; /* NaN: unknown */
+    double *S, *S_err; /* r*r each (S_err NaN where the file has none) */
+    int col, row;      /* sensor pixel; 0 when the file does not say */
+    double wavelength_um, na, spot_radius_um, I0, chi2_red;            /* NaN: unknown */
     const char *status, *noise_model, *software_version, *by, *reason; /* NULL: unknown */
-    int64_t id, sensor_id, scan_id, fit_id, created_ms; /* 0: unknown */
-    int current;                /* 1 / 0, -1 unknown */
+    int64_t id, sensor_id, scan_id, fit_id, created_ms;                /* 0: unknown */
+    int current;                                                       /* 1 / 0, -1 unknown */
 } mapfile_map_t;
 
 typedef struct mapfile {
     mapfile_map_t *maps;
     size_t n;
-    void *doc;                  /* the parsed document the strings point into */
+    void *doc; /* the parsed document the strings point into */
 } mapfile_t;
 
 /* Reads path; r > 0 picks that r of an `ips fit` document (0: its recommended r). Returns 0,

@@ -85,8 +85,7 @@ static void key_wcs(fitsfile *f, const fitsmap_t *m, int *status)
 }
 
 /* The header of one map (the S or S_ERR extension). */
-static void key_map(fitsfile *f, const fitsmap_t *m, const char *extname, int extver,
-                    int *status)
+static void key_map(fitsfile *f, const fitsmap_t *m, const char *extname, int extver, int *status)
 {
     char date[40];
     int is_err = strcmp(extname, "S_ERR") == 0;
@@ -126,8 +125,7 @@ static void key_map(fitsfile *f, const fitsmap_t *m, const char *extname, int ex
 
 static int check_map(const fitsmap_t *m, size_t k, err_t *err)
 {
-    if (m->r < 1 || m->r > 256)
-        return err_set(err, -EINVAL, "map %zu: r %d, need 1..256", k, m->r);
+    if (m->r < 1 || m->r > 256) return err_set(err, -EINVAL, "map %zu: r %d, need 1..256", k, m->r);
     if (!m->S || !m->S_err) return err_set(err, -EINVAL, "map %zu: no S or S_err", k);
     if (!(m->pitch_um > 0) || !isfinite(m->pitch_um))
         return err_set(err, -EINVAL, "map %zu: pitch_um %g, need > 0", k, m->pitch_um);

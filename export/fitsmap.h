@@ -27,28 +27,28 @@
 /* One map and what its header says; every pointer borrowed, strings NULL when unknown, numbers
  * NaN when unknown (the keyword is then left out), ids 0 when none. */
 typedef struct fitsmap {
-    int r;                       /* the map is r x r, 1..256 */
-    const double *S, *S_err;     /* r*r each, row-major y then x: S[j*r + i] */
-    double pitch_um;             /* pixel pitch (PITCH); sub-pixel size SUBPIX = pitch / r */
-    int pixel_col, pixel_row;    /* sensor pixel (PIXCOL, PIXROW) */
+    int r;                    /* the map is r x r, 1..256 */
+    const double *S, *S_err;  /* r*r each, row-major y then x: S[j*r + i] */
+    double pitch_um;          /* pixel pitch (PITCH); sub-pixel size SUBPIX = pitch / r */
+    int pixel_col, pixel_row; /* sensor pixel (PIXCOL, PIXROW) */
     double wavelength_um, na, spot_radius_um; /* optics of the scan (WAVELEN, NA, SPOTRAD) */
-    double I0, chi2_red;         /* the fit's I0 (DN per unit-peak Airy flux) and reduced chi2 */
-    const char *status;          /* fit status word (FITSTAT) */
-    const char *noise_model;     /* NOISEMOD */
-    const char *software_version;/* SWVERS: the ipsd that fitted the map */
+    double I0, chi2_red;          /* the fit's I0 (DN per unit-peak Airy flux) and reduced chi2 */
+    const char *status;           /* fit status word (FITSTAT) */
+    const char *noise_model;      /* NOISEMOD */
+    const char *software_version; /* SWVERS: the ipsd that fitted the map */
     int64_t calib_id, sensor_id, scan_id, fit_id; /* CALIBID, SENSORID, SCANID, FITID */
-    int64_t created_ms;          /* when the calibration was stored (CALDATE, CAL_MS); 0: unknown */
-    int current;                 /* 1: the pixel's current calibration; -1: unknown */
-    const char *by, *reason;     /* who made it the calibration, and why (CALBY, REASON) */
+    int64_t created_ms;      /* when the calibration was stored (CALDATE, CAL_MS); 0: unknown */
+    int current;             /* 1: the pixel's current calibration; -1: unknown */
+    const char *by, *reason; /* who made it the calibration, and why (CALBY, REASON) */
 } fitsmap_t;
 
 /* What the primary header says of the whole file (strings may be NULL). */
 typedef struct fitsmap_file {
-    const char *creator;         /* CREATOR, e.g. "ipsd 0.1.0" */
-    int64_t sensor_id;           /* 0: not one sensor's file */
+    const char *creator; /* CREATOR, e.g. "ipsd 0.1.0" */
+    int64_t sensor_id;   /* 0: not one sensor's file */
     const char *sensor_model, *sensor_serial;
-    double pitch_um;             /* NaN: maps of different pitches */
-    int64_t date_ms;             /* DATE of the file (ms since the epoch); 0: left out */
+    double pitch_um; /* NaN: maps of different pitches */
+    int64_t date_ms; /* DATE of the file (ms since the epoch); 0: left out */
 } fitsmap_file_t;
 
 /* Writes maps[0..n) (n >= 1) as one FITS file into *buf (malloc'd, the caller frees) of *len

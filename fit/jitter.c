@@ -17,8 +17,8 @@
 #include "fit/design.h"
 #include "fit/gslerr.h"
 
-#define CHUNK 512           /* positions per design-matrix call: bounds memory at CHUNK r^2 */
-#define DESIGN_TOL 1e-10    /* cell integrals relative to the largest cell (design.h) */
+#define CHUNK 512        /* positions per design-matrix call: bounds memory at CHUNK r^2 */
+#define DESIGN_TOL 1e-10 /* cell integrals relative to the largest cell (design.h) */
 
 static const double one = 1.0;
 
@@ -210,8 +210,7 @@ out:
     return ret;
 }
 
-int fit_jitter_draw(double rms_um, size_t n, unsigned long seed, double *dx, double *dy,
-                    err_t *err)
+int fit_jitter_draw(double rms_um, size_t n, unsigned long seed, double *dx, double *dy, err_t *err)
 {
     if (!(rms_um >= 0) || !isfinite(rms_um))
         return err_set(err, -EINVAL, "jitter rms_um: %g, need >= 0", rms_um);
@@ -233,6 +232,7 @@ int fit_jitter_correct(const double *measured, const double *rho, size_t n, doub
     for (size_t k = 0; k < n; k++)
         if (!(rho[k] > 0) || !isfinite(rho[k]))
             return err_set(err, -EINVAL, "rho[%zu]: %g, need > 0", k, rho[k]);
-    for (size_t k = 0; k < n; k++) corrected[k] = measured[k] / rho[k];
+    for (size_t k = 0; k < n; k++)
+        corrected[k] = measured[k] / rho[k];
     return 0;
 }

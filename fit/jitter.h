@@ -37,8 +37,8 @@ typedef struct fit_psf {
  * S = 1; r is then ignored). */
 typedef struct fit_jitter_pixel {
     int dcol, drow;
-    int r;            /* map r x r, 1..256 */
-    const double *S;  /* r*r, row-major y then x: S[j*r + i]; borrowed */
+    int r;           /* map r x r, 1..256 */
+    const double *S; /* r*r, row-major y then x: S[j*r + i]; borrowed */
 } fit_jitter_pixel_t;
 
 typedef struct fit_jitter_setup {
@@ -58,13 +58,13 @@ int fit_jitter_flux(const fit_jitter_setup_t *s, const double *x, const double *
 /* What the jitter series does to the photometry. */
 typedef struct fit_jitter_stats {
     size_t n;
-    double rho0;      /* relative response at the nominal position */
-    double flux0;     /* F_S there: the fraction of the star's flux the aperture records */
-    double flat0;     /* F_1 there */
-    double err_mean;  /* mean of e_k = rho_k / rho0 - 1 */
-    double err_rms;   /* sqrt(mean e_k^2): the relative flux error intra-pixel sensitivity adds */
-    double err_max;   /* max |e_k| */
-    double rho_mean;  /* mean of rho_k */
+    double rho0;        /* relative response at the nominal position */
+    double flux0;       /* F_S there: the fraction of the star's flux the aperture records */
+    double flat0;       /* F_1 there */
+    double err_mean;    /* mean of e_k = rho_k / rho0 - 1 */
+    double err_rms;     /* sqrt(mean e_k^2): the relative flux error intra-pixel sensitivity adds */
+    double err_max;     /* max |e_k| */
+    double rho_mean;    /* mean of rho_k */
     double rho_scatter; /* standard deviation of rho_k / its mean: the photometric scatter the
                            sensitivity adds to a series with this jitter (rms about the mean) */
     double flat_scatter; /* the same of F_1: the aperture's own loss as the star moves, which a

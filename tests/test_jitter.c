@@ -24,8 +24,8 @@
 static fit_jitter_setup_t one_pixel(const fit_jitter_pixel_t *px, fit_psf_kind_t kind, double w,
                                     double x0, double y0)
 {
-    return (fit_jitter_setup_t){.pitch_um = P, .psf = {kind, w}, .pixels = px, .n_pixels = 1,
-                                .x0_um = x0, .y0_um = y0};
+    return (fit_jitter_setup_t){
+        .pitch_um = P, .psf = {kind, w}, .pixels = px, .n_pixels = 1, .x0_um = x0, .y0_um = y0};
 }
 
 /* A map with structure and a mean other than 1 (so "the mean" is not confused with 1). */
@@ -45,7 +45,8 @@ static void test_map(int r, double *S, double *mean)
 static void test_flat(void)
 {
     double S[16];
-    for (int k = 0; k < 16; k++) S[k] = 1;
+    for (int k = 0; k < 16; k++)
+        S[k] = 1;
     fit_jitter_pixel_t px[2] = {{0, 0, 4, S}, {1, 0, 0, NULL}};
     double dx[50], dy[50], rho[50], e[50];
     CHECK(fit_jitter_draw(0.5, 50, 7, dx, dy, NULL) == 0);
@@ -54,7 +55,8 @@ static void test_flat(void)
         s.n_pixels = 2;
         fit_jitter_stats_t st;
         CHECK(fit_jitter_run(&s, dx, dy, 50, rho, e, &st, NULL) == 0);
-        for (int k = 0; k < 50; k++) CHECK_NEAR(rho[k], 1, 1e-14, 0);
+        for (int k = 0; k < 50; k++)
+            CHECK_NEAR(rho[k], 1, 1e-14, 0);
         CHECK(st.err_rms < 1e-14 && st.err_max < 1e-14 && st.rho_scatter < 1e-14);
         CHECK_NEAR(st.rho0, 1, 1e-14, 0);
         CHECK(st.flat_scatter > 0); /* the aperture's own loss is there, and is not IPS */
@@ -73,10 +75,12 @@ static void test_large_psf(void)
     double x[3] = {3, 0.5, 4.1}, y[3] = {3, 5.0, 1.2}, fm[3], ff[3];
     fit_jitter_setup_t g = one_pixel(&px, FIT_PSF_GAUSS, 6000, 3, 3);
     CHECK(fit_jitter_flux(&g, x, y, 3, fm, ff, NULL) == 0);
-    for (int k = 0; k < 3; k++) CHECK_NEAR(fm[k] / ff[k], mean, 1e-6, 0);
+    for (int k = 0; k < 3; k++)
+        CHECK_NEAR(fm[k] / ff[k], mean, 1e-6, 0);
     fit_jitter_setup_t a = one_pixel(&px, FIT_PSF_AIRY, 300, 3, 3);
     CHECK(fit_jitter_flux(&a, x, y, 3, fm, ff, NULL) == 0);
-    for (int k = 0; k < 3; k++) CHECK_NEAR(fm[k] / ff[k], mean, 1e-4, 0);
+    for (int k = 0; k < 3; k++)
+        CHECK_NEAR(fm[k] / ff[k], mean, 1e-4, 0);
 }
 
 /* A PSF much smaller than a cell: rho -> S of the cell under the star. Gaussian sigma = 1 nm at
@@ -92,13 +96,15 @@ static void test_small_psf(void)
     int cell[4] = {0, 1 * 6 + 2, 5 * 6 + 5, 4 * 6 + 3};
     fit_jitter_setup_t g = one_pixel(&px, FIT_PSF_GAUSS, 1e-3, 0, 0);
     CHECK(fit_jitter_flux(&g, x, y, 4, fm, ff, NULL) == 0);
-    for (int k = 0; k < 4; k++) CHECK_NEAR(fm[k] / ff[k], S[cell[k]], 1e-12, 0);
+    for (int k = 0; k < 4; k++)
+        CHECK_NEAR(fm[k] / ff[k], S[cell[k]], 1e-12, 0);
     fit_jitter_setup_t a = one_pixel(&px, FIT_PSF_AIRY, 1e-3, 0, 0);
     CHECK(fit_jitter_flux(&a, x, y, 4, fm, ff, NULL) == 0);
     double q, pin;
     fit_radial(fit_airy_a(1e-3) * 0.5, &q, &pin);
     CHECK(q < 2e-3);
-    for (int k = 0; k < 4; k++) CHECK_NEAR(fm[k] / ff[k], S[cell[k]], 0, 0.7 * 2 * q);
+    for (int k = 0; k < 4; k++)
+        CHECK_NEAR(fm[k] / ff[k], S[cell[k]], 0, 0.7 * 2 * q);
 }
 
 /* A Gaussian at the pixel centre on a flat pixel: F_1 = erf(p / (2 sqrt 2 sigma))^2 (by hand). */
@@ -121,8 +127,8 @@ static void test_airy_vs_box(void)
     test_map(5, S, &mean);
     test_map(3, T, &mean);
     fit_jitter_pixel_t px[2] = {{0, 0, 5, S}, {-1, 1, 3, T}};
-    fit_jitter_setup_t a = {.pitch_um = P, .psf = {FIT_PSF_AIRY, 1.342}, .pixels = px,
-                            .n_pixels = 2};
+    fit_jitter_setup_t a = {
+        .pitch_um = P, .psf = {FIT_PSF_AIRY, 1.342}, .pixels = px, .n_pixels = 2};
     double x[3] = {2.2, 0.0, -1.5}, y[3] = {3.7, 6.0, 7.2}, fm[3], ff[3];
     double tot = fit_airy_total(fit_airy_a(1.342));
     CHECK(fit_jitter_flux(&a, x, y, 3, fm, ff, NULL) == 0);
@@ -250,7 +256,8 @@ static void test_sim_monte_carlo(void)
         cam_frame_free(&f);
     }
     CHECK(fit_jitter_flux(&s, xs, ys, M, fm, ff, NULL) == 0);
-    for (int k = 0; k < M; k++) rk[k] = fm[k] / ff[k];
+    for (int k = 0; k < M; k++)
+        rk[k] = fm[k] / ff[k];
     CHECK(fit_jitter_correct(meas, rk, M, cor, NULL) == 0);
     /* corrected electrons = flux_e F_1 + noise of variance (flux_e F_S + rn^2 + G^2/12) / rho^2 */
     double flux = sim_config_default().flux_e, chi2 = 0, chi2_raw = 0;

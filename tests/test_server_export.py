@@ -247,6 +247,16 @@ def test(c, t, argv, daemons):
              "the default PSF is the calibration's spot")
         c.eq(a, b, "the API's document is ips jitter's")
         c.ok(a["err_rms"] > 0, "the measured map adds an error")
+    bad = os.path.join(t, "bad.txt")
+    with open(bad, "w") as f:
+        f.write("0.1 0.2\n0.3\n")
+    for args, word in ((["--map", cal_path], "--rms"), (["--map", cal_path, "--series", bad],
+                                                         "line 2"),
+                       (["--map", cal_path, "--rms", "0.1", "--psf", "gauss"], "--sigma")):
+        p = subprocess.run([ips, "jitter"] + args, capture_output=True, text=True)
+        c.ok(p.returncode == 2 and word in p.stderr and p.stderr.count("\n") == 1,
+             "ips jitter %r: exit 2, one line naming %s (%d %r)" % (args, word, p.returncode,
+                                                                   p.stderr))
     # bad input names the field
     c.error(d.post("/api/jitter", {"calibration_id": cal["id"]}), 422, "jitter", "no jitter")
     c.error(d.post("/api/jitter", {"calibration_id": cal["id"], "psf": {"kind": "moffat"},
