@@ -161,6 +161,11 @@ void api_h_job_get(api_req_t *q);
 void api_h_job_cancel(api_req_t *q);
 void api_h_events(api_req_t *q);
 void api_h_backup(api_req_t *q);
+/* calibrations as FITS files (api_export.c) and jitter photometry (api_jitter.c) */
+void api_h_calib_fits(api_req_t *q);
+void api_h_pixel_calib_fits(api_req_t *q);
+void api_h_sensor_calibs_fits(api_req_t *q);
+void api_h_jitter(api_req_t *q);
 /* GET / and static files of the web directory (not under /api/). */
 void api_h_static(api_req_t *q, const char *path);
 

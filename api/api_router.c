@@ -38,6 +38,10 @@ static const api_route_t routes[] = {
     {"POST", "/api/jobs/{id}/cancel", api_h_job_cancel, 0},
     {"GET", "/api/events", api_h_events, 0},
     {"POST", "/api/backup", api_h_backup, 0},
+    {"GET", "/api/calibrations/{id}/map.fits", api_h_calib_fits, 0},
+    {"GET", "/api/sensors/{id}/pixels/{col}/{row}/calibration.fits", api_h_pixel_calib_fits, 0},
+    {"GET", "/api/sensors/{id}/calibrations.fits", api_h_sensor_calibs_fits, 0},
+    {"POST", "/api/jitter", api_h_jitter, 1},
 };
 #define N_ROUTES (sizeof routes / sizeof routes[0])
 

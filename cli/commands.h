@@ -8,5 +8,8 @@ int cmd_fit(int argc, char **argv);      /* fit a scan file: model selection, ma
 int cmd_box(int argc, char **argv);      /* one box integral of the Airy spot */
 int cmd_bench(int argc, char **argv);    /* accuracy against run time, speed figures */
 int cmd_simulate(int argc, char **argv); /* a scan by the simulated bench, as a scan file */
+int cmd_export(int argc, char **argv);   /* IPS maps as a FITS file (ips-export) */
+int cmd_export_exec(int argc, char **argv); /* ips: runs ips-export beside it */
+int cmd_jitter(int argc, char **argv);   /* jitter photometry with a pixel's map */
 
 #endif

@@ -16,6 +16,8 @@ static const struct command {
     {"box", cmd_box, "integral of the unit-peak Airy spot over a rectangle, with error bound"},
     {"bench", cmd_bench, "design-matrix accuracy against run time, and the speed of a full fit"},
     {"simulate", cmd_simulate, "a scan by the simulated bench, written as a scan file"},
+    {"export", cmd_export_exec, "IPS maps (calibrations, fits) as a FITS file"},
+    {"jitter", cmd_jitter, "the flux error a pixel's map adds under pointing jitter"},
 };
 
 static void usage(FILE *f)

@@ -14,6 +14,8 @@ IPSD_PACKAGES=(
     nettle-dev                              # server/: SHA-256 of the bearer tokens
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
     curl wrk python3                        # HTTP tests, load benchmark, test scripts
+    libcfitsio-dev                          # export/: FITS files of the maps
+    python3-astropy                         # the FITS test reads the files back with astropy
     python3-numpy python3-scipy             # bench/numpy_peer.py (the NumPy peer of the fit)
     chromium                                # the dashboard's browser test (headless)
     clang                                   # scripts/build-matrix.sh's second compiler

@@ -12,7 +12,8 @@ set(IPSD_FUZZ_DIR ${CMAKE_CURRENT_SOURCE_DIR}/fuzz)
 set(IPSD_FUZZ_SECONDS 10 CACHE STRING "Seconds each fuzz_<target> ctest fuzzes (IPSD_FUZZ)")
 # target:needs-the-API
 set(IPSD_FUZZ_TARGETS scanfile:0 text:0 router:1 query:1 sensor_create:1 scan_create:1
-                      scan_fit:1 fit_upload:1 promote:1 stage_url:0)
+                      scan_fit:1 fit_upload:1 promote:1 stage_url:0
+                      jitter:1)
 if(IPSD_FUZZ)
     add_custom_target(ipsd_fuzz) # scripts/test.sh builds only this in the fuzz build
 endif()

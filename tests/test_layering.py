@@ -14,11 +14,12 @@ ALLOWED = {
     "base": set(),
     "fit": {"base"},
     "json": {"base", "fit"},
+    "export": {"base"},
     "instrument": {"base", "fit"},
     "storage": {"base"},
     "server": {"base", "fit", "json", "instrument", "storage"},
-    "api": {"base", "fit", "json", "instrument", "storage", "server"},
-    "cli": {"base", "fit", "json", "instrument"},
+    "api": {"base", "fit", "json", "export", "instrument", "storage", "server"},
+    "cli": {"base", "fit", "json", "export", "instrument"},
     "bench": {"base", "fit", "json", "instrument", "storage"},
 }
 # single headers a room may include from a room it otherwise does not use: (room, header) -> why

@@ -1,0 +1,35 @@
+/* mapfile.h: IPS maps read from a JSON file for `ips export` and `ips jitter`: a Calibration of
+ * the API (GET /api/calibrations/{id}, .../calibration), a page of them ({"items": [...]}, GET
+ * /api/calibrations?sensor=N), an `ips fit` document (the fit of its recommended r, or of a
+ * chosen r), or a bare map ({"r": m, "S": [...]} or an array of m*m numbers, as the simulator's
+ * map: scenes read). One owner; strings and arrays stay valid until mapfile_free. */
+#ifndef IPSD_CLI_MAPFILE_H
+#define IPSD_CLI_MAPFILE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/err.h"
+
+typedef struct mapfile_map {
+    int r;
+    double *S, *S_err; /* r*r each (S_err NaN where the file has none) */
+    int col, row;      /* sensor pixel; 0 when the file does not say */
+    double wavelength_um, na, spot_radius_um, I0, chi2_red;            /* NaN: unknown */
+    const char *status, *noise_model, *software_version, *by, *reason; /* NULL: unknown */
+    int64_t id, sensor_id, scan_id, fit_id, created_ms;                /* 0: unknown */
+    int current;                                                       /* 1 / 0, -1 unknown */
+} mapfile_map_t;
+
+typedef struct mapfile {
+    mapfile_map_t *maps;
+    size_t n;
+    void *doc; /* the parsed document the strings point into */
+} mapfile_t;
+
+/* Reads path; r > 0 picks that r of an `ips fit` document (0: its recommended r). Returns 0,
+ * -ENOENT (no file), -EINVAL naming what the file lacks, -ENOMEM. */
+int mapfile_read(const char *path, int r, mapfile_t *out, err_t *err);
+void mapfile_free(mapfile_t *mf);
+
+#endif
