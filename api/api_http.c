@@ -200,6 +200,7 @@ static int check_request(api_req_t *q, const char *method, const char *url)
     }
     /* what the request needs and what its token grants (no tokens configured: all open) */
     int need = SRV_TOKEN_NONE;
+    if (write && api_route_computes_only(q->route)) write = 0; /* POST /api/jitter */
     if (write)
         need = SRV_TOKEN_WRITE;
     else if (cfg->reads_closed && !open_read(url))

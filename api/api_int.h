@@ -26,6 +26,9 @@ typedef struct api_route {
     int json_body;
 } api_route_t;
 
+/* 1 when the route is a POST that only computes (a read's access: api_router.c). */
+int api_route_computes_only(const api_route_t *r);
+
 /* One request, from its first callback to its completion. */
 typedef struct api_conns api_conns_t;
 

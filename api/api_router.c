@@ -45,6 +45,12 @@ static const api_route_t routes[] = {
 };
 #define N_ROUTES (sizeof routes / sizeof routes[0])
 
+/* POSTs that only compute and store nothing: they need what a read needs, not a write token. */
+int api_route_computes_only(const api_route_t *r)
+{
+    return r && !strcmp(r->method, "POST") && !strcmp(r->pattern, "/api/jitter");
+}
+
 const api_route_info_t *api_route_list(size_t *n)
 {
     static api_route_info_t info[N_ROUTES];
