@@ -115,7 +115,8 @@ def test(c, t, argv, daemons):
             "a write without a body with the read token")
     # a POST that only computes (jitter photometry on an inline map) is a read: the read token
     # will do, no token will not (reads are closed here)
-    jit = {"map": {"r": 1, "S": [1]}, "pitch_um": 6, "jitter": {"rms_um": 0.1, "samples": 10}}
+    jit = {"map": {"r": 1, "S": [1]}, "pitch_um": 6, "psf": {"kind": "gauss", "sigma_um": 1},
+           "jitter": {"rms_um": 0.1, "samples": 10}}
     c.error(d.post("/api/jitter", jit), 401, "", "POST /api/jitter without a token")
     c.status(d.post("/api/jitter", jit, headers=bearer(READER)), 200,
              "POST /api/jitter with the read token")
