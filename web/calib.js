@@ -289,7 +289,14 @@ export function renderPixel(root, sensorId, col, row) {
                         () => calibrationJson(cur, pitch), 'download-json'), ' ',
                     downloadButton('CSV (µm)', `calibration-${cur.id}-um.csv`, 'text/csv',
                         () => calibrationCsv(cur, pitch), 'download-csv'), ' · ',
-                    csvLink(cur, 'the API\'s CSV'), h('span', { class: 'muted small' },
+                    csvLink(cur, 'the API\'s CSV'), ' · ',
+                    h('a', { href: `/api/calibrations/${cur.id}/map.fits`,
+                        download: `calibration-${cur.id}.fits`, 'data-testid': 'download-fits',
+                        title: 'S and S_err as FITS image extensions with their sampling, optics ' +
+                            'and provenance (docs/api.md, FITS)' }, 'FITS'), ' · ',
+                    h('a', { href: `/api/sensors/${sensorId}/calibrations.fits`,
+                        download: `sensor-${sensorId}-calibrations.fits` },
+                    'every current map of the sensor as FITS'), h('span', { class: 'muted small' },
                         ` (positions in µm from the pixel's top-left corner, y downward; ` +
                         `pitch ${fmt(pitch)} µm)`)),
                 h('div', { class: 'maps' },

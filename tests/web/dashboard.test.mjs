@@ -780,6 +780,15 @@ async function run(base, page, api) {
     const js = JSON.parse(fs.readFileSync(await dj.path(), 'utf8'));
     check(js.id === A.id && same(js.S, A.S) && js.pitch_um === sensor.pitch_um &&
         js.x_um.length === A.r, 'the JSON download is the API\'s calibration with the pitch');
+    const [df] = await Promise.all([page.waitForEvent('download'),
+        page.locator('[data-testid="download-fits"]').click()]);
+    const fitsBytes = fs.readFileSync(await df.path());
+    const fitsHead = fitsBytes.toString('latin1');
+    check(fitsHead.startsWith('SIMPLE  =') && fitsBytes.length % 2880 === 0 &&
+        new RegExp(`CALIBID =\\s+${A.id}\\b`).test(fitsHead) &&
+        fitsHead.includes("EXTNAME = 'S       '"),
+    'the FITS download is a FITS file of the calibration shown (its CALIBID, an S extension)',
+    `${df.suggestedFilename()}: ${fitsBytes.length} bytes`);
     await page.screenshot({ path: path.join(SHOTS, 'pixel-1280.png'), fullPage: true });
 
     await page.goto(`${base}/#/scans`);
