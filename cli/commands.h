@@ -8,5 +8,6 @@ int cmd_fit(int argc, char **argv);      /* fit a scan file: model selection, ma
 int cmd_box(int argc, char **argv);      /* one box integral of the Airy spot */
 int cmd_bench(int argc, char **argv);    /* accuracy against run time, speed figures */
 int cmd_simulate(int argc, char **argv); /* a scan by the simulated bench, as a scan file */
+int cmd_ptc(int argc, char **argv);      /* photon transfer (EMVA 1288) on the simulated bench */
 
 #endif

@@ -16,6 +16,7 @@ static const struct command {
     {"box", cmd_box, "integral of the unit-peak Airy spot over a rectangle, with error bound"},
     {"bench", cmd_bench, "design-matrix accuracy against run time, and the speed of a full fit"},
     {"simulate", cmd_simulate, "a scan by the simulated bench, written as a scan file"},
+    {"ptc", cmd_ptc, "photon transfer (EMVA 1288): gain, read noise, saturation on the bench"},
 };
 
 static void usage(FILE *f)
