@@ -84,19 +84,32 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
     struct ptc_args *a = user;
     scene_sensor_t *s = &a->sensor;
     switch (c) {
-    case OPT_SIM: a->sim = 1; return 0;
-    case OPT_NOISELESS: a->noiseless = 1; return 0;
-    case OPT_GAIN: return opts_num("gain", arg, 1e-3, 1e4, &s->gain_e_per_dn, err);
-    case OPT_READ_NOISE: return opts_num("read-noise", arg, 0, 1e4, &s->read_noise_e, err);
-    case OPT_BIAS: return opts_num("bias", arg, 0, 60000, &s->bias_dn, err);
-    case OPT_FULL_SCALE: return opts_num("full-scale", arg, 1, 65535, &s->full_scale_dn, err);
-    case OPT_FULL_WELL: return opts_num("full-well", arg, 1, 1e9, &s->full_well_e, err);
+    case OPT_SIM:
+        a->sim = 1;
+        return 0;
+    case OPT_NOISELESS:
+        a->noiseless = 1;
+        return 0;
+    case OPT_GAIN:
+        return opts_num("gain", arg, 1e-3, 1e4, &s->gain_e_per_dn, err);
+    case OPT_READ_NOISE:
+        return opts_num("read-noise", arg, 0, 1e4, &s->read_noise_e, err);
+    case OPT_BIAS:
+        return opts_num("bias", arg, 0, 60000, &s->bias_dn, err);
+    case OPT_FULL_SCALE:
+        return opts_num("full-scale", arg, 1, 65535, &s->full_scale_dn, err);
+    case OPT_FULL_WELL:
+        return opts_num("full-well", arg, 1, 1e9, &s->full_well_e, err);
     case OPT_LEVELS:
         return opts_int32("levels", arg, PTC_LEVELS_MIN, PTC_LEVELS_MAX, &a->levels, err);
-    case OPT_ROI: return opts_int32("roi", arg, 2, 4096, &a->roi, err);
-    case OPT_FLAT: return opts_num("flat-e", arg, 1e-6, 1e12, &a->flat_e, err);
-    case OPT_SEED: return opts_int("seed", arg, 0, 4294967295LL, &a->seed, err);
-    default: return err_set(err, -EINVAL, "unhandled option");
+    case OPT_ROI:
+        return opts_int32("roi", arg, 2, 4096, &a->roi, err);
+    case OPT_FLAT:
+        return opts_num("flat-e", arg, 1e-6, 1e12, &a->flat_e, err);
+    case OPT_SEED:
+        return opts_int("seed", arg, 0, 4294967295LL, &a->seed, err);
+    default:
+        return err_set(err, -EINVAL, "unhandled option");
     }
 }
 
@@ -128,17 +141,19 @@ int cmd_ptc(int argc, char **argv)
     a.sensor = scene_sensor_default();
     a.roi = a.sensor.cols < a.sensor.rows ? a.sensor.cols : a.sensor.rows;
     err_t err;
-    int first, rc = opts_parse(argc, argv, "", long_opts, OPT_HELP, "ips ptc --help", parse_opt,
-                               &a, &first, &err);
+    int first, rc = opts_parse(argc, argv, "", long_opts, OPT_HELP, "ips ptc --help", parse_opt, &a,
+                               &first, &err);
     if (rc == 1) {
         fputs(usage, stdout);
         return 0;
     }
     if (rc) return cli_fail(CLI_EXIT_USAGE, "ptc", "%s", err.msg);
-    if (first < argc) return cli_fail(CLI_EXIT_USAGE, "ptc", "unexpected argument '%s'", argv[first]);
+    if (first < argc)
+        return cli_fail(CLI_EXIT_USAGE, "ptc", "unexpected argument '%s'", argv[first]);
     if (!a.sim)
-        return cli_fail(CLI_EXIT_USAGE, "ptc", "--sim is required (the simulated bench is the only "
-                                               "one ips ptc measures)");
+        return cli_fail(CLI_EXIT_USAGE, "ptc",
+                        "--sim is required (the simulated bench is the only "
+                        "one ips ptc measures)");
     if (a.sensor.bias_dn >= a.sensor.full_scale_dn)
         return cli_fail(CLI_EXIT_USAGE, "ptc", "--bias (%g) must be below --full-scale (%g)",
                         a.sensor.bias_dn, a.sensor.full_scale_dn);
@@ -178,8 +193,7 @@ int cmd_ptc(int argc, char **argv)
     rc = fit_ptc_analyse(lv, (size_t)a.levels, &r);
     if (rc) {
         free(lv);
-        return cli_fail(CLI_EXIT_FAILURE, "ptc",
-                        "the photon-transfer analysis failed: %s",
+        return cli_fail(CLI_EXIT_FAILURE, "ptc", "the photon-transfer analysis failed: %s",
                         rc == -EINVAL ? "no photon-transfer slope (noise-free frames, or too few "
                                         "levels below saturation)"
                                       : "a regression failed");

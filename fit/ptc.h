@@ -30,17 +30,17 @@ typedef struct fit_ptc_level {
 int fit_ptc_pair(const uint16_t *a, const uint16_t *b, size_t n, double *mean, double *s2);
 
 typedef struct fit_ptc_result {
-    double K;               /* system gain, DN/e- (slope of the photon-transfer fit) */
-    double K_err;           /* its standard error from the fit's residuals */
-    double gain_e_per_dn;   /* 1 / K, the form ipsd's sensors store */
-    double dark_dn;         /* mu_y.dark: mean dark level (bias), DN */
-    double s2_dark;         /* sigma_y.dark^2 (DN^2): the dark variance at zero exposure */
-    double read_noise_e;    /* sigma_d = sqrt(sigma_y.dark^2 - 1/12) / K; 0 when below 1/12 */
-    double read_noise_dn;   /* sqrt(sigma_y.dark^2 - 1/12) */
-    size_t sat_index;       /* level where the variance peaks (EMVA saturation point) */
-    double saturation_dn;   /* mu_y - mu_y.dark there (DN above the dark level) */
-    size_t fit_lo, fit_hi;  /* levels of the gain fit, inclusive (dark level .. 70 % of sat) */
-    double linearity_error_pct;  /* max |relative deviation| from the linear fit, 5-95 % of sat */
+    double K;                   /* system gain, DN/e- (slope of the photon-transfer fit) */
+    double K_err;               /* its standard error from the fit's residuals */
+    double gain_e_per_dn;       /* 1 / K, the form ipsd's sensors store */
+    double dark_dn;             /* mu_y.dark: mean dark level (bias), DN */
+    double s2_dark;             /* sigma_y.dark^2 (DN^2): the dark variance at zero exposure */
+    double read_noise_e;        /* sigma_d = sqrt(sigma_y.dark^2 - 1/12) / K; 0 when below 1/12 */
+    double read_noise_dn;       /* sqrt(sigma_y.dark^2 - 1/12) */
+    size_t sat_index;           /* level where the variance peaks (EMVA saturation point) */
+    double saturation_dn;       /* mu_y - mu_y.dark there (DN above the dark level) */
+    size_t fit_lo, fit_hi;      /* levels of the gain fit, inclusive (dark level .. 70 % of sat) */
+    double linearity_error_pct; /* max |relative deviation| from the linear fit, 5-95 % of sat */
     double le_min_pct, le_max_pct; /* smallest and largest relative deviation there (%) */
     double lin_slope, lin_offset;  /* mu_y - mu_y.dark = slope * exposure + offset (DN, us) */
     size_t lin_lo, lin_hi;         /* levels of the linearity fit, inclusive */

@@ -37,7 +37,7 @@ int ptc_run(cam_t *cam, ptc_light_fn light, void *light_ctx, const ptc_run_confi
  * pixel of ptc_sim_lamp_t.flat_e, off sets it to 0. */
 typedef struct ptc_sim_lamp {
     sim_t *sim;
-    double flat_e;  /* e- per pixel per frame at the bench's reference exposure when on */
+    double flat_e; /* e- per pixel per frame at the bench's reference exposure when on */
 } ptc_sim_lamp_t;
 
 int ptc_sim_light(void *lamp, int on, err_t *err);

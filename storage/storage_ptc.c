@@ -17,7 +17,8 @@ void storage_ptc_free(storage_ptc_t *p)
 void storage_ptc_list_free(storage_ptc_list_t *l)
 {
     if (!l) return;
-    for (size_t i = 0; i < l->n; i++) storage_ptc_free(&l->items[i]);
+    for (size_t i = 0; i < l->n; i++)
+        storage_ptc_free(&l->items[i]);
     free(l->items);
     memset(l, 0, sizeof *l);
 }

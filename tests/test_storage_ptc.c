@@ -13,7 +13,10 @@
 #include "storage/storage.h"
 
 static int64_t now_ms = 1700000000000;
-static int64_t clock_fn(void *ctx) { return *(int64_t *)ctx; }
+static int64_t clock_fn(void *ctx)
+{
+    return *(int64_t *)ctx;
+}
 
 int main(void)
 {
@@ -25,17 +28,27 @@ int main(void)
     CHECK(storage_open(path, &st, &err) == 0);
     if (!st) return 1;
     storage_set_clock(st, clock_fn, &now_ms);
-    storage_sensor_t sn = {.model = "IMX-sim", .serial = "ptc-1", .n_cols = 256, .n_rows = 256,
-                           .pitch_um = 6, .gain_e_per_dn = 3.153, .read_noise_e = 5.67,
-                           .bias_dn = 100, .full_scale_dn = 16383};
+    storage_sensor_t sn = {.model = "IMX-sim",
+                           .serial = "ptc-1",
+                           .n_cols = 256,
+                           .n_rows = 256,
+                           .pitch_um = 6,
+                           .gain_e_per_dn = 3.153,
+                           .read_noise_e = 5.67,
+                           .bias_dn = 100,
+                           .full_scale_dn = 16383};
     int64_t sensor = 0, id1 = 0, id2 = 0, id;
     CHECK(storage_sensor_create(st, &sn, &sensor, &err) == 0);
 
     storage_ptc_list_t l;
     CHECK(storage_ptc_history(st, sensor, 0, &l, &err) == 0 && l.n == 0); /* none yet */
 
-    storage_ptc_t p = {.sensor_id = sensor, .gain_e_per_dn = 3.1563, .read_noise_e = 5.6803,
-                       .dark_dn = 100.0001, .saturation_dn = 15774, .linearity_error_pct = 0.007,
+    storage_ptc_t p = {.sensor_id = sensor,
+                       .gain_e_per_dn = 3.1563,
+                       .read_noise_e = 5.6803,
+                       .dark_dn = 100.0001,
+                       .saturation_dn = 15774,
+                       .linearity_error_pct = 0.007,
                        .result = "{\"K\": 0.3168}"};
     CHECK(storage_ptc_put(st, &p, &id1, &err) == 0 && id1 > 0);
     now_ms += 1000;
@@ -68,7 +81,7 @@ int main(void)
     p.gain_e_per_dn = 3, p.read_noise_e = -1;
     CHECK(storage_ptc_put(st, &p, &id, &err) == -EINVAL);
     p.read_noise_e = 5, p.job_id = 999;
-    CHECK(storage_ptc_put(st, &p, &id, &err) == -ENOENT); /* no such job */
+    CHECK(storage_ptc_put(st, &p, &id, &err) == -ENOENT);                 /* no such job */
     CHECK(storage_ptc_history(st, sensor, 0, &l, &err) == 0 && l.n == 2); /* nothing added */
     storage_ptc_list_free(&l);
 
