@@ -11,5 +11,6 @@ int cmd_simulate(int argc, char **argv); /* a scan by the simulated bench, as a 
 int cmd_export(int argc, char **argv);   /* IPS maps as a FITS file (ips-export) */
 int cmd_export_exec(int argc, char **argv); /* ips: runs ips-export beside it */
 int cmd_jitter(int argc, char **argv);   /* jitter photometry with a pixel's map */
+int cmd_ptc(int argc, char **argv);      /* photon transfer (EMVA 1288) on the simulated bench */
 
 #endif

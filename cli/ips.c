@@ -18,6 +18,7 @@ static const struct command {
     {"simulate", cmd_simulate, "a scan by the simulated bench, written as a scan file"},
     {"export", cmd_export_exec, "IPS maps (calibrations, fits) as a FITS file"},
     {"jitter", cmd_jitter, "the flux error a pixel's map adds under pointing jitter"},
+    {"ptc", cmd_ptc, "photon transfer (EMVA 1288): gain, read noise, saturation on the bench"},
 };
 
 static void usage(FILE *f)

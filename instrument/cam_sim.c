@@ -71,6 +71,14 @@ int sim_set_gain(sim_t *s, double gain, err_t *err)
     return 0;
 }
 
+int sim_set_flat(sim_t *s, double flat_e, err_t *err)
+{
+    if (!(flat_e >= 0) || !isfinite(flat_e))
+        return err_set(err, -EINVAL, "flat field must be >= 0 (got %g e-)", flat_e);
+    s->cfg.flat_e = flat_e;
+    return 0;
+}
+
 /* One pixel's DN from its expected charge (sim.h: Poisson, full well, read noise, gain, bias,
  * rounding, clipping). */
 static uint16_t draw_dn(sim_t *s, double lambda_e)
@@ -129,10 +137,11 @@ int sim_capture(sim_t *s, const cam_roi_t *roi, cam_frame_t *f, err_t *err)
     sim_spot(s, &xs, &ys, &zs);
     rc = sim_expected(s, xs, ys, sim_spot_radius(s, zs), &r, f->expected_dn, &left_e, err);
     if (rc) return rc;
-    /* DN = bias + charge * gain / G (sim.h) */
+    /* DN = bias + charge * gain / G (sim.h); the flat field adds the same charge to each pixel */
     double t0 = clock_mono_s(), dn_per_e = s->gain / sn->gain_e_per_dn;
+    double flat = s->cfg.flat_e * (s->exposure_us / s->cfg.ref_exposure_us);
     for (size_t k = 0; k < npx; k++) {
-        double lambda = f->expected_dn[k];
+        double lambda = f->expected_dn[k] + flat;
         f->dn[k] = draw_dn(s, lambda);
         f->expected_dn[k] = sn->bias_dn + lambda * dn_per_e;
     }

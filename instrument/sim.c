@@ -32,6 +32,7 @@ sim_config_t sim_config_default(void)
         .z_focus_um = 0,
         .depth_um = 0,
         .flux_e = 21500,
+        .flat_e = 0,
         .ref_exposure_us = 10000,
         .readout_s = 0.02,
         .noiseless = 0,
@@ -60,6 +61,8 @@ static int check_config(const sim_config_t *c, err_t *err)
         return err_set(err, -EINVAL, "mount offset must be finite");
     if (!(c->flux_e >= 0) || !isfinite(c->flux_e))
         return err_set(err, -EINVAL, "spot flux must be >= 0 (got %g e-)", c->flux_e);
+    if (!(c->flat_e >= 0) || !isfinite(c->flat_e))
+        return err_set(err, -EINVAL, "flat field must be >= 0 (got %g e-)", c->flat_e);
     if (!(c->ref_exposure_us > 0) || !isfinite(c->ref_exposure_us))
         return err_set(err, -EINVAL, "reference exposure must be positive (got %g us)",
                        c->ref_exposure_us);

@@ -63,6 +63,10 @@ typedef struct sim_config {
     double depth_um;               /* zR of the defocus model; 0: lambda / (2 NA^2) */
     double mount_x_um, mount_y_um; /* sensor position of the spot at stage x = y = 0 (0, 0) */
     double flux_e;            /* whole-spot photo-electrons per frame at ref exposure (21500) */
+    double flat_e;            /* a uniform flat field on top of the spot (the photon-transfer
+                                 lamp): photo-electrons per pixel per frame at the reference
+                                 exposure, scaling with exposure as the spot does (0: none);
+                                 switched with sim_set_flat */
     double ref_exposure_us;   /* reference exposure (10000 us) */
     double readout_s;         /* bench time per frame besides the exposure (0.02 s) */
     int noiseless;            /* no photon or read noise (0) */
@@ -130,6 +134,10 @@ int sim_info(sim_t *sim, cam_info_t *info);
 int sim_set_exposure(sim_t *sim, double exposure_us, err_t *err);
 int sim_set_gain(sim_t *sim, double gain, err_t *err);
 int sim_capture(sim_t *sim, const cam_roi_t *roi, cam_frame_t *frame, err_t *err);
+
+/* The flat-field lamp (sim_config_t.flat_e): e- per pixel per frame at the reference exposure; 0
+ * switches it off (darks). Returns 0 or -EINVAL (negative or not finite). */
+int sim_set_flat(sim_t *sim, double flat_e, err_t *err);
 
 /* Work counters since opening (or since sim_reset_stats). */
 typedef struct sim_stats {

@@ -452,6 +452,35 @@ int storage_calib_search(storage_t *st, const storage_calib_filter_t *f, int lim
 void storage_calib_free(storage_calib_t *c);
 void storage_calib_list_free(storage_calib_list_t *l);
 
+/* ---- photon-transfer measurements (storage_ptc.c) ------------------------------------------ */
+
+/* One EMVA 1288 measurement of a sensor (fit/ptc.h): its figures, and the whole report as JSON
+ * (the `ips ptc` document). Every measurement is kept; the newest is the sensor's measured
+ * constants. */
+typedef struct storage_ptc {
+    int64_t id;
+    int64_t sensor_id;
+    double gain_e_per_dn, read_noise_e; /* > 0, >= 0 */
+    double dark_dn, saturation_dn, linearity_error_pct; /* NaN: not measured */
+    char *result;       /* JSON text */
+    int64_t job_id;     /* the job that measured it; 0: none */
+    int64_t created_ms;
+} storage_ptc_t;
+
+typedef struct storage_ptc_list {
+    storage_ptc_t *items;
+    size_t n;
+} storage_ptc_list_t;
+
+/* Stores a measurement (one transaction). -ENOENT for an unknown sensor or job, -EINVAL for a
+ * gain or read noise out of range or result not JSON. */
+int storage_ptc_put(storage_t *st, const storage_ptc_t *p, int64_t *id, err_t *err);
+/* The sensor's measurements, newest first (at most limit; <= 0: all); none is not an error. */
+int storage_ptc_history(storage_t *st, int64_t sensor_id, int limit, storage_ptc_list_t *out,
+                        err_t *err);
+void storage_ptc_free(storage_ptc_t *p);
+void storage_ptc_list_free(storage_ptc_list_t *l);
+
 /* ---- online backup (storage_backup.c) ----------------------------------------------------- */
 
 /* What a backup wrote. */

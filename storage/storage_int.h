@@ -66,6 +66,8 @@ enum stg_id {
     STG_CALIB_SEARCH,
     STG_SCAN_RESUME,
     STG_JOB_RESUME,
+    STG_PTC_INSERT,
+    STG_PTC_HISTORY,
     STG_N
 };
 
@@ -93,6 +95,10 @@ enum stg_id {
     "c.id, c.sensor_id, c.pixel_col, c.pixel_row, c.r, c.s, c.s_err, c.i0, c.chi2_red, "          \
     "c.status, c.scan_id, c.fit_id, c.noise_model, c.wavelength_um, c.na, c.spot_radius_um, "     \
     "c.software_version, c.created_ms, c.superseded_by, c.supersedes, c.changed_by, c.reason"
+
+#define STG_PTC_COLS                                                                              \
+    "id, sensor_id, gain_e_per_dn, read_noise_e, dark_dn, saturation_dn, linearity_error_pct, "   \
+    "result, job_id, created_ms"
 
 extern const char *const stg_sql[STG_N];
 /* stg_migrations[i] brings user_version i to i + 1 and ends by setting it. */

@@ -185,6 +185,24 @@ const char *const stg_migrations[] = {
     "    reason = 'stored when its fit finished (before schema 3 recorded reasons)';\n"
     "CREATE INDEX calibrations_fit ON calibrations (fit_id);\n"
     "PRAGMA user_version = 3;\n",
+
+    /* 4: photon-transfer measurements (EMVA 1288) of a sensor, every one kept: the history of
+     * its gain and read noise. The newest row is the sensor's measured constants; the sensors
+     * row keeps the constants it was created with. */
+    "CREATE TABLE ptc (\n"
+    "    id                  INTEGER PRIMARY KEY,\n"
+    "    sensor_id           INTEGER NOT NULL REFERENCES sensors (id),\n"
+    "    gain_e_per_dn       REAL    NOT NULL CHECK (gain_e_per_dn > 0),\n"
+    "    read_noise_e        REAL    NOT NULL CHECK (read_noise_e >= 0),\n"
+    "    dark_dn             REAL,\n"
+    "    saturation_dn       REAL,\n"
+    "    linearity_error_pct REAL,\n"
+    "    result              TEXT    NOT NULL CONSTRAINT result_json CHECK (json_valid(result)),\n"
+    "    job_id              INTEGER REFERENCES jobs (id),\n"
+    "    created_ms          INTEGER NOT NULL\n"
+    ");\n"
+    "CREATE INDEX ptc_sensor ON ptc (sensor_id, id);\n"
+    "PRAGMA user_version = 4;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -330,6 +348,11 @@ const char *const stg_sql[STG_N] = {
     [STG_CALIB_HISTORY] = "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.sensor_id = ?1 "
                           "AND c.pixel_col = ?2 AND c.pixel_row = ?3 ORDER BY c.id DESC",
     [STG_CALIB_COUNT] = "SELECT count(*) " CALIB_FILTER,
+    [STG_PTC_INSERT] = "INSERT INTO ptc (sensor_id, gain_e_per_dn, read_noise_e, dark_dn, "
+                       "saturation_dn, linearity_error_pct, result, job_id, created_ms) "
+                       "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+    [STG_PTC_HISTORY] = "SELECT " STG_PTC_COLS " FROM ptc WHERE sensor_id = ?1 "
+                        "ORDER BY id DESC LIMIT ?2",
     [STG_CALIB_SEARCH] = "SELECT " STG_CALIB_COLS " " CALIB_FILTER
                          " ORDER BY c.created_ms DESC, c.id DESC LIMIT ?10 OFFSET ?11",
 };

@@ -17,3 +17,11 @@ if(TARGET ips)
              WORKING_DIRECTORY ${IPSD_TEST_DATA})
     set_tests_properties(test_fit_region PROPERTIES TIMEOUT 240)
 endif()
+
+# `ips ptc --sim`: gain and read noise against the simulator's truth, bad input (~3 s optimised)
+if(TARGET ips)
+    add_test(NAME test_cli_ptc
+             COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_cli_ptc.sh $<TARGET_FILE:ips>
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+    set_tests_properties(test_cli_ptc PROPERTIES TIMEOUT 120)
+endif()

@@ -50,3 +50,4 @@ if(TARGET ips)
     # busy 2-core machine, ASan build: 273 s (optimised: 122 s); 4x
     set_tests_properties(test_simulate PROPERTIES TIMEOUT 1100)
 endif()
+ipsd_add_test(test_ptc_sim ipsinstr) # photon transfer on the simulated bench: 2 % of the truth

@@ -50,6 +50,7 @@ storage_frame.c storage.c
 storage_frame.c storage_scan.c
 storage_job.c storage.c
 storage_job.c storage_scan.c
+storage_ptc.c storage.c
 storage_scan.c storage.c
 storage_scan.c storage_sensor.c
 storage_sensor.c storage.c'
@@ -59,11 +60,11 @@ if [ "$edges" != "$(echo "$want" | sort -u)" ]; then
 fi
 
 # (2) statement ids by table prefix: storage_<t>.c uses only STG_<T>_*
-for f in sensor scan frame job fit calib compose; do
+for f in sensor scan frame job fit calib compose ptc; do
     file="$src/storage_$f.c"
     [ -f "$file" ] || { bad "$file is missing"; continue; }
     own=$(echo "$f" | tr a-z A-Z)
-    others=$(grep -oE 'STG_(SENSOR|SCAN|FRAME|JOB|FIT|CALIB)_[A-Z_]+' "$file" |
+    others=$(grep -oE 'STG_(SENSOR|SCAN|FRAME|JOB|FIT|CALIB|PTC)_[A-Z_]+' "$file" |
              grep -v "^STG_${own}_" | sort -u | tr '\n' ' ' || true)
     [ -z "$others" ] || bad "storage_$f.c prepares other tables' statements: $others"
 done
