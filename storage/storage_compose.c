@@ -23,6 +23,36 @@ int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *par
     return stg_commit(st, err);
 }
 
+/* The rows of one stored fit, inside the caller's transaction: the fit, the map it offers and
+ * (promote) its calibration. */
+static int fit_rows(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
+                    int promote, int64_t *fid, int64_t *cid, err_t *err)
+{
+    int ret = stg_fit_insert(st, fit, fid, err);
+    if (ret || !calib) return ret;
+    storage_calib_t c = *calib; /* shallow: only the two ids change */
+    c.fit_id = *fid;
+    if (!c.scan_id) c.scan_id = fit->scan_id;
+    if ((ret = stg_calib_check(st, &c, err)) || (ret = stg_fit_map_insert(st, *fid, &c, err)))
+        return ret;
+    return promote ? stg_calib_insert(st, &c, cid, err) : 0;
+}
+
+/* Ends the transaction of a fit store: commit when ret is 0, else roll back; the ids out on
+ * success. */
+static int fit_rows_end(storage_t *st, int ret, int64_t fid, int64_t cid, int64_t *fit_id,
+                        int64_t *calib_id, err_t *err)
+{
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        return ret;
+    }
+    if (fit_id) *fit_id = fid;
+    if (calib_id) *calib_id = cid;
+    return 0;
+}
+
 /* storage_fit_store, and with done the job's end too (storage_fit_store_done). */
 static int fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
                      int promote, int64_t job_id, int done, int64_t *fit_id, int64_t *calib_id,
@@ -33,26 +63,10 @@ static int fit_store(storage_t *st, const storage_fit_t *fit, const storage_cali
     int ret = stg_begin_write(st, err);
     if (ret) return ret;
     /* first the job's end: a job no longer running (cancelled meanwhile) stores nothing */
-    if (done && (ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err))) goto out;
-    if ((ret = stg_fit_insert(st, fit, &fid, err))) goto out;
-    if (job_id > 0 && (ret = stg_job_set_fit(st, job_id, fid, err))) goto out;
-    if (calib) {
-        storage_calib_t c = *calib; /* shallow: only the two ids change */
-        c.fit_id = fid;
-        if (!c.scan_id) c.scan_id = fit->scan_id;
-        if ((ret = stg_calib_check(st, &c, err)) || (ret = stg_fit_map_insert(st, fid, &c, err)))
-            goto out;
-        if (promote) ret = stg_calib_insert(st, &c, &cid, err);
-    }
-out:
-    if (ret == 0) ret = stg_commit(st, err);
-    if (ret) {
-        stg_rollback(st);
-        return ret;
-    }
-    if (fit_id) *fit_id = fid;
-    if (calib_id) *calib_id = cid;
-    return 0;
+    if (done) ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err);
+    if (!ret) ret = fit_rows(st, fit, calib, promote, &fid, &cid, err);
+    if (!ret && job_id > 0) ret = stg_job_set_fit(st, job_id, fid, err);
+    return fit_rows_end(st, ret, fid, cid, fit_id, calib_id, err);
 }
 
 int storage_fit_store(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
@@ -82,28 +96,11 @@ int storage_fit_store_unit(storage_t *st, const storage_fit_t *fit, const storag
     if (ret) return ret;
     /* first the job's count: a job cancelled meanwhile, or whose unit is stored already (an
      * earlier run's), stores nothing */
-    if ((ret = stg_job_step(st, job_id, done_before, (double)(done_before + 1) / total, err)))
-        goto out;
-    if (done_before + 1 == total && (ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err)))
-        goto out;
-    if ((ret = stg_fit_insert(st, fit, &fid, err))) goto out;
-    if (calib) {
-        storage_calib_t c = *calib; /* shallow: only the two ids change */
-        c.fit_id = fid;
-        if (!c.scan_id) c.scan_id = fit->scan_id;
-        if ((ret = stg_calib_check(st, &c, err)) || (ret = stg_fit_map_insert(st, fid, &c, err)))
-            goto out;
-        if (promote) ret = stg_calib_insert(st, &c, &cid, err);
-    }
-out:
-    if (ret == 0) ret = stg_commit(st, err);
-    if (ret) {
-        stg_rollback(st);
-        return ret;
-    }
-    if (fit_id) *fit_id = fid;
-    if (calib_id) *calib_id = cid;
-    return 0;
+    ret = stg_job_step(st, job_id, done_before, (double)(done_before + 1) / total, err);
+    if (!ret && done_before + 1 == total)
+        ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err);
+    if (!ret) ret = fit_rows(st, fit, calib, promote, &fid, &cid, err);
+    return fit_rows_end(st, ret, fid, cid, fit_id, calib_id, err);
 }
 
 int storage_fit_put(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,
