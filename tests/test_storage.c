@@ -706,6 +706,21 @@ static void test_fits(void)
     storage_close(st);
 }
 
+/* A fit of scan with a 1 x 1 map (S 1, S_err 0.5) of pixel (7, 8) of sensor: what the fit-store
+ * tests store. S and E are the caller's one-element arrays. */
+static void one_cell_fit(int64_t scan, int64_t sensor, double *S, double *E, storage_fit_t *f,
+                         storage_calib_t *c)
+{
+    S[0] = 1.0;
+    E[0] = 0.5;
+    *f = (storage_fit_t){.scan_id = scan, .noise_model = "paper", .best_r_aic = 1,
+                         .best_r_bic = 1, .f_value = NAN, .p_value = NAN, .result = "{}"};
+    *c = (storage_calib_t){.sensor_id = sensor, .pixel_col = 7, .pixel_row = 8, .r = 1, .S = S,
+                           .S_err = E, .I0 = NAN, .chi2_red = NAN, .status = "ok",
+                           .noise_model = "paper", .wavelength_um = NAN, .na = NAN,
+                           .spot_radius_um = NAN};
+}
+
 /* A fit job's result and its done in one transaction (storage_fit_store_done): a running job
  * ends done naming its fit; a cancelled job, a job not running and an unknown job store nothing. */
 static void test_fit_store_done(void)
@@ -724,13 +739,10 @@ static void test_fit_store_done(void)
     storage_job_free(&j);
     int changed = 0;
     CHECK(storage_job_cancel(st, cancelled, &changed, NULL) == 0 && changed);
-    storage_fit_t f = {.scan_id = scan, .noise_model = "paper", .best_r_aic = 1, .best_r_bic = 1,
-                       .f_value = NAN, .p_value = NAN, .result = "{}"};
-    double S[1] = {1.0}, E[1] = {0.5};
-    storage_calib_t c = {.sensor_id = sensor, .pixel_col = 7, .pixel_row = 8, .r = 1, .S = S,
-                         .S_err = E, .I0 = NAN, .chi2_red = NAN, .status = "ok",
-                         .noise_model = "paper", .wavelength_um = NAN, .na = NAN,
-                         .spot_radius_um = NAN};
+    storage_fit_t f;
+    storage_calib_t c;
+    double S[1], E[1];
+    one_cell_fit(scan, sensor, S, E, &f, &c);
     CHECK(storage_fit_store_done(st, &f, &c, 1, cancelled, NULL, NULL, &err) == -ECANCELED);
     CHECK(storage_fit_store_done(st, &f, &c, 1, queued, NULL, NULL, &err) == -ESTALE);
     CHECK(storage_fit_store_done(st, &f, &c, 1, 999, NULL, NULL, &err) == -ENOENT);
@@ -764,13 +776,10 @@ static void test_fit_store_unit(void)
     CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &b, NULL) == 0);
     CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == a);
     storage_job_free(&j);
-    storage_fit_t f = {.scan_id = scan, .noise_model = "paper", .best_r_aic = 1, .best_r_bic = 1,
-                       .f_value = NAN, .p_value = NAN, .result = "{}"};
-    double S[1] = {1.0}, E[1] = {0.5};
-    storage_calib_t c = {.sensor_id = sensor, .pixel_col = 7, .pixel_row = 8, .r = 1, .S = S,
-                         .S_err = E, .I0 = NAN, .chi2_red = NAN, .status = "ok",
-                         .noise_model = "paper", .wavelength_um = NAN, .na = NAN,
-                         .spot_radius_um = NAN};
+    storage_fit_t f;
+    storage_calib_t c;
+    double S[1], E[1];
+    one_cell_fit(scan, sensor, S, E, &f, &c);
     CHECK(storage_fit_store_unit(st, &f, &c, 1, a, 0, 3, NULL, NULL, NULL) == 0);
     CHECK(storage_job_get(st, a, &j, NULL) == 0);
     CHECK(j.state == STORAGE_RUNNING && j.points_done == 1 && fabs(j.progress - 1.0 / 3) < 1e-12);
