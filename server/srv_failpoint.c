@@ -39,9 +39,9 @@ struct srv_failpoints {
 };
 
 /* The points the workers have (a misspelt name must not arm nothing silently). */
-static const char *const POINTS[] = {"scan.setup", "scan.point", "fit.step", "fit.before_store",
-                                     "fit.after_store", "fit.poll", "fit.poll.lm",
-                                     "camera.frame", "fit.pixel"};
+static const char *const POINTS[] = {
+    "scan.setup",      "scan.point", "scan.finish", "fit.step",     "fit.before_store",
+    "fit.after_store", "fit.poll",   "fit.poll.lm", "camera.frame", "fit.pixel"};
 
 static int parse_term(char *text, struct fp_term *t, err_t *err)
 {

@@ -7,7 +7,9 @@
  *   IPSD_FAILPOINT_DIR=DIR                  where held points show as files (optional)
  *
  * Points: scan.setup (after the scan's setup is taken or made, before its raster), scan.point
- * (after a raster point is stored and published), fit.step (after each step of a fit: each r,
+ * (after a raster point is stored and published), scan.finish (all points stored and the
+ * instrument released, before the one transaction that makes the scan done, queues its
+ * automatic fit and finishes its job), fit.step (after each step of a fit: each r,
  * the F-test, the Wiener baseline), fit.before_store (a fit computed, before the transaction that
  * stores it), fit.after_store (after that transaction committed, before the job's end is
  * published), fit.poll (inside a fit's long loops, where it polls its stop: each batch of

@@ -151,29 +151,27 @@ static int setup(struct scan_run *r, const scan_hooks_t *hooks)
     return ret;
 }
 
-/* Queues the automatic fit of the scan's POI unless the scan has a fit job already (a restart
- * between finishing the raster and finishing the job must not queue a second one). */
-static int queue_auto_fit(struct scan_run *r)
-{
-    storage_job_list_t l;
-    int ret = storage_job_list(r->st, STORAGE_JOB_FIT, STORAGE_ANY, r->scan.id, 1, 0, &l, &r->err);
-    if (ret) return ret;
-    int64_t total = l.total, id;
-    storage_job_list_free(&l);
-    if (total) return 0;
-    srv_fit_params_t p = srv_fit_params_auto(r->scan.id);
-    return srv_enqueue_fit(r->srv, r->st, &p, &id, &r->err);
-}
-
-/* The scan's points are all stored: done, fit queued, job finished. */
+/* The scan's points are all stored: the scan done, the automatic fit of its POI queued and the
+ * job finished, in one transaction (storage_scan_finish): no one sees the scan done without its
+ * automatic fit, so a user's re-fit can no longer come first and make it be skipped. */
 static int finish_done(struct scan_run *r)
 {
-    int ret = 0;
-    if (r->scan.state != STORAGE_DONE)
-        ret = storage_scan_set_state(r->st, r->scan.id, STORAGE_DONE, NULL, &r->err);
-    if (ret == 0) ret = queue_auto_fit(r);
-    if (ret == 0) ret = storage_job_finish(r->st, r->job->id, STORAGE_DONE, NULL, &r->err);
-    return ret;
+    int ret = srv_failpoint(r->w, "scan.finish", &r->err); /* test hook: before the end */
+    if (ret) return ret;
+    srv_fit_params_t p = srv_fit_params_auto(r->scan.id);
+    char *params = srv_fit_params_dump(&p);
+    if (!params) return err_set(&r->err, -ENOMEM, "out of memory");
+    int64_t fit_job = 0;
+    ret = storage_scan_finish(r->st, r->scan.id, r->job->id, params, &fit_job, &r->err);
+    free(params);
+    if (ret || !fit_job) return ret;
+    storage_job_t j; /* the fit job's queued event, then a fit worker wakes for it */
+    if (storage_job_get(r->st, fit_job, &j, NULL) == 0) {
+        srv_publish_job(r->srv, &j, NULL, 0, NAN);
+        storage_job_free(&j);
+    }
+    srv_notify_work(r->srv);
+    return 0;
 }
 
 /* Loads the scan and its sensor, opens the bench, and marks the scan running. */

@@ -207,6 +207,16 @@ int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, con
  * after the last stored point. *job_id: that job. -ENOENT unknown scan; -ESTALE when the scan
  * or its job is not failed. */
 int storage_scan_resume(storage_t *st, int64_t id, int64_t *job_id, err_t *err);
+/* The end of a scan whose points are all stored, in one transaction (issue 10: as three, a user's
+ * re-fit queued between the scan becoming done and the automatic fit made the automatic fit be
+ * skipped): the scan becomes done, the automatic fit (fit_params_json) is queued for it, and its
+ * running scan job job_id ends as done. The fit is queued when the scan becomes done here, or when
+ * it was done already (an older ipsd stopped between the steps) and has no fit job yet; *fit_job_id
+ * gets its id, 0 when none was queued. -ECANCELED / -ESTALE / -ENOENT as storage_job_finish (and
+ * -ENOENT for an unknown scan), -EINVAL when fit_params_json is not JSON: then nothing is stored.
+ */
+int storage_scan_finish(storage_t *st, int64_t scan_id, int64_t job_id, const char *fit_params_json,
+                        int64_t *fit_job_id, err_t *err);
 void storage_scan_free(storage_scan_t *sc);
 void storage_scan_list_free(storage_scan_list_t *l);
 

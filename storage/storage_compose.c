@@ -23,6 +23,36 @@ int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *par
     return stg_commit(st, err);
 }
 
+int storage_scan_finish(storage_t *st, int64_t scan_id, int64_t job_id, const char *fit_params_json,
+                        int64_t *fit_job_id, err_t *err)
+{
+    if (!st || !fit_params_json || !fit_job_id)
+        return err_set(err, -EINVAL, "scan finish: NULL argument");
+    *fit_job_id = 0;
+    storage_scan_t sc;
+    int64_t fits = 0, fid = 0;
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    if ((ret = stg_scan_load(st, scan_id, &sc, err))) goto out;
+    int was_done = sc.state == STORAGE_DONE;
+    storage_scan_free(&sc);
+    if (!was_done)
+        ret = storage_scan_set_state(st, scan_id, STORAGE_DONE, NULL, err);
+    else
+        ret = stg_job_count(st, STORAGE_JOB_FIT, scan_id, &fits, err);
+    if (ret == 0 && fits == 0)
+        ret = stg_job_insert(st, STORAGE_JOB_FIT, fit_params_json, scan_id, &fid, err);
+    if (ret == 0) ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err);
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        return ret;
+    }
+    *fit_job_id = fid;
+    return 0;
+}
+
 /* The rows of one stored fit, inside the caller's transaction: the fit, the map it offers and
  * (promote) its calibration. */
 static int fit_rows(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,

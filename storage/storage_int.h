@@ -216,6 +216,8 @@ int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
 /* A running job's done units go from `from` to from + 1 (progress: the fraction): -ESTALE when
  * its count is not `from` (that unit is stored already), else as not_running. */
 int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *err);
+/* How many jobs of kind the scan has (any state), inside the caller's transaction. */
+int stg_job_count(storage_t *st, storage_job_kind_t kind, int64_t scan_id, int64_t *n, err_t *err);
 /* storage_job_finish's statement, inside the caller's transaction (or alone). */
 int stg_job_finish(storage_t *st, int64_t id, storage_state_t state, const char *error,
                    err_t *err);

@@ -349,6 +349,15 @@ static void bind_job_filter(sqlite3_stmt *q, int kind, int state, int64_t scan_i
     stg_bind_id(q, 3, scan_id, rc);
 }
 
+int stg_job_count(storage_t *st, storage_job_kind_t kind, int64_t scan_id, int64_t *n, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_JOB_COUNT, &q, err))) return ret;
+    bind_job_filter(q, kind, STORAGE_ANY, scan_id, &rc);
+    return stg_count(st, q, rc, n, err, "counting jobs");
+}
+
 int storage_job_list(storage_t *st, int kind, int state, int64_t scan_id, int limit, int offset,
                      storage_job_list_t *out, err_t *err)
 {

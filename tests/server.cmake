@@ -21,6 +21,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
     foreach(t flow:130 restart:380 input:80 promote:120 region:120 hostile:60 flood:200
             calib_cache:90
             log:60
+            scanend:120
             security:60
             static:60
             backup:240
