@@ -476,4 +476,17 @@ static void http_stop(void *handle)
     free(h);
 }
 
-const srv_frontend_t api_frontend = {http_start, http_quiesce, http_stop};
+/* SIGHUP: the request log's file reopened by name (api_log_reopen); stderr is left alone. */
+static void http_reopen_logs(void *handle)
+{
+    api_http_t *h = handle;
+    err_t err = {{0}};
+    if (!h || h->log_fd <= STDERR_FILENO) return;
+    if (api_log_reopen(srv_config(h->srv)->access_log, h->log_fd, &err))
+        fprintf(stderr, "ipsd: SIGHUP: %s (still writing to the old file)\n", err.msg);
+    else
+        fprintf(stderr, "ipsd: SIGHUP: reopened the request log %s\n",
+                srv_config(h->srv)->access_log);
+}
+
+const srv_frontend_t api_frontend = {http_start, http_quiesce, http_stop, http_reopen_logs};

@@ -26,6 +26,19 @@ int api_log_open(const char *access_log, int *fd, err_t *err)
     return 0;
 }
 
+int api_log_reopen(const char *access_log, int fd, err_t *err)
+{
+    if (fd <= STDERR_FILENO) return 0;
+    int nfd, ret = api_log_open(access_log, &nfd, err);
+    if (ret) return ret;
+    if (dup2(nfd, fd) < 0)
+        ret = err_set(err, -errno, "--access-log: %s", strerror(errno));
+    else
+        fcntl(fd, F_SETFD, FD_CLOEXEC); /* dup2 cleared it */
+    close(nfd);
+    return ret;
+}
+
 void api_log_close(int fd)
 {
     if (fd > STDERR_FILENO) close(fd);

@@ -15,6 +15,12 @@
 int api_log_open(const char *access_log, int *fd, err_t *err);
 void api_log_close(int fd); /* closes a file's descriptor (not stderr's); accepts -1 */
 
+/* Log rotation (SIGHUP): opens access_log again by name and puts the new file behind fd with
+ * dup2, which swaps it atomically: a line being written goes whole to the old file or the new,
+ * and no HTTP thread ever sees a closed descriptor. 0 (also for stderr and "off": nothing to
+ * reopen), or -errno with err, fd then still writing to the old file. */
+int api_log_reopen(const char *access_log, int fd, err_t *err);
+
 /* Writes the line of one finished request:
  *   TIME CLIENT METHOD PATH STATUS BYTES MSms[ aborted]
  * TIME UTC ISO 8601 with milliseconds, CLIENT the peer address, PATH percent-encoded where not

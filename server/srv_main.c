@@ -49,7 +49,7 @@ static void mem_trim(void)
 #endif
 }
 
-/* Waits for SIGINT / SIGTERM, trimming the allocator meanwhile; returns the signal. */
+/* Waits for SIGINT / SIGTERM / SIGHUP, trimming the allocator meanwhile; returns the signal. */
 static int wait_signal(const sigset_t *sigs)
 {
     for (;;) {
@@ -80,7 +80,9 @@ static int serve(srv_t *srv, const srv_frontend_t *fe, const sigset_t *sigs)
             "worker%s)\n",
             strchr(cfg->host, ':') ? "[" : "", cfg->host, strchr(cfg->host, ':') ? "]" : "", port,
             cfg->db_path, cfg->bench, cfg->workers, cfg->workers == 1 ? "" : "s");
-    sig = wait_signal(sigs);
+    /* SIGHUP: logrotate renamed the log; reopen it by name and go on serving */
+    while ((sig = wait_signal(sigs)) == SIGHUP)
+        if (fe->reopen_logs) fe->reopen_logs(front);
     fprintf(stderr, "ipsd: %s: stopping (running scans resume at the next start)\n",
             sig == SIGINT ? "SIGINT" : "SIGTERM");
     fe->quiesce(front);
@@ -111,10 +113,12 @@ int srv_main(int argc, char **argv, const srv_frontend_t *fe)
      * before sigwait could take it. */
     signal(SIGINT, SIG_DFL);
     signal(SIGTERM, SIG_DFL);
+    signal(SIGHUP, SIG_DFL);
     sigset_t sigs;
     sigemptyset(&sigs);
     sigaddset(&sigs, SIGINT);
     sigaddset(&sigs, SIGTERM);
+    sigaddset(&sigs, SIGHUP);
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
     signal(SIGPIPE, SIG_IGN);
     mem_setup();

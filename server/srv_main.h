@@ -14,12 +14,15 @@ typedef struct srv_frontend {
     void (*quiesce)(void *handle);
     /* ends every connection and frees the front end (after srv_stop ended the event streams) */
     void (*stop)(void *handle);
+    /* reopens the front end's log files (SIGHUP, after logrotate renamed them); NULL: none */
+    void (*reopen_logs)(void *handle);
 } srv_frontend_t;
 
 /* Runs ipsd: parses argv, opens the server, starts the workers and the front end, waits for
- * SIGINT or SIGTERM, then stops in order: no new connections, workers stop (the scan in flight
- * stores its point and goes back to the queue), event streams end, connections close.
- * Returns the process exit code: 0 (also after --help), 1 (cannot start), 2 (bad arguments). */
+ * SIGINT or SIGTERM (SIGHUP meanwhile reopens the log files: fe->reopen_logs), then stops in order:
+ * no new connections, workers stop (the scan in flight stores its point and goes back to the
+ * queue), event streams end, connections close. Returns the process exit code: 0 (also after
+ * --help), 1 (cannot start), 2 (bad arguments). */
 int srv_main(int argc, char **argv, const srv_frontend_t *fe);
 
 #endif
