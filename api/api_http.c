@@ -8,9 +8,11 @@
  *
  * Access: writes need a write token when --token is given; with --read-token, reads under /api
  * (but /api/health and /api/openapi.json) need a read or write token (server/srv_token.h: only
- * digests are kept, compared in constant time). CORS is off unless --cors-origin names the one
- * origin allowed: then its requests get Access-Control-Allow-Origin and its preflight OPTIONS
- * requests are answered. Every request ends with a line in the request log (api_log.h). */
+ * digests are kept, compared in constant time); GET /api/events also takes ?ticket= of
+ * POST /api/events/ticket in place of the header (read-only, short-lived: srv_token.h). CORS is off
+ * unless --cors-origin names the one origin allowed: then its requests get
+ * Access-Control-Allow-Origin and its preflight OPTIONS requests are answered. Every request ends
+ * with a line in the request log (api_log.h). */
 #include <arpa/inet.h>
 #include <errno.h>
 #include <stdarg.h>
@@ -22,6 +24,8 @@
 #include <sys/resource.h>
 #include <sys/socket.h>
 #include <unistd.h>
+
+#include "base/clock.h"
 
 #include "api_calib_cache.h"
 #include "api_conn.h"
@@ -208,6 +212,11 @@ static int check_request(api_req_t *q, const char *method, const char *url)
     const char *auth =
         MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION);
     int have = need && cfg->n_tokens ? bearer_level(cfg, auth) : need;
+    if (have < need && need == SRV_TOKEN_READ && !auth && q->route->fn == api_h_events &&
+        srv_token_ticket_check(
+            MHD_lookup_connection_value(q->conn, MHD_GET_ARGUMENT_KIND, "ticket"),
+            (long long)clock_mono_ms()))
+        have = SRV_TOKEN_READ; /* a browser's EventSource: the ticket in place of the header */
     if (have < need && have == SRV_TOKEN_NONE) {
         api_error(q, 401, "unauthorized", NULL, "%s %s needs 'Authorization: Bearer <token>'%s",
                   method, url, need == SRV_TOKEN_READ ? " (a read or write token)" : "");

@@ -136,6 +136,7 @@ json_t *api_time(int64_t ms);
 /* ---- handlers ---- */
 
 void api_h_health(api_req_t *q);
+void api_h_events_ticket(api_req_t *q);
 void api_h_openapi(api_req_t *q);
 void api_h_sensors_list(api_req_t *q);
 void api_h_sensors_create(api_req_t *q);

@@ -37,6 +37,7 @@ static const api_route_t routes[] = {
     {"GET", "/api/jobs/{id}", api_h_job_get, 0},
     {"POST", "/api/jobs/{id}/cancel", api_h_job_cancel, 0},
     {"GET", "/api/events", api_h_events, 0},
+    {"POST", "/api/events/ticket", api_h_events_ticket, 0},
     {"POST", "/api/backup", api_h_backup, 0},
     {"GET", "/api/calibrations/{id}/map.fits", api_h_calib_fits, 0},
     {"GET", "/api/sensors/{id}/pixels/{col}/{row}/calibration.fits", api_h_pixel_calib_fits, 0},
@@ -48,7 +49,8 @@ static const api_route_t routes[] = {
 /* POSTs that only compute and store nothing: they need what a read needs, not a write token. */
 int api_route_computes_only(const api_route_t *r)
 {
-    return r && !strcmp(r->method, "POST") && !strcmp(r->pattern, "/api/jitter");
+    return r && !strcmp(r->method, "POST") &&
+           (!strcmp(r->pattern, "/api/jitter") || !strcmp(r->pattern, "/api/events/ticket"));
 }
 
 const api_route_info_t *api_route_list(size_t *n)

@@ -5,7 +5,8 @@
  *   event: job / id: SEQ / data: {"id", "kind", "state", "progress", "points_done",
  *   "points_total", "eta_s", "scan_id", "fit_id", "phase", "error"}
  * and a ": heartbeat" comment every --heartbeat seconds. ?job=ID sends that job's events only,
- * starting with its current state. */
+ * starting with its current state. POST /api/events/ticket gives a client that cannot send a
+ * header (a browser's EventSource) a short-lived ticket for ?ticket= (server/srv_token.h). */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -13,6 +14,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#include "base/clock.h"
+#include "server/srv_token.h"
 
 #include "api_int.h"
 
@@ -123,6 +127,20 @@ static void first_event(api_req_t *q, struct sse *s)
     if (j.error) snprintf(ev.error, sizeof ev.error, "%s", j.error);
     put_event(s, &ev);
     storage_job_free(&j);
+}
+
+void api_h_events_ticket(api_req_t *q)
+{
+    char t[SRV_TICKET_MAX];
+    err_t err = {{0}};
+    if (srv_token_ticket((long long)clock_mono_ms(), SRV_TICKET_TTL_MS, t, &err)) {
+        api_error(q, 500, "internal", NULL, "%s", err.msg);
+        return;
+    }
+    api_reply_json(q, 200,
+                   json_pack("{s:s, s:i}", "ticket", t, "expires_in_s", SRV_TICKET_TTL_MS / 1000));
+    if (q->resp) MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
+    explicit_bzero(t, sizeof t);
 }
 
 void api_h_events(api_req_t *q)

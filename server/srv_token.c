@@ -4,10 +4,14 @@
 #include "server/srv_token.h"
 
 #include <errno.h>
+#include <nettle/hmac.h>
 #include <nettle/memops.h>
 #include <nettle/sha2.h>
+#include <pthread.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
 
 #define TOKEN_FILE_MAX 65536 /* a token file larger than this is refused */
 
@@ -125,4 +129,59 @@ int srv_token_level(const srv_config_t *cfg, const char *token, size_t n)
     }
     explicit_bzero(d, sizeof d);
     return level;
+}
+
+/* ---- event-stream tickets ---- */
+
+static unsigned char ticket_key[32]; /* drawn once per process (ticket_key_init) */
+static int ticket_key_ok;
+static pthread_once_t ticket_once = PTHREAD_ONCE_INIT;
+
+static void ticket_key_init(void)
+{
+    ticket_key_ok = getrandom(ticket_key, sizeof ticket_key, 0) == (ssize_t)sizeof ticket_key;
+}
+
+/* The hex HMAC-SHA256 of "ipsd-events:EXPIRY" (expiry: its decimal text) into hex. */
+static void ticket_mac(const char *expiry, char hex[2 * SHA256_DIGEST_SIZE + 1])
+{
+    struct hmac_sha256_ctx ctx;
+    unsigned char d[SHA256_DIGEST_SIZE];
+    static const char tag[] = "ipsd-events:";
+    hmac_sha256_set_key(&ctx, sizeof ticket_key, ticket_key);
+    hmac_sha256_update(&ctx, sizeof tag - 1, (const uint8_t *)tag);
+    hmac_sha256_update(&ctx, strlen(expiry), (const uint8_t *)expiry);
+    hmac_sha256_digest(&ctx, sizeof d, d);
+    explicit_bzero(&ctx, sizeof ctx);
+    for (int i = 0; i < SHA256_DIGEST_SIZE; i++)
+        snprintf(hex + 2 * i, 3, "%02x", d[i]);
+}
+
+int srv_token_ticket(long long now_ms, long long ttl_ms, char out[SRV_TICKET_MAX], err_t *err)
+{
+    pthread_once(&ticket_once, ticket_key_init);
+    out[0] = 0;
+    if (!ticket_key_ok) return err_set(err, -EIO, "no random key for event tickets (getrandom)");
+    char expiry[24], mac[2 * SHA256_DIGEST_SIZE + 1];
+    snprintf(expiry, sizeof expiry, "%lld", now_ms + ttl_ms);
+    ticket_mac(expiry, mac);
+    snprintf(out, SRV_TICKET_MAX, "%s.%s", expiry, mac);
+    return 0;
+}
+
+int srv_token_ticket_check(const char *ticket, long long now_ms)
+{
+    pthread_once(&ticket_once, ticket_key_init);
+    if (!ticket_key_ok || !ticket) return 0;
+    const char *dot = strchr(ticket, '.');
+    size_t n = dot ? (size_t)(dot - ticket) : 0;
+    if (n == 0 || n > 19 || strlen(dot + 1) != 2 * SHA256_DIGEST_SIZE) return 0;
+    char expiry[24], mac[2 * SHA256_DIGEST_SIZE + 1];
+    for (size_t i = 0; i < n; i++)
+        if (ticket[i] < '0' || ticket[i] > '9') return 0;
+    memcpy(expiry, ticket, n);
+    expiry[n] = 0;
+    ticket_mac(expiry, mac);
+    int same = memeql_sec(mac, dot + 1, 2 * SHA256_DIGEST_SIZE);
+    return same && strtoll(expiry, NULL, 10) > now_ms;
 }

@@ -534,6 +534,33 @@ static void test_config(void)
     unlink(path);
 }
 
+/* Event-stream tickets (srv_token.h): "EXPIRY.MAC" with EXPIRY = now + ttl, valid strictly
+ * before EXPIRY on the clock given, and nothing altered passes. */
+static void test_tickets(void)
+{
+    char t[SRV_TICKET_MAX], u[SRV_TICKET_MAX];
+    err_t err = {{0}};
+    CHECK(srv_token_ticket(1000, 60000, t, &err) == 0);
+    CHECK(strncmp(t, "61000.", 6) == 0 && strlen(t) == 6 + 64);
+    CHECK(strspn(t + 6, "0123456789abcdef") == 64);
+    CHECK(srv_token_ticket_check(t, 1000) == 1);
+    CHECK(srv_token_ticket_check(t, 60999) == 1);
+    CHECK(srv_token_ticket_check(t, 61000) == 0); /* expired */
+    CHECK(srv_token_ticket_check(t, 1000000) == 0);
+    snprintf(u, sizeof u, "%s", t);
+    u[strlen(u) - 1] = u[strlen(u) - 1] == '0' ? '1' : '0'; /* the MAC altered */
+    CHECK(srv_token_ticket_check(u, 1000) == 0);
+    snprintf(u, sizeof u, "9%s", t); /* the expiry moved later, the MAC kept */
+    CHECK(srv_token_ticket_check(u, 1000) == 0);
+    snprintf(u, sizeof u, "%.*s", (int)strlen(t) - 1, t); /* truncated */
+    CHECK(srv_token_ticket_check(u, 1000) == 0);
+    CHECK(srv_token_ticket_check("", 0) == 0 && srv_token_ticket_check(NULL, 0) == 0);
+    CHECK(srv_token_ticket_check(".", 0) == 0 && srv_token_ticket_check("61000", 0) == 0);
+    char v[SRV_TICKET_MAX];
+    CHECK(srv_token_ticket(1000, 60000, v, &err) == 0 && strcmp(v, t) == 0); /* same key */
+    CHECK(srv_token_ticket(1001, 60000, v, &err) == 0 && strcmp(v + 6, t + 6) != 0);
+}
+
 int main(void)
 {
     const char *base = getenv("TMPDIR");
@@ -545,6 +572,7 @@ int main(void)
     test_fit_run();
     test_params();
     test_config();
+    test_tickets();
     char wal[600];
     snprintf(wal, sizeof wal, "%s/pixel.db-wal", tmpdir);
     unlink(wal);

@@ -10,11 +10,17 @@
     a token, a token's hash or a query string; a control character in a path cannot break a line;
   - no Access-Control-* header by default (and OPTIONS stays 405); with --cors-origin the allowed
     origin gets Access-Control-Allow-Origin and its preflight 204, another origin neither;
-  - bad token configurations stop ipsd at start (exit 2, naming the option)."""
+  - bad token configurations stop ipsd at start (exit 2, naming the option);
+  - the event stream without a header (a browser's EventSource, reads closed): POST
+    /api/events/ticket needs a read or write token and gives a ticket, GET /api/events?ticket=
+    opens with it; a tampered ticket, a ticket on another read, and a ticket with a header of a
+    wrong token get 401; no ticket is in the request log."""
 import hashlib
 import os
 import re
 import subprocess
+import sys
+import urllib.parse
 
 import ipsd_http
 from ipsd_http import Db, Ipsd
@@ -121,6 +127,37 @@ def test(c, t, argv, daemons):
     c.status(d.post("/api/jitter", jit, headers=bearer(READER)), 200,
              "POST /api/jitter with the read token")
 
+    # ---- the event stream with a ticket (reads closed) ----
+    c.error(d.get("/api/events"), 401, "", "GET /api/events without a token")
+    c.error(d.post("/api/events/ticket"), 401, "", "POST /api/events/ticket without a token")
+    c.error(d.post("/api/events/ticket", headers=bearer("nope")), 401, "", "... a wrong token")
+    tickets = []
+    for tok, name in ((READER, "read"), (WRITER_HASHED, "write")):
+        r = d.post("/api/events/ticket", headers=bearer(tok))
+        c.status(r, 200, "a ticket with the %s token" % name)
+        c.eq(r.headers.get("Cache-Control"), "no-store", "a ticket is never cached")
+        b = r.json()
+        c.ok(isinstance(b.get("ticket"), str) and b.get("expires_in_s") == 60,
+             "the ticket and its lifetime: %r" % b)
+        tickets.append(b.get("ticket") or "")
+    q = urllib.parse.quote(tickets[0], safe="")
+    s = ipsd_http.EventStream(d.port, "/api/events?ticket=" + q)
+    c.eq((s.status, bool(s.ready)), (200, True), "GET /api/events?ticket= opens the stream")
+    c.ok(s.content_type.startswith("text/event-stream"), "an event stream")
+    s.close()
+    t0 = tickets[0]
+    flip = t0[:-1] + ("0" if t0[-1] != "0" else "1")
+    later = str(int(t0.split(".")[0]) + 3600000) + "." + t0.split(".", 1)[1]
+    for bad, name in ((flip, "a ticket with its MAC altered"),
+                      (later, "a ticket with its expiry moved later"),
+                      ("x" * 40, "a made-up ticket"), ("", "an empty ticket")):
+        c.error(d.get("/api/events?ticket=" + urllib.parse.quote(bad, safe="")), 401, "",
+                "GET /api/events with " + name)
+    c.error(d.get("/api/sensors?ticket=" + q), 401, "", "a ticket opens nothing but the stream")
+    c.error(d.get("/api/events?ticket=" + q, headers=bearer("nope")), 401, "",
+            "a wrong token's header is not overridden by a ticket")
+    c.error(d.post("/api/sensors?ticket=" + q, body), 401, "", "nor does a ticket write")
+
     # ---- CORS off by default ----
     r = d.get("/api/health", headers={"Origin": "http://lab.example"})
     c.eq([k for k in r.headers if k.lower().startswith("access-control")], [],
@@ -159,6 +196,10 @@ def test(c, t, argv, daemons):
              (text + d.log_text()).lower()]
     c.eq(leaks, [], "no token nor token hash in the request log or ipsd's stderr")
     c.ok("limit=5" not in text and "token=" not in text, "no query string in the log")
+    c.ok(not [x for x in tickets if x and x in text + d.log_text()] and "ticket=" not in text,
+         "no ticket in the request log or ipsd's stderr")
+    c.ok(("GET", "/api/events", 200) in got and ("POST", "/api/events/ticket", 200) in got,
+         "the stream opened with a ticket and the ticket's request are logged (paths only)")
 
     # ---- CORS on; the default log on stderr ----
     d.start("--token", wfile, "--cors-origin", "http://lab.example")
@@ -194,5 +235,4 @@ def test(c, t, argv, daemons):
 
 
 if __name__ == "__main__":
-    import sys
     sys.exit(ipsd_http.main(test, sys.argv))

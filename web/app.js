@@ -1,9 +1,11 @@
 // app.js: the dashboard's entry point: the hash router (#/scans, #/scans/ID, #/fits/ID,
 // #/calibrations?filters, #/sensors/ID/pixels/COL/ROW), the token field (kept in localStorage,
-// sent as 'Authorization: Bearer' on writes), the server's health and the event-stream status.
+// sent as 'Authorization: Bearer'), the form asking for a token when reads answer 401
+// (token.js), the server's health and the event-stream status.
 import { get, getToken, onEventStatus, onJob, setToken } from './api.js';
 import { renderCalibrations, renderPixel } from './calib.js';
 import { fill, h } from './dom.js';
+import { setupTokenPrompt } from './token.js';
 import { renderFit } from './fit.js';
 import { renderScan } from './scan_detail.js';
 import { renderScans } from './scans_list.js';
@@ -57,6 +59,13 @@ function setupToken() {
     input.value = getToken();
     const show = () => { state.textContent = getToken() ? 'token set' : 'no token'; };
     show();
+    // reads closed: the prompt's token shows in the header too, and the view reads again
+    setupTokenPrompt(view, () => {
+        input.value = getToken();
+        show();
+        announce('Token set');
+        route();
+    });
     form.addEventListener('submit', (e) => {
         e.preventDefault();
         setToken(input.value.trim());

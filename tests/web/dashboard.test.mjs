@@ -14,7 +14,11 @@
 // calibration, the calibration search and its CSV link, the pixel view (its Plotly surface, the
 // comparison of two maps whose difference the test recomputes from the API's two maps, the CSV
 // download's numbers against the API's), cancels a long scan, no sideways scrolling at 390 px,
-// and checks that the page logged no console errors.
+// and checks that the page logged no console errors. Then, against a second ipsd whose reads are
+// closed (--read-token): the page asks for a token when its reads answer 401, says so when a
+// wrong one is entered, reads once the read token is entered, and its event stream (opened with a
+// ticket of POST /api/events/ticket, since an EventSource sends no header) gets a new scan's
+// events; the ticket never shows in ipsd's request log.
 //
 // Deterministic on a busy machine: every wait is for a condition (on the page, or polled from
 // the API) with a generous deadline, never for a time; the scan cancelled from the page is far
@@ -36,6 +40,7 @@ const [ipsdBin, webDir, shotArg] = process.argv.slice(2);
 // screenshots of the main pages at 1280 px and 390 px, for people to look at
 const SHOTS = shotArg || path.join(os.tmpdir(), 'ipsd-dashboard-screenshots');
 const TOKEN = 'e2e-Token-7f3a'; // ipsd runs with --token: writes need it
+const READ_TOKEN = 'e2e-Reader-41c9'; // the second ipsd also runs with --read-token
 const WAIT = 30000; // ms: the deadline of a wait for something the page shows soon
 const LONG_WAIT = 90000; // ms: the deadline of a wait for a scan or a fit to finish
 
@@ -89,12 +94,12 @@ async function until(fn, what, ms = WAIT) {
 
 // ---- the daemon ----
 
-async function startIpsd(tmp) {
+async function startIpsd(tmp, more = []) {
     const portFile = path.join(tmp, 'port');
     const log = fs.openSync(path.join(tmp, 'ipsd.log'), 'w');
     fs.writeFileSync(path.join(tmp, 'token'), `${TOKEN}\n`);
     const proc = spawn(ipsdBin, ['--listen', '127.0.0.1:0', '--port-file', portFile, '--db',
-        path.join(tmp, 'ipsd.db'), '--web', webDir, '--token', path.join(tmp, 'token')],
+        path.join(tmp, 'ipsd.db'), '--web', webDir, '--token', path.join(tmp, 'token'), ...more],
     { stdio: ['ignore', log, log] });
     let exited = null;
     proc.on('exit', (code, sig) => { exited = { code, sig }; });
@@ -859,6 +864,68 @@ async function run(base, page, api) {
     await page.setViewportSize({ width: 1280, height: 800 });
 }
 
+// The dashboard against an ipsd whose reads are closed (--read-token; api: the test's client,
+// sending the write token on every request): the token form, reads and events with the token.
+async function runReadClosed(context, base, api, logFile) {
+    const page = await context.newPage();
+    const errors = [], streams = [];
+    page.on('console', (msg) => {
+        if (msg.type() === 'error') errors.push(`${msg.text()} (${msg.location().url})`);
+    });
+    page.on('pageerror', (e) => errors.push(`uncaught: ${e.message}`));
+    page.on('request', (r) => {
+        if (r.url().includes('/api/events')) streams.push(r.url());
+    });
+    const raster = { area_px: 1, step_um: 2, sub_px: 3, frames: 1 };
+    const sensor = (await api('POST', '/api/sensors', { model: 'RC-CAM', serial: 'RC-1' })).body;
+    const first = (await api('POST', '/api/scans', { sensor_id: sensor.id,
+        poi: { col: 10, row: 10 }, raster })).body;
+    check((await api('GET', '/api/scans', undefined, false, '')).status === 401,
+        'reads closed: GET /api/scans without a token is 401');
+
+    await page.goto(`${base}/#/scans`, { timeout: LONG_WAIT });
+    const prompt = page.locator('[data-testid="token-prompt"]');
+    await prompt.waitFor({ timeout: WAIT });
+    check(await page.locator(`tr[data-scan-id="${first.scan.id}"]`).count() === 0 &&
+        await page.locator('#live').getAttribute('data-state') !== 'live',
+    'reads closed: the page asks for a token, shows no scan and has no event stream');
+    // a wrong token: refused, the form says so and stays
+    await typeInto(prompt.getByLabel('Token', { exact: true }), 'not-a-token');
+    await prompt.getByRole('button', { name: 'Use token' }).click();
+    await page.locator('[data-testid="token-prompt"] .token-why', { hasText: 'refused' })
+        .waitFor({ timeout: WAIT });
+    check(true, 'a wrong token is refused and the form asks again');
+    await typeInto(prompt.getByLabel('Token', { exact: true }), READ_TOKEN);
+    await prompt.getByRole('button', { name: 'Use token' }).click();
+    await page.locator(`tr[data-scan-id="${first.scan.id}"]`).waitFor({ timeout: WAIT });
+    check(await prompt.count() === 0, 'with the read token the scans are read, the form gone');
+    await page.locator('#live[data-state="live"]').waitFor({ timeout: WAIT });
+    const before = Number(await page.locator('#live').getAttribute('data-received'));
+    const second = (await api('POST', '/api/scans', { sensor_id: sensor.id,
+        poi: { col: 12, row: 12 }, raster })).body;
+    await page.locator(`tr[data-scan-id="${second.scan.id}"][data-state="done"]`)
+        .waitFor({ timeout: LONG_WAIT });
+    const after = Number(await page.locator('#live').getAttribute('data-received'));
+    check(after > before, 'the event stream delivers the new scan\'s job events',
+        `${before} -> ${after} events`);
+    const tickets = streams.map((u) => new URL(u).searchParams.get('ticket')).filter(Boolean);
+    check(tickets.length > 0 && streams.every((u) => new URL(u).pathname !== '/api/events' ||
+        new URL(u).searchParams.get('ticket')),
+    'the stream was opened with a ticket', streams.join(' '));
+    // expected: the browser logs the refused reads (401) as failed loads
+    const unexpected = errors.filter((e) => !/status of 401 /.test(e));
+    check(unexpected.length === 0, 'reads closed: no console errors but the 401s',
+        unexpected.join(' | '));
+    await page.screenshot({ path: path.join(SHOTS, 'read-token-1280.png'), fullPage: true });
+    await page.close(); // the stream ends: its request-log line is written now
+    const log = await until(() => {
+        const text = fs.readFileSync(logFile, 'utf8');
+        return / GET \/api\/events 200 /.test(text) && text;
+    }, 'the stream\'s line in the request log');
+    check(!log.includes('ticket=') && tickets.every((t) => !log.includes(t)) &&
+        !log.includes(READ_TOKEN), 'the request log has the stream but no ticket and no token');
+}
+
 // ---- main ----
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'ipsd-web-'));
@@ -867,7 +934,7 @@ const watchdog = setTimeout(() => {
     console.log('not ok - the test took over 420 s');
     process.exit(1);
 }, 420000);
-let daemon = null, context = null;
+let daemon = null, daemon2 = null, context = null;
 const consoleErrors = [];
 try {
     daemon = await startIpsd(tmp);
@@ -901,6 +968,21 @@ try {
     const unexpected = consoleErrors.filter((e) => !expected(e));
     consoleErrors.filter(expected).forEach((e) => console.log(`# expected: ${e}`));
     check(unexpected.length === 0, 'no console errors', unexpected.join(' | '));
+
+    // the second ipsd: reads closed
+    const tmp2 = path.join(tmp, 'read-closed');
+    fs.mkdirSync(tmp2);
+    fs.writeFileSync(path.join(tmp2, 'read-token'), `${READ_TOKEN}\n`);
+    daemon2 = await startIpsd(tmp2, ['--read-token', path.join(tmp2, 'read-token')]);
+    const base2 = `http://127.0.0.1:${daemon2.port}`;
+    const api2 = async (method, p, body, raw, token = TOKEN) => {
+        const headers = body ? { 'Content-Type': 'application/json' } : {};
+        if (token) headers.Authorization = `Bearer ${token}`;
+        const res = await fetch(base2 + p, { method, headers,
+            body: body ? JSON.stringify(body) : undefined });
+        return { status: res.status, body: raw ? await res.text() : await res.json() };
+    };
+    await runReadClosed(context, base2, api2, path.join(tmp2, 'ipsd.log'));
 } catch (e) {
     failed++;
     console.log(`not ok - ${e.stack || e}`);
@@ -914,6 +996,7 @@ try {
 } finally {
     await context?.close().catch(() => {});
     await stopIpsd(daemon, path.join(tmp, 'ipsd.log'));
+    await stopIpsd(daemon2, path.join(tmp, 'read-closed', 'ipsd.log'));
     fs.rmSync(tmp, { recursive: true, force: true });
     clearTimeout(watchdog);
 }
