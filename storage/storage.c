@@ -37,6 +37,35 @@ int storage_state_parse(const char *name, storage_state_t *out)
 
 /* ---- errors and statements ---------------------------------------------------------------- */
 
+/* A PRAGMA's integer (STG_PAGE_COUNT, STG_FREELIST_COUNT), -1 when it cannot be read. Prepared
+ * and run without stg_error: it runs while a storage fault is being recorded. */
+static int64_t pragma_int(storage_t *st, enum stg_id id)
+{
+    if (!st->stmt[id] && sqlite3_prepare_v3(st->db, stg_sql[id], -1, SQLITE_PREPARE_PERSISTENT,
+                                            &st->stmt[id], NULL) != SQLITE_OK) {
+        st->stmt[id] = NULL;
+        return -1;
+    }
+    int64_t v =
+        sqlite3_step(st->stmt[id]) == SQLITE_ROW ? sqlite3_column_int64(st->stmt[id], 0) : -1;
+    sqlite3_reset(st->stmt[id]);
+    return v;
+}
+
+/* A write committed: the storage is healthy again, but after a "full" fault only when the
+ * database has more room than it had at the fault (issue 10: an update in place, e.g. recording
+ * the failure, needs no new page and succeeds on a disk still full, and health then said ok).
+ * More room: it grew past its size at the fault (the disk or the page cap gave pages), or it
+ * has more free pages than then (data was deleted). Unknown sizes: any write clears it. */
+static void wrote_ok(storage_t *st)
+{
+    int64_t pages, free_pages;
+    if (stg_gate_full(st, &pages, &free_pages) && pages >= 0 && free_pages >= 0 &&
+        pragma_int(st, STG_PAGE_COUNT) <= pages && pragma_int(st, STG_FREELIST_COUNT) <= free_pages)
+        return;
+    stg_gate_ok(st);
+}
+
 /* stg_error with SQLite's message msg. A storage fault (the disk full, read-only, I/O errors, a
  * corrupt or vanished file) names the database and is recorded in the gate's health. */
 static int error_text(storage_t *st, int rc, const char *msg, err_t *err, const char *what)
@@ -67,7 +96,11 @@ static int error_text(storage_t *st, int rc, const char *msg, err_t *err, const 
     err_t e;
     err_set(&e, code, "%s: %s (%s, database %s)", what, msg, storage_fault_name(fault),
             db && *db ? db : "?");
-    if (st) stg_gate_fault(st, fault, e.msg);
+    if (st && st->db && fault == -ENOSPC) /* the room then, which a write must exceed to clear it */
+        stg_gate_fault(st, fault, e.msg, pragma_int(st, STG_PAGE_COUNT),
+                       pragma_int(st, STG_FREELIST_COUNT));
+    else if (st)
+        stg_gate_fault(st, fault, e.msg, -1, -1);
     if (err) *err = e;
     return code;
 }
@@ -166,7 +199,7 @@ int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
     if (ret == 0) {
         int rc = sqlite3_step(s);
         ret = rc == SQLITE_DONE ? 0 : stg_error(st, rc, err, what);
-        if (ret == 0 && gated && sqlite3_changes(st->db)) stg_gate_ok(st);
+        if (ret == 0 && gated && sqlite3_changes(st->db)) wrote_ok(st);
     }
     stg_reset(s);
     if (gated) stg_gate_leave(st);
@@ -275,7 +308,7 @@ int stg_commit(storage_t *st, err_t *err)
         stg_gate_committed(st);
         stg_gate_leave(st);
     }
-    if (ret == 0 && wrote) stg_gate_ok(st);
+    if (ret == 0 && wrote) wrote_ok(st);
     return ret;
 }
 

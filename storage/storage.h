@@ -55,7 +55,8 @@ int storage_calib_generation(storage_t *st, uint64_t *gen);
 /* The storage's health as the gate saw it (issue 10, "Storage faults"): every handle sharing the
  * gate records there a write (or read) that failed because of the storage itself - SQLITE_FULL
  * (fault -ENOSPC, "full"), SQLITE_READONLY (-EROFS, "read-only"), SQLITE_IOERR / SQLITE_CORRUPT /
- * SQLITE_CANTOPEN (-EIO, "io-error") - and a write that commits clears it. msg: the last fault's
+ * SQLITE_CANTOPEN (-EIO, "io-error") - and a write that commits clears it ("full": only when the
+ * database then has more pages or more free pages than at the fault). msg: the last fault's
  * message (which names the database), kept after it clears; since_ms: when the current fault
  * began (wall clock), 0 when healthy; faults: how many failed operations so far. */
 typedef struct storage_health {

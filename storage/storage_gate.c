@@ -31,6 +31,7 @@ struct storage_gate {
     atomic_uint_least64_t calib_gen; /* committed transactions that stored a calibration */
     pthread_mutex_t health_mu; /* guards health */
     storage_health_t health;
+    int64_t full_pages, full_free; /* at the last "full" fault: the database's (free) pages */
     char fault_file[PATH_MAX]; /* test hook: "" none */
     long long max_pages;       /* test hook: 0 none */
 };
@@ -94,16 +95,30 @@ void storage_gate_health(storage_gate_t *g, storage_health_t *out)
     pthread_mutex_unlock(&g->health_mu);
 }
 
-void stg_gate_fault(storage_t *st, int code, const char *msg)
+void stg_gate_fault(storage_t *st, int code, const char *msg, int64_t pages, int64_t free_pages)
 {
     storage_gate_t *g = st->gate;
     if (!g) return;
     pthread_mutex_lock(&g->health_mu);
+    g->full_pages = pages;
+    g->full_free = free_pages;
     if (!g->health.fault || g->health.fault != code) g->health.since_ms = clock_wall_ms();
     g->health.fault = code;
     g->health.faults++;
     snprintf(g->health.msg, sizeof g->health.msg, "%s", msg);
     pthread_mutex_unlock(&g->health_mu);
+}
+
+int stg_gate_full(storage_t *st, int64_t *pages, int64_t *free_pages)
+{
+    storage_gate_t *g = st->gate;
+    if (!g) return 0;
+    pthread_mutex_lock(&g->health_mu);
+    int full = g->health.fault == -ENOSPC;
+    *pages = g->full_pages;
+    *free_pages = g->full_free;
+    pthread_mutex_unlock(&g->health_mu);
+    return full;
 }
 
 void stg_gate_ok(storage_t *st)

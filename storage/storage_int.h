@@ -16,6 +16,8 @@ enum stg_id {
     STG_COMMIT,
     STG_ROLLBACK,
     STG_USER_VERSION,
+    STG_PAGE_COUNT,
+    STG_FREELIST_COUNT,
     STG_SENSOR_INSERT,
     STG_SENSOR_GET,
     STG_SENSOR_FIND,
@@ -122,10 +124,13 @@ int stg_gate_enter(storage_t *st);
 void stg_gate_leave(storage_t *st);
 /* After COMMIT succeeded: counts a calibration change when the transaction stored one. */
 void stg_gate_committed(storage_t *st);
-/* The gate's health (storage.h): a storage fault (code -ENOSPC, -EROFS or -EIO, message msg), or
- * a write that committed. No-ops without a gate. */
-void stg_gate_fault(storage_t *st, int code, const char *msg);
+/* The gate's health (storage.h): a storage fault (code -ENOSPC, -EROFS or -EIO, message msg;
+ * for -ENOSPC the database's pages and free pages then, -1 unknown), or a write that committed.
+ * No-ops without a gate. */
+void stg_gate_fault(storage_t *st, int code, const char *msg, int64_t pages, int64_t free_pages);
 void stg_gate_ok(storage_t *st);
+/* 1 when the current fault is "full", with the pages and free pages recorded at it; else 0. */
+int stg_gate_full(storage_t *st, int64_t *pages, int64_t *free_pages);
 /* The test hook's injected fault for a write beginning now: an SQLite result code, SQLITE_OK for
  * none (storage_gate_set_test_faults). */
 int stg_gate_injected(storage_t *st);

@@ -230,6 +230,8 @@ const char *const stg_sql[STG_N] = {
     [STG_COMMIT] = "COMMIT",
     [STG_ROLLBACK] = "ROLLBACK",
     [STG_USER_VERSION] = "PRAGMA user_version",
+    [STG_PAGE_COUNT] = "PRAGMA page_count",
+    [STG_FREELIST_COUNT] = "PRAGMA freelist_count",
 
     [STG_SENSOR_INSERT] =
         "INSERT INTO sensors (model, serial, n_cols, n_rows, pitch_um, gain_e_per_dn, "

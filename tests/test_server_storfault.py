@@ -100,11 +100,14 @@ def test(c, t, argv, daemons):
     n1 = db.val("SELECT count(*) FROM frames WHERE scan_id = ?", s1)
     c.ok(0 < n1 < TOTAL, "failed mid-scan (%d points)" % n1)
     c.eq(db.val("SELECT points_done FROM scans WHERE id = ?", s1), n1, "points_done = rows")
-    # (recording the failure, an update in place, needed no new page: the storage answers
-    # again, so health says ok and keeps the fault's message)
+    # recording the failure, an update in place, needed no new page and succeeded, but the
+    # database is as full as before: health still says full (it said ok before: any committed
+    # write cleared the fault), until a write finds more room than at the fault
     h = d.get("/api/health").json()
     c.ok("full" in (h.get("storage_error") or "") and d.db in h["storage_error"] and
          h.get("storage_faults", 0) > 0, "health tells the fault and the database: %r" % h)
+    c.eq(h.get("storage"), "full", "health: still full after a write in place succeeded")
+    c.ok(h.get("storage_fault_since_ms"), "and since when")
     check_reads(d, s1, "disk full")
     kept = means(db, s1)
     # the instrument is free: the next scan runs (and fails too: still full)
@@ -112,6 +115,7 @@ def test(c, t, argv, daemons):
     if c.status(r, 202, "the next scan is accepted"):
         failed_with(d, db, r.json()["job"]["id"], r.json()["scan"]["id"], ["full"],
                     "next scan, still full")
+    c.eq(d.get("/api/health").json().get("storage"), "full", "health: full while it is")
     # space comes back: the filler's pages become free pages
     db.all("DELETE FROM filler")
     r = d.post("/api/scans", scan_body(sensor, 32, SMALL))
