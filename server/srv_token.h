@@ -33,7 +33,7 @@ int srv_token_load(const char *opt, const char *path, int level, srv_config_t *c
  * about how much of a token was right. */
 int srv_token_level(const srv_config_t *cfg, const char *token, size_t n);
 
-/* Event-stream tickets (docs/api.md, "Access"): a browser's EventSource cannot send an
+/* Event-stream tickets (docs/api.md, Conventions): a browser's EventSource cannot send an
  * Authorization header, so with --read-token a client holding a read or write token first asks
  * for a ticket (POST /api/events/ticket) and opens GET /api/events?ticket=T. A ticket is
  * "EXPIRY.HMAC": EXPIRY the monotonic clock's milliseconds when it stops opening streams, HMAC

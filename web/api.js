@@ -3,7 +3,7 @@
 // body, a signal when a request answers 401 (token.js asks for a token then), and one shared
 // EventSource on /api/events that hands job events to whoever subscribed. An EventSource cannot
 // send a header, so the stream is opened with a short-lived ticket of POST /api/events/ticket
-// (docs/api.md, "Access"), and opened again with a new ticket when the browser gives it up.
+// (docs/api.md, Conventions), and opened again with a new ticket when the browser gives it up.
 
 const TOKEN_KEY = 'ipsd.token';
 const RETRY_MS = 3000; // a closed stream is opened again after this (the server's retry: too)
