@@ -538,7 +538,7 @@ static void test_config(void)
  * before EXPIRY on the clock given, and nothing altered passes. */
 static void test_tickets(void)
 {
-    char t[SRV_TICKET_MAX], u[SRV_TICKET_MAX];
+    char t[SRV_TICKET_MAX], u[2 * SRV_TICKET_MAX];
     err_t err = {{0}};
     CHECK(srv_token_ticket(1000, 60000, t, &err) == 0);
     CHECK(strncmp(t, "61000.", 6) == 0 && strlen(t) == 6 + 64);
