@@ -227,7 +227,8 @@ async function checkScanPage(page, api, scan, sensor) {
             sh.type === 'rect' && sh.x0 === 0 && sh.y0 === 0 && near(sh.x1, pitch, 1e-12) &&
                 near(sh.y1, pitch, 1e-12)),
         `the raster of pixel (${dcol}, ${drow}) has µm axes and the pixel outlined`);
-        // the CSV download: the API's numbers, sigma by the paper's eq. 5, the pitch in a comment
+        // the CSV download: the API's numbers, sigma by the paper's eq. 5 (computed here: the
+        // page takes the API's sigma_dn), the pitch in a comment
         const csv = (await download(page, page.locator('[data-testid="raster-csv"]')))
             .trim().split('\n');
         const comments = csv.filter((l) => l.startsWith('#'));
@@ -821,6 +822,7 @@ async function run(base, page, api) {
     check(await page.locator(`tr[data-scan-id="${longId}"] button`).count() === 0,
         'a cancelled scan has no Cancel button');
     await page.screenshot({ path: path.join(SHOTS, 'scans-1280.png') });
+    await checkLiveZoom(base, page, api, sensor);
 
     // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box, the
     // Fit view's plots drawn (their pairs stacked)
@@ -857,6 +859,69 @@ async function run(base, page, api) {
         }
     }
     await page.setViewportSize({ width: 1280, height: 800 });
+}
+
+// A running scan's raster keeps the user's zoom across the page's refreshes (Plotly.react with a
+// stable uirevision): a scan of 161 x 161 points (about a minute here, cancelled after the
+// check) is opened, a box is dragged on its raster with the mouse like a person zooms (a
+// scripted Plotly.relayout is not a user's edit: Plotly's uirevision keeps only those), then
+// the page's own refresh counter (data-updates) is waited for: the axes still show the zoomed
+// box, and the figure holds more points than before (the refresh redrew it).
+async function checkLiveZoom(base, page, api, sensor) {
+    const step = (5 * sensor.pitch_um) / 160; // area 5 pixels: 161 points per axis
+    const made = await api('POST', '/api/scans', { sensor_id: sensor.id,
+        poi: { col: 30, row: 20 }, optics: { wavelength_nm: 550, na: 0.25 },
+        raster: { area_px: 5, step_um: step, sub_px: 3, frames: 1 }, scene: 'paperlike' });
+    check(made.status === 202, 'a long scan for the live raster is queued', JSON.stringify(made));
+    const id = made.body.scan.id;
+    await page.goto(`${base}/#/scans/${id}`);
+    const sel = '[data-testid="raster-map"][data-state="ready"]';
+    await page.locator(`${sel}[data-pixel="0,0"]`).waitFor({ timeout: LONG_WAIT });
+    const axes = () => page.$eval('[data-testid="raster-map"]', (g) => ({
+        x: [...g._fullLayout.xaxis.range], y: [...g._fullLayout.yaxis.range],
+        updates: Number(g.dataset.updates || 0), points: Number(g.dataset.points),
+        state: g.dataset.state }));
+    const before = await axes();
+    // drag a box over the middle of the plot area, from 35 % to 60 % of each axis
+    await page.locator('[data-testid="raster-map"]').scrollIntoViewIfNeeded();
+    const box = await page.$eval('[data-testid="raster-map"]', (g) => {
+        const fl = g._fullLayout, b = g.getBoundingClientRect();
+        const at = (ax, f, off) => off + ax._offset + f * ax._length;
+        return [at(fl.xaxis, 0.35, b.left), at(fl.yaxis, 0.35, b.top), at(fl.xaxis, 0.6, b.left),
+            at(fl.yaxis, 0.6, b.top)];
+    });
+    await page.mouse.move(box[0], box[1]);
+    await page.mouse.down();
+    await page.mouse.move(box[2], box[3], { steps: 8 });
+    await page.mouse.up();
+    const span = (r) => Math.abs(r[1] - r[0]);
+    const zoomed = await until(async () => {
+        const a = await axes();
+        return span(a.x) < 0.8 * span(before.x) && a;
+    }, 'the drag to zoom the raster');
+    // the page's next refresh of the figure (new points stored), whatever its cause
+    await page.waitForFunction(([n, p]) => {
+        const g = document.querySelector('[data-testid="raster-map"]');
+        return g && Number(g.dataset.updates || 0) > n && Number(g.dataset.points) > p &&
+            g.dataset.state === 'ready';
+    }, [zoomed.updates, zoomed.points], { timeout: LONG_WAIT, polling: 100 });
+    const after = await axes();
+    const same = (a, b) => a.every((v, k) => near(v, b[k], 1e-9));
+    check(same(after.x, zoomed.x) && same(after.y, zoomed.y) && after.points > zoomed.points,
+        'a running scan\'s raster keeps the user\'s zoom when the page refreshes it',
+        JSON.stringify({ before, zoomed, after }));
+    // the zoom radio still sets the axes (a new uirevision), then the refreshes keep that
+    await page.locator('[data-testid="zoom-pixel"]').check();
+    const px = await until(async () => {
+        const a = await axes();
+        return a.x[1] - a.x[0] < 1.2 * sensor.pitch_um && a.x[0] < 0 && a;
+    }, 'the zoom to the pixel');
+    check(px.x[1] > sensor.pitch_um, 'the "the pixel" zoom still applies to a live raster',
+        JSON.stringify(px));
+    const cancel = await api('POST', `/api/scans/${id}/cancel`);
+    await until(async () => (await api('GET', `/api/scans/${id}`)).body.state === 'cancelled',
+        'the live-raster scan to be cancelled');
+    check(cancel.status < 300, 'the live-raster scan is cancelled', JSON.stringify(cancel));
 }
 
 // ---- main ----
