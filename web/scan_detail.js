@@ -139,8 +139,16 @@ export function renderScan(root, id, ctx) {
     }
 
     // The raster of the chosen pixel (every point), then its figure; while the scan runs
-    // (fresh false) not re-read when it has every point stored so far.
+    // (fresh false) not re-read when it has every point stored so far; not asked for before a
+    // point is stored (the API answers 409 before the scan's setup).
     async function loadRaster(fresh = true) {
+        if (scan && !(scan.points_done > 0)) {
+            rasterData = null;
+            rasterKey = '';
+            purgeIn(rasterSlot);
+            fill(rasterSlot, h('p', { class: 'muted' }, 'No points stored yet.'));
+            return;
+        }
         const have = rasterData && rasterData.dcol === sel.dcol && rasterData.drow === sel.drow;
         if (!fresh && have && rasterData.x_um.length === scan?.points_done) return;
         rasterAt = Date.now();

@@ -59,6 +59,34 @@ if (!fs.existsSync(path.join(webDir, 'node_modules', 'plotly.js-dist-min', 'plot
 if (!fs.existsSync(CHROMIUM)) skip(`${CHROMIUM} is missing: apt-get install chromium`);
 const { chromium } = await import('playwright-core');
 
+// With IPSD_API_RECORD_DIR set (tests/web.cmake sets it), every JSON answer of /api/ the page
+// or the test itself gets is appended to DIR/web_dashboard.<pid>.jsonl, the format of
+// tests/ipsd_http.py (method, path, status, content type, body, request), which the
+// openapi_answers test checks against api/openapi.json; the event stream is not (never ends).
+const RECORD_DIR = process.env.IPSD_API_RECORD_DIR;
+const RECORD_FILE = RECORD_DIR && path.join(RECORD_DIR, `web_dashboard.${process.pid}.jsonl`);
+if (RECORD_DIR) { // this test's answers of an earlier run are stale
+    fs.mkdirSync(RECORD_DIR, { recursive: true });
+    for (const f of fs.readdirSync(RECORD_DIR)) {
+        if (f.startsWith('web_dashboard.') && f.endsWith('.jsonl')) {
+            fs.rmSync(path.join(RECORD_DIR, f));
+        }
+    }
+}
+let recorded = 0;
+function record(method, p, status, contentType, body, request) {
+    if (!RECORD_FILE) return;
+    const type = (contentType || '').split(';')[0].trim();
+    if (!p.startsWith('/api/') || p.startsWith('/api/events') || type !== 'application/json') {
+        return;
+    }
+    const rec = { method, path: p, status, content_type: type, body };
+    if (request) rec.request = request;
+    fs.appendFileSync(RECORD_FILE, `${JSON.stringify(rec)}\n`);
+    recorded++;
+}
+const pendingRecords = new Set(); // the page's answers whose bodies are still being read
+
 let passed = 0, failed = 0;
 function check(cond, what, detail = '') {
     if (cond) {
@@ -943,7 +971,10 @@ try {
         if (method !== 'GET' && token) headers.Authorization = `Bearer ${token}`;
         const res = await fetch(base + p, { method, headers,
             body: body ? JSON.stringify(body) : undefined });
-        return { status: res.status, body: raw ? await res.text() : await res.json() };
+        const text = await res.text();
+        record(method, p, res.status, res.headers.get('content-type'), text,
+            body ? JSON.stringify(body) : null);
+        return { status: res.status, body: raw ? text : JSON.parse(text) };
     };
     context = await chromium.launchPersistentContext(path.join(tmp, 'profile'), {
         executablePath: CHROMIUM,
@@ -959,6 +990,17 @@ try {
         if (msg.type() === 'error') consoleErrors.push(`${msg.text()} (${msg.location().url})`);
     });
     page.on('pageerror', (e) => consoleErrors.push(`uncaught: ${e.message}`));
+    page.on('response', (res) => {
+        const url = new URL(res.url());
+        if (!RECORD_FILE || url.origin !== base || !url.pathname.startsWith('/api/') ||
+            url.pathname.startsWith('/api/events')) return;
+        const req = res.request();
+        const done = res.text().then((text) => record(req.method(), url.pathname + url.search,
+            res.status(), res.headers()['content-type'], text, req.postData()))
+            .catch(() => {}) // a body the page dropped (navigated away): nothing to check
+            .finally(() => pendingRecords.delete(done));
+        pendingRecords.add(done);
+    });
     await run(base, page, api);
     // expected: the browser logs the 401 and the 422 of the refused requests as failed loads
     const expected = (e) => /status of 422 .*\/api\/scans(\/\d+\/fits)?\)$/.test(e) ||
@@ -977,6 +1019,8 @@ try {
         console.log(`# ipsd log:\n${log.slice(-3000)}`);
     }
 } finally {
+    await Promise.allSettled([...pendingRecords]);
+    if (RECORD_FILE) console.log(`# ${recorded} API answers recorded in ${RECORD_FILE}`);
     await context?.close().catch(() => {});
     await stopIpsd(daemon, path.join(tmp, 'ipsd.log'));
     fs.rmSync(tmp, { recursive: true, force: true });
