@@ -147,7 +147,7 @@ export function updateFigure(fig, spec) {
         note.hidden = !spec.note;
     }
     graph._spec = spec;
-    if (!graph._drawn) { // its first drawing has not started: it draws the latest spec
+    if (!graph._drawn && !graph._busy) { // its first drawing has not started: it draws this
         Object.assign(graph.dataset, spec.dataset || {});
         return true;
     }
