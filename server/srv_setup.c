@@ -9,6 +9,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fit/model.h"
+#include "fit/noise.h"
+
 /* The doubles of a setup, by name, for both directions. */
 #define SETUP_DOUBLES(X)                                                                           \
     X(exposure_us)                                                                                 \
@@ -124,7 +127,20 @@ int srv_pixel_scan_text(storage_t *st, const storage_scan_t *sc, int dcol, int d
         scanfile_free(&sf);
         return err_set(err, -ENOMEM, "out of memory");
     }
-    ret = scanfile_dump(f, &sf.scan, extra, err);
+    /* sigma_dn: each point's uncertainty under the automatic fit's noise model (fit/noise.h;
+     * eq. 5 of the paper for "paper"), so no client recomputes it; null for a non-finite mean */
+    fit_noise_t model = fit_options_default().noise;
+    json_t *meta = extra ? json_deep_copy(extra) : json_object(), *sig = meta ? json_array() : NULL;
+    for (size_t k = 0; sig && k < sf.scan.n; k++) {
+        double s = fit_noise_sigma(model, &sf.scan, sf.scan.signal_dn[k]);
+        json_array_append_new(sig, isfinite(s) ? json_real(s) : json_null());
+    }
+    if (!meta || json_object_set_new(meta, "sigma_dn", sig) /* takes sig, even on failure */ ||
+        json_object_set_new(meta, "sigma_model", json_string(fit_noise_name(model))))
+        ret = err_set(err, -ENOMEM, "out of memory");
+    else
+        ret = scanfile_dump(f, &sf.scan, meta, err);
+    json_decref(meta);
     if (fclose(f) && ret == 0) ret = err_set(err, -ENOMEM, "out of memory");
     scanfile_free(&sf);
     if (ret) {

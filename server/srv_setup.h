@@ -31,7 +31,8 @@ int srv_pixel_scan(storage_t *st, const storage_scan_t *sc, int dcol, int drow, 
                    scanfile_t *out, err_t *err);
 
 /* srv_pixel_scan written as scan-file text (scanfile_dump: full precision), with the metadata
- * object extra (borrowed, may be NULL) first. Returns 0 with a malloc'ed *text of *len bytes
+ * object extra (borrowed, may be NULL) first, and sigma_dn (each point's uncertainty in DN under
+ * the automatic fit's noise model, fit_noise_sigma) and sigma_model (that model's name) added. Returns 0 with a malloc'ed *text of *len bytes
  * (caller frees), or the errors of srv_pixel_scan. */
 int srv_pixel_scan_text(storage_t *st, const storage_scan_t *sc, int dcol, int drow, int all,
                         json_t *extra, char **text, size_t *len, err_t *err);

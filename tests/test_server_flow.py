@@ -10,6 +10,7 @@ supersedes the first calibration (history), the search, and a graceful stop."""
 import csv
 import io
 import json
+import math
 import os
 import struct
 import subprocess
@@ -147,6 +148,20 @@ def test(c, t, argv, daemons):
          "pixel raster: 81 points inside")
     c.eq(ips_fit(ips, pixel_path, os.path.join(t, "ips.json"), "--ftest", "top,left,bottom",
                  "--wiener"), 0, "ips fit on the downloaded raster")
+    # sigma_dn: eq. 5 of the paper as printed (what the automatic fit weights a point by),
+    # computed here from the sensor's gain, read noise and bias (GET /api/sensors/ID), the setup's
+    # analogue gain and the request's frames: sqrt(max(I - B, 0) + (R / G)^2) / sqrt(frames)
+    sn = d.get("/api/sensors/%d" % sensor).json()
+    gain = sn["gain_e_per_dn"] / d.get("/api/scans/%d" % scan).json()["setup"]["gain"]
+    rg = sn["read_noise_e"] / gain
+    want = [math.sqrt((max(v - sn["bias_dn"], 0.0) + rg * rg) / scan_req["raster"]["frames"])
+            for v in pixel["signal_dn"]]
+    got = pixel.get("sigma_dn") or []
+    c.ok(pixel.get("sigma_model") == "paper" and len(got) == len(want) == 961 and
+         all(abs(a - b) <= 1e-12 * b for a, b in zip(got, want)),
+         "pixel raster: sigma_dn is eq. 5 with the sensor's gain and read noise (961 points)")
+    c.ok(min(want) > rg / math.sqrt(2) and max(got) > 2 * min(got),
+         "pixel raster: sigma_dn above the read-noise floor, larger where the signal is")
 
     calib_path = "/api/sensors/%d/pixels/50/60/calibration" % sensor
     r = d.get(calib_path)

@@ -16,7 +16,10 @@ if(EXISTS /usr/bin/chromium AND TARGET ipsd)
                      ${CMAKE_BINARY_DIR}/web-screenshots)
     # busy 2-core machine: 60-140 s (140 s with 8 builds running: two more fits and the pixel
     # view since issue 11), its own watchdog at 420 s; ~3.5x margin
-    set_tests_properties(web_dashboard PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 480)
+    # the JSON answers the page and the test got are recorded like the HTTP tests' (tests/
+    # server.cmake) for openapi_answers (tests/apilint.cmake), which therefore runs after it
+    set_tests_properties(web_dashboard PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 480
+        ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}" FIXTURES_SETUP api_records)
 else()
     message(STATUS "web tests: /usr/bin/chromium or the ipsd target missing, web_dashboard not "
                    "registered")

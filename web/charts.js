@@ -43,29 +43,128 @@ function config(name) {
 // Plotly's own `data` and `layout` (what the browser test reads).
 // stacked: an optional second layout, and its height, for a narrow graph (a phone): side-by-side
 // subplots one above the other.
-export function plotFigure({ title, testid, data, layout, height = 340, note, name, stacked }) {
+// Live figures (a running scan's): uirevision (layout.uirevision) lets updateFigure redraw the
+// graph in place keeping the user's zoom and pan while it stays the same; dataset: attributes set
+// on the graph div with each drawing; onClick(plotly_click event): bound once, the latest spec's
+// called.
+export function plotFigure(spec) {
+    const { title, testid, height = 340, note } = spec;
     const graph = h('div', { class: 'pgraph', 'data-testid': testid });
     graph.style.height = `${height}px`;
     const fig = h('figure', { class: 'pfig' }, h('figcaption', {}, title),
-        plotlyReady() ? graph : missing(), note ? h('p', { class: 'muted small' }, note) : null);
+        plotlyReady() ? graph : missing(), h('p', { class: 'muted small', hidden: !note }, note));
     if (!plotlyReady()) return fig;
-    const lay = { autosize: true, margin: { l: 60, r: 20, t: 30, b: 50 },
-        font: { size: 11 }, ...layout };
+    graph._spec = spec;
+    Object.assign(graph.dataset, spec.dataset || {});
     let tries = 0;
     const draw = () => {
         if (!graph.isConnected) {
             if (++tries < 600) requestAnimationFrame(draw);
             return;
         }
-        if (stacked && graph.clientWidth < 520) {
-            Object.assign(lay, stacked.layout);
-            graph.style.height = `${stacked.height}px`;
+        if (spec.stacked && graph.clientWidth < 520) {
+            graph.style.height = `${spec.stacked.height}px`;
             graph.dataset.stacked = 'true';
         }
-        window.Plotly.newPlot(graph, data, lay, config(name || testid))
-            .then(() => { graph.dataset.state = 'ready'; });
+        paint(graph);
     };
     requestAnimationFrame(draw);
+    return fig;
+}
+
+// The layout graph draws spec with: ours, the caller's, the stacked one when stacked.
+function layoutOf(graph, spec) {
+    const lay = { autosize: true, margin: { l: 60, r: 20, t: 30, b: 50 }, font: { size: 11 },
+        ...spec.layout };
+    if (graph.dataset.stacked === 'true') Object.assign(lay, spec.stacked.layout);
+    if (spec.uirevision !== undefined) lay.uirevision = spec.uirevision;
+    return lay;
+}
+
+// Draws graph's latest spec: Plotly.newPlot the first time, then Plotly.react (in place: what
+// the user zoomed stays while layout.uirevision does). One drawing at a time; a spec given
+// meanwhile is drawn next. data-state is "ready" once drawn; data-updates counts the redraws
+// after the first (the browser test waits on it). Not while the user drags on the graph (Plotly's
+// gd._dragging: a redraw would drop the zoom box or pan under the pointer): just after.
+function paint(graph) {
+    if (graph._busy) {
+        graph._again = true;
+        return;
+    }
+    if (graph._dragging) {
+        if (!graph._waiting) {
+            graph._waiting = true;
+            const later = () => {
+                if (graph._dragging) return requestAnimationFrame(later);
+                graph._waiting = false;
+                return paint(graph);
+            };
+            requestAnimationFrame(later);
+        }
+        return;
+    }
+    graph._busy = true;
+    // a new uirevision (the caller's new axes: another pixel, another zoom) is drawn afresh:
+    // react would keep some of the old axes (constrain: 'domain' writes its domain into the
+    // layout it was given)
+    const P = window.Plotly, spec = graph._spec;
+    const first = !graph._drawn || graph._rev !== spec.uirevision;
+    graph._rev = spec.uirevision;
+    // one config per graph: react redraws from scratch (dropping the user's zoom) when the
+    // config differs, and a new one would (its SVG button's function is new)
+    graph._config ??= config(spec.name || spec.testid);
+    const draw = first ? P.newPlot : P.react;
+    draw(graph, spec.data, layoutOf(graph, spec), graph._config).then(() => {
+        graph._busy = false;
+        if (first) { // (again after a newPlot, which may have dropped it; never twice)
+            graph._onClick ??= (ev) => graph._spec.onClick?.(ev);
+            graph.removeListener('plotly_click', graph._onClick);
+            graph.on('plotly_click', graph._onClick);
+        }
+        if (graph._drawn) graph.dataset.updates = String(Number(graph.dataset.updates || 0) + 1);
+        graph._drawn = true;
+        if (graph._again) {
+            graph._again = false;
+            paint(graph);
+            return;
+        }
+        graph.dataset.state = 'ready';
+    });
+}
+
+// Updates figure fig (plotFigure's answer, in the document) to spec in place: caption, note,
+// the graph's attributes and its Plotly graph (Plotly.react). Returns false when fig is not such
+// a figure with spec's testid (the caller then draws a new one).
+export function updateFigure(fig, spec) {
+    const graph = fig?.querySelector?.(':scope > .pgraph');
+    if (!graph || !graph._spec || !fig.isConnected || graph.dataset.testid !== spec.testid) {
+        return false;
+    }
+    fig.querySelector(':scope > figcaption').textContent = spec.title;
+    const note = fig.querySelector(':scope > p.muted');
+    if (note) {
+        note.textContent = spec.note || '';
+        note.hidden = !spec.note;
+    }
+    graph._spec = spec;
+    if (!graph._drawn && !graph._busy) { // its first drawing has not started: it draws this
+        Object.assign(graph.dataset, spec.dataset || {});
+        return true;
+    }
+    graph.dataset.state = 'updating';
+    Object.assign(graph.dataset, spec.dataset || {});
+    paint(graph);
+    return true;
+}
+
+// Shows spec in slot: the figure already there updated in place (updateFigure) when it is the
+// same graph, else a new figure (the old ones purged). Returns the figure.
+export function showFigure(slot, spec) {
+    const old = slot.querySelector(':scope > figure.pfig');
+    if (old && updateFigure(old, spec)) return old;
+    purgeIn(slot);
+    const fig = plotFigure(spec);
+    slot.replaceChildren(fig);
     return fig;
 }
 

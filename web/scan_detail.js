@@ -9,15 +9,15 @@ import { ApiError, get, post } from './api.js';
 import { errorBox, failure, fill, fmt, fmtTime, h, showError, stateBadge } from './dom.js';
 import { buildFitForm } from './fit_form.js';
 import { requestRules } from './rules.js';
-import { purgeIn } from './charts.js';
+import { purgeIn, showFigure } from './charts.js';
 import { framesPanel } from './scan_frames.js';
-import { overviewContent } from './scan_overview.js';
-import { downloadButton, geometryFigure, rasterCsv, rasterFigure } from './scan_plots.js';
+import { drawOverview } from './scan_overview.js';
+import { downloadButton, geometrySpec, rasterCsv, rasterSpec } from './scan_plots.js';
 import { ACTIVE, POLL_MS, progressCell, sensorName, setProgress } from './scan_state.js';
 
 export function renderScan(root, id, ctx) {
     let scan = null, sensor = null, closed = false, fitsTimer = null, rasterAt = 0;
-    let rasterData = null, rasterSeq = 0, geoKey = '';
+    let rasterData = null, rasterSeq = 0, geoKey = '', rasterKey = '';
     const sel = { dcol: 0, drow: 0, colourMode: 'linear', zoom: 'all' }; // what the raster shows
     const head = h('h2', {}, `Scan #${id}`);
     const summary = h('section', { class: 'panel', 'aria-label': 'Scan summary' });
@@ -58,13 +58,13 @@ export function renderScan(root, id, ctx) {
 
     const pitch = () => sensor?.pitch_um ?? rasterData?.pitch_um;
 
-    // The geometry figure, redrawn when the pixel shown or the points stored change.
+    // The geometry figure, redrawn (in place, the user's zoom kept) when the pixel shown or the
+    // points stored change.
     function drawGeometry() {
         const key = `${scan?.points_done} ${sel.dcol} ${sel.drow} ${pitch()}`;
         if (!scan || !pitch() || key === geoKey) return;
         geoKey = key;
-        purgeIn(geoSlot);
-        fill(geoSlot, geometryFigure(scan, pitch(), sel, (k) => frames.show(k)));
+        showFigure(geoSlot, geometrySpec(scan, pitch(), { ...sel }, (k) => frames.show(k)));
     }
 
     // The raster's controls: the pixel (offsets from the POI), the colour scale, the zoom and
@@ -138,8 +138,19 @@ export function renderScan(root, id, ctx) {
                 h('pre', { class: 'json' }, JSON.stringify(s.setup, null, 2))) : null);
     }
 
-    // The raster of the chosen pixel (every point), then its figure.
-    async function loadRaster() {
+    // The raster of the chosen pixel (every point), then its figure; while the scan runs
+    // (fresh false) not re-read when it has every point stored so far; not asked for before a
+    // point is stored (the API answers 409 before the scan's setup).
+    async function loadRaster(fresh = true) {
+        if (scan && !(scan.points_done > 0)) {
+            rasterData = null;
+            rasterKey = '';
+            purgeIn(rasterSlot);
+            fill(rasterSlot, h('p', { class: 'muted' }, 'No points stored yet.'));
+            return;
+        }
+        const have = rasterData && rasterData.dcol === sel.dcol && rasterData.drow === sel.drow;
+        if (!fresh && have && rasterData.x_um.length === scan?.points_done) return;
         rasterAt = Date.now();
         const mine = ++rasterSeq, path = `/api/scans/${id}/pixels/${sel.dcol}/${sel.drow}?all=1`;
         let data;
@@ -157,18 +168,32 @@ export function renderScan(root, id, ctx) {
         drawGeometry();
     }
 
+    // The raster's figure, redrawn only when what it shows changed (a cheap key: the pixel, the
+    // points stored, the colour and the zoom), in place (Plotly.react): the user's zoom and pan
+    // survive the refreshes of a running scan.
     function drawRaster() {
         if (!rasterData) return;
-        purgeIn(rasterSlot);
-        fill(rasterSlot, rasterFigure(rasterData, scan, { ...sel, log: sel.colourMode === 'log',
-            onPoint: (k) => frames.show(k) }));
+        const d = rasterData, key = `${d.dcol} ${d.drow} ${d.x_um.length} ${sel.colourMode} ` +
+            `${sel.zoom}`;
+        if (key === rasterKey && rasterSlot.querySelector('.pgraph')) return;
+        rasterKey = key;
+        const spec = rasterSpec(d, scan, { ...sel, log: sel.colourMode === 'log',
+            onPoint: (k) => frames.show(k) });
+        if (spec) {
+            showFigure(rasterSlot, spec);
+        } else {
+            purgeIn(rasterSlot);
+            fill(rasterSlot, h('p', { class: 'muted' }, 'No points stored yet.'));
+        }
     }
 
     async function loadOverview() {
         if (!scan || scan.state !== 'done' || !pitch()) return;
-        const content = await overviewContent(scan, pitch()).catch(failure);
-        purgeIn(overviewSlot);
-        fill(overviewSlot, content);
+        await drawOverview(overviewSlot, scan, pitch()).catch((err) => {
+            purgeIn(overviewSlot);
+            fill(overviewSlot, failure(err));
+            delete overviewSlot.dataset.key;
+        });
     }
 
     async function loadFits() {
@@ -234,7 +259,7 @@ export function renderScan(root, id, ctx) {
             loadScan().catch(() => {});
             if (!ACTIVE.has(ev.state)) loadRaster().then(loadOverview);
         } else if (Date.now() - rasterAt > 3000) {
-            loadRaster(); // the raster fills in while the scan runs
+            loadRaster(false); // the raster fills in while the scan runs
         }
     });
     // events can be missed: while the scan or its fits are active, re-read them every few s

@@ -5,11 +5,12 @@
 // calibration from this scan is a grey placeholder. The maps come from the calibration search
 // (GET /api/calibrations?sensor=&col_min=&col_max=&row_min=&row_max=, paged), keeping the
 // calibrations whose scan_id is this scan: per pixel its current one, else the newest.
-// A click on a pixel opens its Pixel view; the same links are listed for keyboards.
+// A click on a pixel opens its Pixel view; the same links are listed for keyboards. Redrawn in
+// place (the user's zoom kept) only when the calibrations shown change.
 import { get } from './api.js';
 import { fill, h } from './dom.js';
-import { VIRIDIS, jointRange, pixelFrame, plotFigure, rows, squareAxes } from './charts.js';
-import { whenDrawn } from './scan_plots.js';
+import { VIRIDIS, jointRange, pixelFrame, purgeIn, rows, showFigure, squareAxes }
+    from './charts.js';
 
 export const MAX_OVERVIEW_SUB_PX = 25; // 625 pixels: a larger sub-frame is not drawn (said so)
 const PAGE = 1000; // the search's largest page (api/openapi.json)
@@ -33,7 +34,8 @@ export async function subframeCalibrations(scan) {
     return out;
 }
 
-// The overview figure of the sub-frame from cals (subframeCalibrations' answer).
+// The overview of the sub-frame from cals (subframeCalibrations' answer): {spec} of its figure
+// (charts.js showFigure) and {list} of links to the pixels (null for many).
 export function overviewFigure(scan, pitch, cals) {
     const fr = pixelFrame(pitch), w = fr.w, m = scan.raster.sub_px, hs = Math.floor(m / 2);
     const maps = [...cals.values()].filter((c) => Array.isArray(c.S) && c.r > 0);
@@ -69,7 +71,7 @@ export function overviewFigure(scan, pitch, cals) {
     shapes.push({ type: 'rect', x0: 0, x1: w, y0: 0, y1: w, line: { color: '#e69f00', width: 3 },
         fillcolor: 'rgba(0,0,0,0)' });
     const range = [-hs * w, (hs + 1) * w];
-    const fig = plotFigure({
+    const spec = {
         title: `Sub-frame overview: ${maps.length} of ${m * m} pixels have a map from this ` +
             'scan, on one colour scale',
         testid: 'subframe-overview', height: 460, name: `subframe-${scan.id}`, data,
@@ -80,36 +82,48 @@ export function overviewFigure(scan, pitch, cals) {
         note: `Each square is one pixel of the sub-frame (the POI outlined in orange), its map ` +
             `S drawn inside it${missing.length ? `; grey: no calibration from this scan ` +
             `(${missing.length} pixels)` : ''}. Click a map to open its pixel.`,
-    });
-    const graph = fig.querySelector('.pgraph');
-    if (graph) {
-        graph.dataset.maps = String(maps.length);
-        graph.dataset.missing = String(missing.length);
-    }
+        uirevision: `overview-${scan.id}`,
+        dataset: { maps: String(maps.length), missing: String(missing.length) },
+        onClick: (ev) => {
+            const t = ev.points?.[0]?.data;
+            if (t?.meta) {
+                location.hash = `#/sensors/${scan.sensor_id}/pixels/${t.meta[0]}/${t.meta[1]}`;
+            }
+        },
+    };
     const href = (c) => `#/sensors/${c.sensor_id}/pixels/${c.pixel.col}/${c.pixel.row}`;
-    whenDrawn(fig, (gd) => gd.on('plotly_click', (ev) => {
-        const t = ev.points?.[0]?.data;
-        if (t?.meta) location.hash = `#/sensors/${scan.sensor_id}/pixels/${t.meta[0]}/${t.meta[1]}`;
-    }));
     const list = maps.length <= 81 ? h('details', {}, h('summary', {}, 'The pixels\' maps'),
         h('ul', { class: 'plain' }, maps.map((c) => h('li', {}, h('a', { href: href(c) },
             `Pixel (${c.pixel.col}, ${c.pixel.row})`), `: calibration #${c.id}, r = ${c.r}` +
             (c.current ? ', current' : ', superseded'))))) : null;
-    return fill(h('div', {}), fig, list);
+    return { spec, list };
 }
 
-// The overview section's content for scan: nothing for a sub-frame too large to draw, a note
-// while no pixel has a map from the scan.
-export async function overviewContent(scan, pitch) {
+// The overview section's content for scan, drawn into slot: nothing for a sub-frame too large
+// to draw, a note while no pixel has a map from the scan, else the figure, updated in place when
+// already there and only when the calibrations shown (their ids and current flags) changed.
+export async function drawOverview(slot, scan, pitch) {
+    const note = (testid, text) => {
+        purgeIn(slot);
+        fill(slot, h('p', { class: 'muted', 'data-testid': testid }, text));
+        delete slot.dataset.key;
+    };
     if (scan.raster.sub_px > MAX_OVERVIEW_SUB_PX) {
-        return h('p', { class: 'muted' }, `The ${scan.raster.sub_px}×${scan.raster.sub_px} ` +
-            `sub-frame is too large for an overview (at most ${MAX_OVERVIEW_SUB_PX}×` +
-            `${MAX_OVERVIEW_SUB_PX}).`);
+        note('overview-large', `The ${scan.raster.sub_px}×${scan.raster.sub_px} sub-frame is ` +
+            `too large for an overview (at most ${MAX_OVERVIEW_SUB_PX}×${MAX_OVERVIEW_SUB_PX}).`);
+        return;
     }
     const cals = await subframeCalibrations(scan);
     if (!cals.size) {
-        return h('p', { class: 'muted', 'data-testid': 'overview-empty' }, 'No pixel of the ' +
-            'sub-frame has a calibration from this scan yet.');
+        note('overview-empty', 'No pixel of the sub-frame has a calibration from this scan yet.');
+        return;
     }
-    return overviewFigure(scan, pitch, cals);
+    const key = [...cals.values()].map((c) => `${c.id}${c.current ? 'c' : ''}`).sort().join(' ') +
+        ` ${pitch}`;
+    if (key === slot.dataset.key && slot.querySelector('.pgraph')) return;
+    slot.dataset.key = key;
+    const { spec, list } = overviewFigure(scan, pitch, cals);
+    const fig = showFigure(slot, spec);
+    while (fig.nextSibling) fig.nextSibling.remove(); // the list of the calibrations drawn before
+    if (list) slot.append(list);
 }

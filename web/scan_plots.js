@@ -6,32 +6,19 @@
 //     on the scan's whole raster grid, so a running scan shows its empty part too;
 //   - the scan geometry (the paper's figure): the raster's spot positions over the sub-frame's
 //     pixels, the pixel grid drawn, the pixel of interest and the pixel shown highlighted;
-//   - the raster as CSV (x_um, y_um, value, sigma; the pitch in a header comment).
+//   - the raster as CSV (x_um, y_um, value, sigma: the API's sigma_dn; the pitch in a header
+//     comment).
+// Figures are specs for charts.js showFigure: a running scan's are redrawn in place (Plotly.react,
+// a stable uirevision) so the user's zoom and pan survive the refreshes.
 // Clicking a spot (in either figure) names its point index (raster order, row by row from the
 // top left: docs/api.md) to the caller, which shows that point's raw frames (scan_frames.js).
 import { fmt, h } from './dom.js';
-import { VIRIDIS, outline, pixelFrame, plotFigure, rows, squareAxes } from './charts.js';
+import { VIRIDIS, jointRange, outline, pixelFrame, rows, squareAxes } from './charts.js';
 
 // Colour-blind safe marks (Okabe-Ito): stored spot positions, the pixel of interest, the pixel
 // whose raster is shown.
 const SPOT = '#d55e00', PENDING = '#b8bec9', POI = '#e69f00', SHOWN = '#0072b2';
 const MAX_GEOMETRY_POINTS = 10000; // above this the geometry figure thins its spots (said so)
-
-// Calls fn(graph div) once the Plotly graph of fig (plotFigure's answer) is drawn.
-export function whenDrawn(fig, fn) {
-    const graph = fig.querySelector('.pgraph');
-    if (!graph) return;
-    if (graph.dataset.state === 'ready') {
-        fn(graph);
-        return;
-    }
-    const obs = new MutationObserver(() => {
-        if (graph.dataset.state !== 'ready') return;
-        obs.disconnect();
-        fn(graph);
-    });
-    obs.observe(graph, { attributes: true, attributeFilter: ['data-state'] });
-}
 
 // The spot positions of scan's n x n raster on the axes of sub-frame pixel (dcol, drow), from
 // that pixel's top-left corner: the raster is centred on the centre of the pixel of interest,
@@ -75,10 +62,12 @@ function logTicks(lo, hi) {
 }
 
 // The response raster of a pixel (scan-file JSON) as a heat map over the spot positions, with
-// the pixel's outline [0, pitch]^2. scan: the Scan (its raster grid); opt {log, zoom ('pixel' |
-// 'all'), onPoint(index)}: logarithmic colour, the axes' range, a click on a measured cell.
-export function rasterFigure(data, scan, opt = {}) {
-    if (!data.x_um.length) return h('p', { class: 'muted' }, 'No points stored yet.');
+// the pixel's outline [0, pitch]^2: the figure's spec (charts.js plotFigure / showFigure), null
+// while no point is stored. scan: the Scan (its raster grid); opt {log, zoom ('pixel' | 'all'),
+// onPoint(index)}: logarithmic colour, the axes' range, a click on a measured cell. The user's
+// zoom is kept across redraws of the same pixel and range (uirevision): the raster fills in.
+export function rasterSpec(data, scan, opt = {}) {
+    if (!data.x_um.length) return null;
     const fr = pixelFrame(data.pitch_um);
     const g = rasterGrid(data, scan), nx = g.xs.length, ny = g.ys.length;
     const values = new Array(nx * ny).fill(null);
@@ -87,10 +76,9 @@ export function rasterFigure(data, scan, opt = {}) {
     });
     const log = !!opt.log;
     const shown = log ? values.map((v) => (v !== null && v > 0 ? Math.log10(v) : null)) : values;
-    const fin = shown.filter((v) => v !== null);
-    const lo = Math.min(...fin), hi = Math.max(...fin);
+    const [lo, hi] = jointRange(shown); // (not Math.min(...): a large raster overflows the stack)
     const bar = { title: { text: log ? 'DN (log)' : 'DN' }, thickness: 14,
-        ...(log && fin.length ? logTicks(lo, hi) : {}) };
+        ...(log ? logTicks(lo, hi) : {}) };
     const dx = nx > 1 ? g.xs[1] - g.xs[0] : fr.w / 10, dy = ny > 1 ? g.ys[1] - g.ys[0] : dx;
     const whole = [Math.min(g.xs[0] - dx / 2, g.ys[0] - dy / 2, 0),
         Math.max(g.xs[nx - 1] + dx / 2, g.ys[ny - 1] + dy / 2, fr.w)];
@@ -102,7 +90,14 @@ export function rasterFigure(data, scan, opt = {}) {
             (log ? '%{customdata:.6g} DN' : '%{z:.6g} DN') + '<extra></extra>' };
     if (log) trace.customdata = rows(values, nx, ny);
     const pix = data.pixel ? `(${data.pixel.col}, ${data.pixel.row})` : '';
-    const fig = plotFigure({
+    const d = `${data.dcol ?? 0},${data.drow ?? 0}`, zoom = opt.zoom === 'pixel' ? 'pixel' : 'all';
+    const pick = (ev) => {
+        const p = ev.points?.[0];
+        if (!p || !Array.isArray(p.pointIndex)) return;
+        const [j, i] = p.pointIndex;
+        if (values[j * nx + i] !== null) opt.onPoint(j * nx + i);
+    };
+    return {
         title: `Pixel ${pix}, offset (${data.dcol ?? 0}, ${data.drow ?? 0}) from the POI: mean ` +
             `signal (DN) against spot position, ${data.x_um.length} of ${nx * ny} points, ` +
             `${log ? 'log' : 'linear'} colour`,
@@ -110,31 +105,22 @@ export function rasterFigure(data, scan, opt = {}) {
             `${data.drow ?? 0}`, data: [trace],
         layout: { ...squareAxes(fr, '', [0, 1], range), shapes: [{ ...outline(fr),
             line: { color: '#ffffff', width: 2, dash: 'dash' } }] },
+        uirevision: `${data.scan_id} ${d} ${zoom}`,
+        dataset: { zoom, colour: log ? 'log' : 'linear', pixel: d,
+            points: String(data.x_um.length) },
+        onClick: g.onGrid && opt.onPoint ? pick : null,
         note: `Axes from the pixel's top-left corner, y downward; the dashed square is the ` +
             `pixel. ${g.onGrid ? 'Click a spot for its raw frames.' : ''}`,
-    });
-    const graph = fig.querySelector('.pgraph');
-    if (graph) {
-        graph.dataset.zoom = opt.zoom === 'pixel' ? 'pixel' : 'all';
-        graph.dataset.colour = log ? 'log' : 'linear';
-        graph.dataset.pixel = `${data.dcol ?? 0},${data.drow ?? 0}`;
-    }
-    if (g.onGrid && opt.onPoint) {
-        whenDrawn(fig, (gd) => gd.on('plotly_click', (ev) => {
-            const p = ev.points?.[0];
-            if (!p || !Array.isArray(p.pointIndex)) return;
-            const [j, i] = p.pointIndex;
-            if (values[j * nx + i] !== null) opt.onPoint(j * nx + i);
-        }));
-    }
-    return fig;
+    };
 }
 
 // The scan's geometry (the paper's figure): the raster's spot positions (stored ones in colour,
 // the rest grey) over the sub-frame's pixels, on axes in µm from the POI's top-left corner
 // (y downward); the pixel grid, the scanned area (dashed), the pixel of interest (filled) and
 // the pixel whose raster is shown (shown {dcol, drow}, outlined). onPoint(index) on a click.
-export function geometryFigure(scan, pitch, shown, onPoint) {
+// The figure's spec (charts.js showFigure): redrawn in place as the scan runs, the user's zoom
+// kept.
+export function geometrySpec(scan, pitch, shown, onPoint) {
     const fr = pixelFrame(pitch), w = fr.w, r = scan.raster;
     const n = r.points_per_axis, hs = Math.floor(r.sub_px / 2), ha = (r.area_px - 1) / 2;
     const axis = rasterAxis(scan, w, 0);
@@ -181,52 +167,40 @@ export function geometryFigure(scan, pitch, shown, onPoint) {
         '', [0, 1], range), shapes, showlegend: true,
     legend: { orientation: 'h', x: 0, y: -0.18, yanchor: 'top' },
     margin: { l: 60, r: 20, t: 20, b: 90 } };
-    const fig = plotFigure({ title: `Scan geometry: ${n}×${n} spot positions over ` +
+    return { title: `Scan geometry: ${n}×${n} spot positions over ` +
         `${r.area_px}×${r.area_px} pixels; the ${r.sub_px}×${r.sub_px} sub-frame`,
     testid: 'scan-geometry', data, layout, height: 440, name: `geometry-${scan.id}`,
+    uirevision: `geometry-${scan.id}`, dataset: { points: String(n * n), done: String(done) },
+    onClick: onPoint ? (ev) => {
+        const p = ev.points?.[0];
+        if (p && Number.isInteger(p.customdata) && p.customdata < done) onPoint(p.customdata);
+    } : null,
     note: `Filled: the pixel of interest (${scan.poi.col}, ${scan.poi.row}); blue outline: ` +
         'the pixel whose raster is shown; dashed: the scanned area. ' +
         (every > 1 ? `Every ${every}th row and column of spots is drawn (${n * n} in all). `
-            : '') + 'Click a spot for its raw frames.' });
-    const graph = fig.querySelector('.pgraph');
-    if (graph) graph.dataset.points = String(n * n);
-    if (onPoint) {
-        whenDrawn(fig, (gd) => gd.on('plotly_click', (ev) => {
-            const p = ev.points?.[0];
-            if (p && Number.isInteger(p.customdata) && p.customdata < done) onPoint(p.customdata);
-        }));
-    }
-    return fig;
-}
-
-// sigma (DN) of a mean signal under the paper's noise model, eq. 5 as printed (what the
-// automatic fit weights a point by; fit/noise.c fit_noise_sigma, FIT_NOISE_PAPER):
-// sqrt(max(I - B, 0) + (R/G)^2) / sqrt(frames).
-function paperSigma(d, v) {
-    const s = Math.max(v - d.bias_dn, 0), rg = d.read_noise_e / d.gain_e_per_dn;
-    return Math.sqrt((s + rg * rg) / Math.max(d.frames, 1));
+            : '') + 'Click a spot for its raw frames.' };
 }
 
 // The raster (scan-file JSON) as CSV: x_um,y_um,value,sigma, one line per point in the API's
 // order, numbers as JavaScript writes them (shortest round trip), a non-finite value empty;
-// header comments name the scan, the pixel, the pitch and what sigma is.
+// sigma is the API's sigma_dn (the automatic fit's noise model, named by sigma_model); header
+// comments name the scan, the pixel, the pitch and what sigma is.
 export function rasterCsv(d) {
-    const num = (v) => (v === null || !Number.isFinite(v) ? '' : String(v));
+    const num = (v) => (v === null || v === undefined || !Number.isFinite(v) ? '' : String(v));
+    const sigma = d.sigma_dn || [];
     const lines = [
         `# ipsd scan ${d.scan_id}, pixel (${d.pixel?.col}, ${d.pixel?.row}) = offset ` +
             `(${d.dcol}, ${d.drow}) from the POI: mean signal against spot position`,
         `# pitch_um = ${d.pitch_um}`,
         '# x_um, y_um: spot centre from the pixel\'s top-left corner (y downward); value: mean ' +
             'signal (DN, bias included)',
-        `# sigma: its uncertainty (DN) under the paper's noise model (eq. 5): ` +
-            `sqrt(max(value - ${d.bias_dn}, 0) + (${d.read_noise_e} / ${d.gain_e_per_dn})^2) / ` +
-            `sqrt(${d.frames})`,
+        `# sigma: its uncertainty (DN) under the "${d.sigma_model ?? '?'}" noise model of the ` +
+            `fit (ipsd's sigma_dn; "paper": eq. 5, with bias ${d.bias_dn} DN, read noise ` +
+            `${d.read_noise_e} e-, gain ${d.gain_e_per_dn} e-/DN, ${d.frames} frames)`,
         'x_um,y_um,value,sigma',
     ];
     d.x_um.forEach((x, k) => {
-        const v = d.signal_dn[k];
-        lines.push([num(x), num(d.y_um[k]), num(v), Number.isFinite(v) ? num(paperSigma(d, v))
-            : ''].join(','));
+        lines.push([num(x), num(d.y_um[k]), num(d.signal_dn[k]), num(sigma[k])].join(','));
     });
     return `${lines.join('\n')}\n`;
 }

@@ -64,6 +64,34 @@ if (!fs.existsSync(path.join(webDir, 'node_modules', 'plotly.js-dist-min', 'plot
 if (!fs.existsSync(CHROMIUM)) skip(`${CHROMIUM} is missing: apt-get install chromium`);
 const { chromium } = await import('playwright-core');
 
+// With IPSD_API_RECORD_DIR set (tests/web.cmake sets it), every JSON answer of /api/ the page
+// or the test itself gets is appended to DIR/web_dashboard.<pid>.jsonl, the format of
+// tests/ipsd_http.py (method, path, status, content type, body, request), which the
+// openapi_answers test checks against api/openapi.json; the event stream is not (never ends).
+const RECORD_DIR = process.env.IPSD_API_RECORD_DIR;
+const RECORD_FILE = RECORD_DIR && path.join(RECORD_DIR, `web_dashboard.${process.pid}.jsonl`);
+if (RECORD_DIR) { // this test's answers of an earlier run are stale
+    fs.mkdirSync(RECORD_DIR, { recursive: true });
+    for (const f of fs.readdirSync(RECORD_DIR)) {
+        if (f.startsWith('web_dashboard.') && f.endsWith('.jsonl')) {
+            fs.rmSync(path.join(RECORD_DIR, f));
+        }
+    }
+}
+let recorded = 0;
+function record(method, p, status, contentType, body, request) {
+    if (!RECORD_FILE) return;
+    const type = (contentType || '').split(';')[0].trim();
+    if (!p.startsWith('/api/') || p.startsWith('/api/events') || type !== 'application/json') {
+        return;
+    }
+    const rec = { method, path: p, status, content_type: type, body };
+    if (request) rec.request = request;
+    fs.appendFileSync(RECORD_FILE, `${JSON.stringify(rec)}\n`);
+    recorded++;
+}
+const pendingRecords = new Set(); // the page's answers whose bodies are still being read
+
 let passed = 0, failed = 0;
 function check(cond, what, detail = '') {
     if (cond) {
@@ -232,7 +260,8 @@ async function checkScanPage(page, api, scan, sensor) {
             sh.type === 'rect' && sh.x0 === 0 && sh.y0 === 0 && near(sh.x1, pitch, 1e-12) &&
                 near(sh.y1, pitch, 1e-12)),
         `the raster of pixel (${dcol}, ${drow}) has µm axes and the pixel outlined`);
-        // the CSV download: the API's numbers, sigma by the paper's eq. 5, the pitch in a comment
+        // the CSV download: the API's numbers, sigma by the paper's eq. 5 (computed here: the
+        // page takes the API's sigma_dn), the pitch in a comment
         const csv = (await download(page, page.locator('[data-testid="raster-csv"]')))
             .trim().split('\n');
         const comments = csv.filter((l) => l.startsWith('#'));
@@ -826,6 +855,7 @@ async function run(base, page, api) {
     check(await page.locator(`tr[data-scan-id="${longId}"] button`).count() === 0,
         'a cancelled scan has no Cancel button');
     await page.screenshot({ path: path.join(SHOTS, 'scans-1280.png') });
+    await checkLiveZoom(base, page, api, sensor);
 
     // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box, the
     // Fit view's plots drawn (their pairs stacked)
@@ -926,6 +956,69 @@ async function runReadClosed(context, base, api, logFile) {
         !log.includes(READ_TOKEN), 'the request log has the stream but no ticket and no token');
 }
 
+// A running scan's raster keeps the user's zoom across the page's refreshes (Plotly.react with a
+// stable uirevision): a scan of 161 x 161 points (about a minute here, cancelled after the
+// check) is opened, a box is dragged on its raster with the mouse like a person zooms (a
+// scripted Plotly.relayout is not a user's edit: Plotly's uirevision keeps only those), then
+// the page's own refresh counter (data-updates) is waited for: the axes still show the zoomed
+// box, and the figure holds more points than before (the refresh redrew it).
+async function checkLiveZoom(base, page, api, sensor) {
+    const step = (5 * sensor.pitch_um) / 160; // area 5 pixels: 161 points per axis
+    const made = await api('POST', '/api/scans', { sensor_id: sensor.id,
+        poi: { col: 30, row: 20 }, optics: { wavelength_nm: 550, na: 0.25 },
+        raster: { area_px: 5, step_um: step, sub_px: 3, frames: 1 }, scene: 'paperlike' });
+    check(made.status === 202, 'a long scan for the live raster is queued', JSON.stringify(made));
+    const id = made.body.scan.id;
+    await page.goto(`${base}/#/scans/${id}`);
+    const sel = '[data-testid="raster-map"][data-state="ready"]';
+    await page.locator(`${sel}[data-pixel="0,0"]`).waitFor({ timeout: LONG_WAIT });
+    const axes = () => page.$eval('[data-testid="raster-map"]', (g) => ({
+        x: [...g._fullLayout.xaxis.range], y: [...g._fullLayout.yaxis.range],
+        updates: Number(g.dataset.updates || 0), points: Number(g.dataset.points),
+        state: g.dataset.state }));
+    const before = await axes();
+    // drag a box over the middle of the plot area, from 35 % to 60 % of each axis
+    await page.locator('[data-testid="raster-map"]').scrollIntoViewIfNeeded();
+    const box = await page.$eval('[data-testid="raster-map"]', (g) => {
+        const fl = g._fullLayout, b = g.getBoundingClientRect();
+        const at = (ax, f, off) => off + ax._offset + f * ax._length;
+        return [at(fl.xaxis, 0.35, b.left), at(fl.yaxis, 0.35, b.top), at(fl.xaxis, 0.6, b.left),
+            at(fl.yaxis, 0.6, b.top)];
+    });
+    await page.mouse.move(box[0], box[1]);
+    await page.mouse.down();
+    await page.mouse.move(box[2], box[3], { steps: 8 });
+    await page.mouse.up();
+    const span = (r) => Math.abs(r[1] - r[0]);
+    const zoomed = await until(async () => {
+        const a = await axes();
+        return span(a.x) < 0.8 * span(before.x) && a;
+    }, 'the drag to zoom the raster');
+    // the page's next refresh of the figure (new points stored), whatever its cause
+    await page.waitForFunction(([n, p]) => {
+        const g = document.querySelector('[data-testid="raster-map"]');
+        return g && Number(g.dataset.updates || 0) > n && Number(g.dataset.points) > p &&
+            g.dataset.state === 'ready';
+    }, [zoomed.updates, zoomed.points], { timeout: LONG_WAIT, polling: 100 });
+    const after = await axes();
+    const same = (a, b) => a.every((v, k) => near(v, b[k], 1e-9));
+    check(same(after.x, zoomed.x) && same(after.y, zoomed.y) && after.points > zoomed.points,
+        'a running scan\'s raster keeps the user\'s zoom when the page refreshes it',
+        JSON.stringify({ before, zoomed, after }));
+    // the zoom radio still sets the axes (a new uirevision), then the refreshes keep that
+    await page.locator('[data-testid="zoom-pixel"]').check();
+    const px = await until(async () => {
+        const a = await axes();
+        return a.x[1] - a.x[0] < 1.2 * sensor.pitch_um && a.x[0] < 0 && a;
+    }, 'the zoom to the pixel');
+    check(px.x[1] > sensor.pitch_um, 'the "the pixel" zoom still applies to a live raster',
+        JSON.stringify(px));
+    const cancel = await api('POST', `/api/scans/${id}/cancel`);
+    await until(async () => (await api('GET', `/api/scans/${id}`)).body.state === 'cancelled',
+        'the live-raster scan to be cancelled');
+    check(cancel.status < 300, 'the live-raster scan is cancelled', JSON.stringify(cancel));
+}
+
 // ---- main ----
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'ipsd-web-'));
@@ -945,7 +1038,10 @@ try {
         if (method !== 'GET' && token) headers.Authorization = `Bearer ${token}`;
         const res = await fetch(base + p, { method, headers,
             body: body ? JSON.stringify(body) : undefined });
-        return { status: res.status, body: raw ? await res.text() : await res.json() };
+        const text = await res.text();
+        record(method, p, res.status, res.headers.get('content-type'), text,
+            body ? JSON.stringify(body) : null);
+        return { status: res.status, body: raw ? text : JSON.parse(text) };
     };
     context = await chromium.launchPersistentContext(path.join(tmp, 'profile'), {
         executablePath: CHROMIUM,
@@ -961,6 +1057,17 @@ try {
         if (msg.type() === 'error') consoleErrors.push(`${msg.text()} (${msg.location().url})`);
     });
     page.on('pageerror', (e) => consoleErrors.push(`uncaught: ${e.message}`));
+    page.on('response', (res) => {
+        const url = new URL(res.url());
+        if (!RECORD_FILE || url.origin !== base || !url.pathname.startsWith('/api/') ||
+            url.pathname.startsWith('/api/events')) return;
+        const req = res.request();
+        const done = res.text().then((text) => record(req.method(), url.pathname + url.search,
+            res.status(), res.headers()['content-type'], text, req.postData()))
+            .catch(() => {}) // a body the page dropped (navigated away): nothing to check
+            .finally(() => pendingRecords.delete(done));
+        pendingRecords.add(done);
+    });
     await run(base, page, api);
     // expected: the browser logs the 401 and the 422 of the refused requests as failed loads
     const expected = (e) => /status of 422 .*\/api\/scans(\/\d+\/fits)?\)$/.test(e) ||
@@ -994,6 +1101,8 @@ try {
         console.log(`# ipsd log:\n${log.slice(-3000)}`);
     }
 } finally {
+    await Promise.allSettled([...pendingRecords]);
+    if (RECORD_FILE) console.log(`# ${recorded} API answers recorded in ${RECORD_FILE}`);
     await context?.close().catch(() => {});
     await stopIpsd(daemon, path.join(tmp, 'ipsd.log'));
     await stopIpsd(daemon2, path.join(tmp, 'read-closed', 'ipsd.log'));
