@@ -4,7 +4,8 @@
 # per variant, the variants interleaved, REPS rounds, so that the shared machine's load falls on
 # all of them alike; then prints per variant the min and median of p99, reads/s and fits done
 # in the window (the fits' throughput is the price of a gentler tail), and the load averages.
-# Environment: VARIANTS (';'-separated ipsd option sets, "" the defaults; default compares
+# Environment: VARIANTS (';'-separated ipsd option sets, "" the defaults; a set starting with
+# @DIR runs the ipsd and ips of build DIR instead, to compare builds; default compares
 # --fit-nice 0/10/19, --fit-batch and --workers 1), REPS (3), and load.sh's FITS, DURATION, CONNS.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -17,7 +18,13 @@ trap 'rm -f "$out"' EXIT
 for rep in $(seq "$REPS"); do
     for i in "${!variants[@]}"; do
         v=${variants[$i]}
-        line=$(STEPS=3 IPSD_ARGS="$v" bash "$root/bench/load.sh" "$build" | grep '^summary:')
+        b=$build
+        if [[ $v == @* ]]; then
+            b=${v%% *}
+            b=${b#@}
+            [[ $v == *" "* ]] && v=${v#* } || v=
+        fi
+        line=$(STEPS=3 IPSD_ARGS="$v" bash "$root/bench/load.sh" "$b" | grep '^summary:')
         echo "round $rep [$v] $line"
         printf '%d\t%s\n' "$i" "$line" >>"$out"
     done
