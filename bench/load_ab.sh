@@ -18,6 +18,7 @@ trap 'rm -f "$out"' EXIT
 for rep in $(seq "$REPS"); do
     for i in "${!variants[@]}"; do
         v=${variants[$i]}
+        label=$v
         b=$build
         if [[ $v == @* ]]; then
             b=${v%% *}
@@ -25,7 +26,7 @@ for rep in $(seq "$REPS"); do
             [[ $v == *" "* ]] && v=${v#* } || v=
         fi
         line=$(STEPS=3 IPSD_ARGS="$v" bash "$root/bench/load.sh" "$b" | grep '^summary:')
-        echo "round $rep [$v] $line"
+        echo "round $rep [$label] $line"
         printf '%d\t%s\n' "$i" "$line" >>"$out"
     done
 done
