@@ -81,7 +81,7 @@ void api_h_pixel_calib(api_req_t *q)
     char *text;
     int cached = ret == 0 && !csv && storage_calib_generation(st, &gen) == 0;
     if (cached && (text = api_calib_cache_get(q->calib_cache, sensor, col, row, gen, &len))) {
-        api_reply_text(q, 200, "application/json", text, len);
+        api_reply_shared(q, 200, "application/json", text, len, api_calib_cache_release);
         return;
     }
     if (ret == 0) ret = storage_calib_current(st, sensor, (int)col, (int)row, &c, &err);

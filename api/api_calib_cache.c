@@ -1,18 +1,36 @@
 /* api_calib_cache.c: the current-calibration reply cache (api_calib_cache.h). Direct-mapped:
  * a pixel hashes to one slot, a newer pixel replaces an older one there; one mutex, held only
- * for a lookup and a copy (microseconds), so the HTTP threads do not queue behind it. */
+ * for a lookup and a reference count's increment, so the HTTP threads do not queue behind it. */
 #include "api_calib_cache.h"
 
 #include <pthread.h>
+#include <stdatomic.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* A text shared by its slot and the replies being sent: freed by its last holder. */
+typedef struct shared {
+    atomic_size_t refs;
+    char text[]; /* NUL-terminated */
+} shared_t;
 
 typedef struct slot {
     int64_t sensor, col, row;
     uint64_t gen;
-    char *text; /* NULL: empty */
+    char *text; /* NULL: empty; else the text of a shared_t */
     size_t len;
 } slot_t;
+
+static shared_t *shared_of(void *text)
+{
+    return (shared_t *)((char *)text - offsetof(shared_t, text));
+}
+
+void api_calib_cache_release(void *text)
+{
+    if (text && atomic_fetch_sub(&shared_of(text)->refs, 1) == 1) free(shared_of(text));
+}
 
 struct api_calib_cache {
     pthread_mutex_t mu;
@@ -43,7 +61,7 @@ void api_calib_cache_free(api_calib_cache_t *c)
 {
     if (!c) return;
     for (size_t i = 0; i <= c->mask; i++)
-        free(c->slot[i].text);
+        api_calib_cache_release(c->slot[i].text);
     pthread_mutex_destroy(&c->mu);
     free(c->slot);
     free(c);
@@ -74,8 +92,9 @@ char *api_calib_cache_get(api_calib_cache_t *c, int64_t sensor, int64_t col, int
     char *out = NULL;
     pthread_mutex_lock(&c->mu);
     slot_t *s = slot_of(c, sensor, col, row);
-    if (holds(s, sensor, col, row) && s->gen == gen && (out = malloc(s->len + 1))) {
-        memcpy(out, s->text, s->len + 1);
+    if (holds(s, sensor, col, row) && s->gen == gen) {
+        atomic_fetch_add(&shared_of(s->text)->refs, 1);
+        out = s->text;
         *len = s->len;
     }
     if (out)
@@ -90,8 +109,10 @@ void api_calib_cache_put(api_calib_cache_t *c, int64_t sensor, int64_t col, int6
                          uint64_t gen, const char *text, size_t len)
 {
     if (!c) return;
-    char *copy = malloc(len + 1);
-    if (!copy) return;
+    shared_t *sh = malloc(sizeof *sh + len + 1);
+    if (!sh) return;
+    atomic_init(&sh->refs, 1); /* the slot's */
+    char *copy = sh->text;
     memcpy(copy, text, len);
     copy[len] = 0;
     pthread_mutex_lock(&c->mu);
@@ -99,12 +120,12 @@ void api_calib_cache_put(api_calib_cache_t *c, int64_t sensor, int64_t col, int6
     size_t freed = s->text ? s->len : 0;
     if (s->text && holds(s, sensor, col, row) && s->gen > gen) {
         /* a newer reader filled it already: keep the newer text */
-        free(copy);
+        free(sh);
     } else if (c->bytes - freed + len > c->max_bytes) {
-        free(copy); /* over the bound: serve uncached rather than grow */
+        free(sh); /* over the bound: serve uncached rather than grow */
     } else {
         if (s->text) {
-            free(s->text);
+            api_calib_cache_release(s->text); /* freed when no reply sends it any more */
             c->bytes -= freed;
             c->entries--;
         }

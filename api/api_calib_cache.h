@@ -16,10 +16,18 @@ typedef struct api_calib_cache api_calib_cache_t;
 api_calib_cache_t *api_calib_cache_new(size_t slots, size_t max_bytes);
 void api_calib_cache_free(api_calib_cache_t *c);
 
-/* A malloc'ed copy of the pixel's text (*len bytes) when an entry of generation gen is held,
- * else NULL (a miss; also on out of memory). */
+/* The pixel's text (*len bytes, NUL-terminated) when an entry of generation gen is held, else
+ * NULL (a miss). The text is the entry's own, shared and counted, not a copy: the caller gives
+ * it back with api_calib_cache_release (it stays valid until then, even if the entry is replaced
+ * or the cache freed), so a hit allocates nothing (a reply cached here takes no malloc arena's
+ * lock: the copy of ~2.4 kB it took before was past glibc's per-thread cache, and an arena
+ * shared with a preempted fit worker made the read wait for it). */
 char *api_calib_cache_get(api_calib_cache_t *c, int64_t sensor, int64_t col, int64_t row,
                           uint64_t gen, size_t *len);
+
+/* Gives back a text of api_calib_cache_get (thread-safe; a free callback of a libmicrohttpd
+ * response: MHD_ContentReaderFreeCallback). */
+void api_calib_cache_release(void *text);
 
 /* Keeps a copy of text (len bytes), read at generation gen (the counter read BEFORE the read);
  * replaces what the slot held; skipped when the text would pass the byte bound. */

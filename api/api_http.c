@@ -31,6 +31,7 @@
 #include "api_conn.h"
 #include "api_int.h"
 #include "api_log.h"
+#include "base/thread_sched.h"
 #include "server/srv_token.h"
 
 typedef struct api_http {
@@ -305,6 +306,13 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
     (void)version;
     api_http_t *h = cls;
     api_req_t *q = *con_cls;
+    static _Thread_local int sched_set; /* this pool thread's slice (--http-slice-us), once */
+    if (!sched_set) {
+        sched_set = 1;
+        int slice_us = srv_config(h->srv)->http_slice_us;
+        if (slice_us && thread_sched_set(0, slice_us, 0))
+            fprintf(stderr, "ipsd: HTTP thread: the kernel refused a %d us slice\n", slice_us);
+    }
     if (!q) {
         if (!(q = calloc(1, sizeof *q))) return MHD_NO;
         q->srv = h->srv;

@@ -75,6 +75,10 @@ char *api_json_text(json_t *body, size_t *len);
 void api_reply_json(api_req_t *q, unsigned status, json_t *body);
 /* Replies with text of a content type (takes buf, malloc'ed, len bytes). */
 void api_reply_text(api_req_t *q, unsigned status, const char *ctype, char *buf, size_t len);
+/* The same with a buffer the reply borrows: release(buf) when it has been sent (or at once when
+ * the request has a reply already). */
+void api_reply_shared(api_req_t *q, unsigned status, const char *ctype, char *buf, size_t len,
+                      void (*release)(void *));
 /* Replies with the error body {"error": {"code", "message", "field"}} (field may be NULL). */
 void api_error(api_req_t *q, unsigned status, const char *code, const char *field, const char *fmt,
                ...) __attribute__((format(printf, 5, 6)));

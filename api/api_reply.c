@@ -27,6 +27,24 @@ void api_reply_text(api_req_t *q, unsigned status, const char *ctype, char *buf,
     MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
 }
 
+void api_reply_shared(api_req_t *q, unsigned status, const char *ctype, char *buf, size_t len,
+                      void (*release)(void *))
+{
+    if (q->resp) { /* a reply exists already: keep the first */
+        release(buf);
+        return;
+    }
+    q->resp = MHD_create_response_from_buffer_with_free_callback(len, buf, release);
+    if (!q->resp) {
+        release(buf);
+        return;
+    }
+    q->status = status;
+    q->resp_bytes = (long long)len;
+    MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CONTENT_TYPE, ctype);
+    MHD_add_response_header(q->resp, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
+}
+
 char *api_json_text(json_t *body, size_t *len)
 {
     if (!body) return NULL;

@@ -153,8 +153,12 @@ queued=$(curl -s "$base/api/jobs?kind=fit&state=queued&limit=1" | python3 -c 'im
 echo "== calibration reads (wrk -t2 -c$CONNS -d$DURATION) with fits running in the background"
 sed -n '/Latency Distribution/,/99%/p;/Requests\/sec/p;/requests in/p;/Non-2xx/p;/Socket errors/p' "$tmp/wrk.txt"
 read -r f_rps f_p50 f_p99 < <(python3 "$tmp/figures.py" "$tmp/wrk.txt")
-echo "summary: $f_rps reads/s, p50 $f_p50 ms, p99 $f_p99 ms; $((after - before)) fits finished" \
-     "during the run, $queued still queued (target: p99 < 5 ms)"
+secs=$(python3 -c 'import re,sys; m = re.search(r"requests in ([\d.]+)(ms|s|m)", open(sys.argv[1]).read()); print(float(m.group(1)) * {"ms": 1e-3, "s": 1, "m": 60}[m.group(2)] if m else 0)' "$tmp/wrk.txt")
+fits=$((after - before))
+# the trade-off in one line: the reads' tail against the fits' own throughput in the same window
+echo "summary: $f_rps reads/s, p50 $f_p50 ms, p99 $f_p99 ms; $fits fits finished" \
+     "during the run ($(python3 -c 'import sys; s = float(sys.argv[2]); print("%.0f" % (60 * int(sys.argv[1]) / s) if s else "?")' "$fits" "$secs") fits/min)," \
+     "$queued still queued; load average $(cut -d' ' -f1-3 /proc/loadavg) (target: p99 < 5 ms)"
 # the request log's time of each of those reads inside ipsd (its headers read to its reply
 # sent): what the handlers, locks and SQLite add; the rest of wrk's latency is the wait for a
 # CPU and in the socket queues

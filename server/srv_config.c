@@ -32,6 +32,12 @@ static const char usage[] =
     "                       docs/operations.md); fails at start when it does not answer\n"
     "  --workers N          fit worker threads (default 2)\n"
     "  --http-threads N     HTTP thread pool size (default 2)\n"
+    "  --fit-nice N         the fit workers' nice value 0..19 (default 10): fits yield the CPU\n"
+    "                       to the HTTP threads (see docs/operations.md)\n"
+    "  --fit-batch          the fit workers also run as SCHED_BATCH (default: SCHED_OTHER)\n"
+    "  --http-slice-us N    the HTTP threads' time slice in microseconds, 100..100000, or 0 for\n"
+    "                       the kernel's (Linux 6.12+; a short slice preempts busy threads on\n"
+    "                       wakeup; default 0)\n"
     "  --token FILE         writes (POST, DELETE) need 'Authorization: Bearer TOKEN', TOKEN one\n"
     "                       of the file's lines: a token, or sha256:HEX of one (see --hash-token);\n"
     "                       blank and # lines skipped; may be given more than once\n"
@@ -76,6 +82,7 @@ srv_config_t srv_config_default(void)
     srv_config_t c = {.port = 8080,
                       .workers = 2,
                       .http_threads = 2,
+                      .fit_nice = 10,
                       .max_body = 4u << 20,
                       .max_scan_bytes = (double)(1u << 30),
                       .max_connections = 4096,
@@ -161,6 +168,9 @@ enum {
     O_STAGE,
     O_WORKERS,
     O_HTTP,
+    O_FITNICE,
+    O_FITBATCH,
+    O_HTTPSLICE,
     O_TOKEN,
     O_READTOKEN,
     O_HASHTOKEN,
@@ -191,6 +201,9 @@ static const struct option opts[] = {
     {"stage", required_argument, NULL, O_STAGE},
     {"workers", required_argument, NULL, O_WORKERS},
     {"http-threads", required_argument, NULL, O_HTTP},
+    {"fit-nice", required_argument, NULL, O_FITNICE},
+    {"fit-batch", no_argument, NULL, O_FITBATCH},
+    {"http-slice-us", required_argument, NULL, O_HTTPSLICE},
     {"token", required_argument, NULL, O_TOKEN},
     {"read-token", required_argument, NULL, O_READTOKEN},
     {"hash-token", no_argument, NULL, O_HASHTOKEN},
@@ -265,6 +278,20 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--%s must be 1..64 (got '%s')",
                            c == O_WORKERS ? "workers" : "http-threads", arg);
         *(c == O_WORKERS ? &cfg->workers : &cfg->http_threads) = (int)v;
+        return 0;
+    case O_FITNICE:
+        if (parse_long(arg, 0, 19, &v))
+            return err_set(err, -EINVAL, "--fit-nice must be 0..19 (got '%s')", arg);
+        cfg->fit_nice = (int)v;
+        return 0;
+    case O_FITBATCH:
+        cfg->fit_batch = 1;
+        return 0;
+    case O_HTTPSLICE:
+        if (parse_long(arg, 0, 100000, &v) || (v > 0 && v < 100))
+            return err_set(err, -EINVAL, "--http-slice-us must be 0 or 100..100000 (got '%s')",
+                           arg);
+        cfg->http_slice_us = (int)v;
         return 0;
     case O_MAXBODY:
         if (parse_long(arg, 1024, 1LL << 30, &v))

@@ -16,19 +16,15 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
 
 #include "base/clock.h"
+#include "base/thread_sched.h"
 #include "instrument/scanfile.h"
 #include "server/srv_fit.h"
 #include "server/srv_setup.h"
 #include "srv_failpoint.h"
 #include "srv_fitall.h"
 #include "srv_int.h"
-
-#define FIT_NICE 10 /* CFS weight 110 against the HTTP threads' 1024 */
 
 /* What a fit job works on: the scan, its optics and where the calibration goes. */
 struct fit_input {
@@ -222,13 +218,21 @@ end:
     srv_fit_params_free(&p);
 }
 
+/* Fits are background work: on Linux the nice value is per thread, so a fit worker at nice
+ * --fit-nice (10: weight 110 against the HTTP threads' 1024) yields the CPU to the HTTP threads
+ * (reads stay fast while fits run) without starving (the scheduler's weights still give it its
+ * share; not SCHED_IDLE, see docs/server.md). --fit-batch adds SCHED_BATCH: no wakeup
+ * preemption of the HTTP threads by a fit worker. Measured: docs/operations.md. */
+static void lower_priority(const srv_config_t *cfg)
+{
+    int ret = thread_sched_set(cfg->fit_nice, 0, cfg->fit_batch);
+    if (ret) fprintf(stderr, "ipsd: fit worker: cannot lower its priority: %s\n", strerror(-ret));
+}
+
 void *srv_fitter_main(void *arg)
 {
     srv_worker_t *w = arg;
-    /* fits are background work: on Linux the nice value is per thread, so this thread yields the
-     * CPU to the HTTP threads (reads stay fast while fits run) without starving (CFS weights) */
-    if (setpriority(PRIO_PROCESS, (id_t)syscall(SYS_gettid), FIT_NICE) != 0)
-        fprintf(stderr, "ipsd: fit worker: cannot lower its priority: %s\n", strerror(errno));
+    lower_priority(&w->srv->cfg);
     srv_worker_loop(w, STORAGE_JOB_FIT, "fit worker", run_job);
     return NULL;
 }

@@ -27,6 +27,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             backup:240
             crash:150
             fitstop:120
+            sched:60
             storfault:240
             camfault:120
             allpixels:200

@@ -115,21 +115,27 @@ static void test_calib_cache(void)
     api_calib_cache_put(c, 1, 2, 3, 5, "{\"a\":1}", 7);
     char *t = api_calib_cache_get(c, 1, 2, 3, 5, &len);
     CHECK(t && len == 7 && strcmp(t, "{\"a\":1}") == 0);
-    free(t);
+    api_calib_cache_release(t);
     CHECK(api_calib_cache_get(c, 1, 2, 3, 6, &len) == NULL); /* a calibration was stored since */
     CHECK(api_calib_cache_get(c, 1, 3, 2, 5, &len) == NULL); /* another pixel */
     api_calib_cache_put(c, 1, 2, 3, 4, "old", 3); /* an older reader's text does not replace it */
     t = api_calib_cache_get(c, 1, 2, 3, 5, &len);
     CHECK(t && strcmp(t, "{\"a\":1}") == 0);
-    free(t);
+    /* a text held by a reply outlives its entry's replacement and the cache */
+    api_calib_cache_put(c, 1, 2, 3, 6, "{\"a\":2}", 7);
+    char *t2 = api_calib_cache_get(c, 1, 2, 3, 6, &len);
+    CHECK(t2 && strcmp(t2, "{\"a\":2}") == 0 && strcmp(t, "{\"a\":1}") == 0);
+    api_calib_cache_release(t2);
     char big[101];
     memset(big, 'x', 100);
     big[100] = 0;
     api_calib_cache_put(c, 7, 7, 7, 5, big, 100); /* 107 bytes in all: over the bound, skipped */
     CHECK(api_calib_cache_get(c, 7, 7, 7, 5, &len) == NULL);
     api_calib_cache_stats(c, &hits, &misses, &entries, &bytes);
-    CHECK(hits == 2 && misses == 4 && entries == 1 && bytes == 7);
+    CHECK(hits == 3 && misses == 4 && entries == 1 && bytes == 7);
     api_calib_cache_free(c);
+    CHECK(strcmp(t, "{\"a\":1}") == 0); /* still held here (ASan: no use after free) */
+    api_calib_cache_release(t);
 }
 
 int main(void)
