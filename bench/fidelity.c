@@ -173,8 +173,9 @@ static void explain_sweep(const fit_sweep_t *sw, struct explain *x)
 static void explain_print(const struct explain *x, const fid_result_t *f)
 {
     const fit_recommendation_t *c = &x->rec;
-    printf("    rule: r_cv = %d, decided by step %d, scatter^2 %.3f%s", c->r_cv, c->step,
-           c->noise_scale * c->noise_scale, c->vetoed ? ", vetoed as misfitting: r = " : "");
+    printf("    rule: r_cv = %d, one-SE r = %d, decided by step %d, scatter^2 %.3f%s", c->r_cv,
+           c->r_se, c->step, c->noise_scale * c->noise_scale,
+           c->vetoed ? ", vetoed as misfitting: r = " : "");
     if (c->vetoed) printf("%d", c->vetoed);
     printf("\n    %3s %6s %9s %9s %8s %8s %8s %8s %8s\n", "r", "flags", "chi2_red", "loo/N",
            "noise", "contrast", "resol", "expected", "rms");
@@ -192,7 +193,9 @@ struct sweep_ctx {
 };
 
 /* --dump: one line per fit of the sweep ("F r flags n_used params chi2 chi2_red cv_chi2
- * S[r*r] S_err[r*r]"), then the case line from main ("C scene raster flux seed rms[1..r_max]"). */
+ * S[r*r] S_err[r*r]"), each followed by its normalised residuals ("R r n resid[n]", nan for a
+ * point left out; they give the spread of the per-point leave-one-out terms a one-standard-error
+ * rule needs), then the case line from main ("C scene raster flux seed rms[1..r_max]"). */
 static void on_sweep(const fit_sweep_t *sw, void *ctx)
 {
     const struct sweep_ctx *k = ctx;
@@ -204,6 +207,11 @@ static void on_sweep(const fit_sweep_t *sw, void *ctx)
                 f->chi2_red, f->cv_chi2);
         for (int j = 0; f->S && j < r * r; j++) fprintf(fp, " %.9g", f->S[j]);
         for (int j = 0; f->S && j < r * r; j++) fprintf(fp, " %.9g", f->S_err[j]);
+        fprintf(fp, "\n");
+        if (!f->resid) continue;
+        size_t n = f->n_used + f->n_saturated + f->n_nonfinite; /* the points fitted */
+        fprintf(fp, "R %d %zu", r, n);
+        for (size_t k = 0; k < n; k++) fprintf(fp, " %.6g", f->resid[k]);
         fprintf(fp, "\n");
     }
 }

@@ -10,7 +10,7 @@ fit_recommend_opts_t fit_recommend_opts_default(void)
     return (fit_recommend_opts_t){.noise_to_contrast = 0.25, .noise_weight = 2,
                                   .coarse_misfit = 1.5, .escape_misfit = 1.7,
                                   .escape_noise_to_contrast = 0.5, .escape_error_ratio = 2,
-                                  .coarse_near = 1.15};
+                                  .coarse_near = 1.15, .one_se = 1};
 }
 
 void fit_map_noise_contrast(const fit_result_t *f, double *noise, double *contrast)
@@ -143,6 +143,41 @@ static int escape_misfit(const fit_sweep_t *sw, const fit_recommend_opts_t *o, d
     return !isfinite(e0) || (o->escape_error_ratio > 0 && e1 <= o->escape_error_ratio * e0);
 }
 
+double fit_loo_se(const fit_result_t *f)
+{
+    if (!f->resid || !(f->chi2 > 0) || !isfinite(f->cv_chi2)) return NAN;
+    /* resid holds every input point: the used ones and those left out (NaN) */
+    size_t n_in = f->n_used + f->n_saturated + f->n_nonfinite, n = 0;
+    double k = f->cv_chi2 / f->chi2, sum = 0, sum2 = 0;
+    for (size_t i = 0; i < n_in; i++) {
+        double e = f->resid[i];
+        if (!isfinite(e)) continue;
+        double c = k * e * e; /* point i's leave-one-out term, e^2 / (1 - h)^2 with h common */
+        sum += c, sum2 += c * c, n++;
+    }
+    if (n < 2) return NAN;
+    double mean = sum / (double)n, var = fmax(sum2 / (double)n - mean * mean, 0);
+    /* the standard error of a sum of n terms: sqrt(n) x their standard deviation (n - 1) */
+    return sqrt((double)n * var * (double)n / (double)(n - 1));
+}
+
+/* Step 2's one-standard-error rule (recommend.h): the smallest admissible r below r_cv whose
+ * leave-one-out chi2 is within one_se standard errors of r_cv's and whose reduced chi2 is within
+ * coarse_misfit of the data's scatter; r_cv when there is none. */
+static int one_se(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double scale, int r_cv)
+{
+    const fit_result_t *f0 = &sw->fits[r_cv - sw->r_min];
+    double se = fit_loo_se(f0);
+    if (!(o->one_se > 0) || !isfinite(se)) return r_cv;
+    for (int r = sw->r_min; r < r_cv; r++) {
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        if (admissible(f, o, scale) && f->cv_chi2 <= f0->cv_chi2 + o->one_se * se &&
+            f->chi2_red <= o->coarse_misfit * scale * scale)
+            return r;
+    }
+    return r_cv;
+}
+
 void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                    fit_recommendation_t *out)
 {
@@ -168,23 +203,34 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
         return;
     }
     double err;
-    out->r = refine(sw, &o, scale, r_cv, &err, &out->vetoed);
-    int escaped = out->r == r_cv && escape_misfit(sw, &o, scale, r_cv);
-    if (escaped) out->r = r_cv + 1;
+    int r_se = one_se(sw, &o, scale, r_cv), base = r_se; /* steps 3 and 4 start from r_se */
+    out->r = refine(sw, &o, scale, base, &err, &out->vetoed);
+    int escaped = out->r == base && escape_misfit(sw, &o, scale, base);
+    if (escaped) out->r = base + 1;
     out->r_cv = r_cv;
-    out->step = escaped ? 4 : out->r != r_cv ? 3 : 2;
+    out->r_se = r_se;
+    out->step = escaped ? 4 : out->r != base ? 3 : 2;
     const fit_result_t *f = &sw->fits[out->r - sw->r_min];
     double noise, contrast, res;
     fit_map_noise_contrast(f, &noise, &contrast);
+    /* the map steps 3 and 4 started from, in words */
+    char from[200];
+    const fit_result_t *fb = &sw->fits[base - sw->r_min], *fc = &sw->fits[r_cv - sw->r_min];
+    if (base == r_cv)
+        snprintf(from, sizeof from,
+                 "r = %d, the best leave-one-out predictor among the maps whose noise is at most "
+                 "%g of their contrast", base, o.noise_to_contrast);
+    else
+        snprintf(from, sizeof from,
+                 "r = %d, the smallest r within one standard error of the best leave-one-out "
+                 "predictor r = %d and fitting the points within their scatter", base, r_cv);
     int n;
     if (escaped)
         n = snprintf(out->reason, sizeof out->reason,
-                     "r = %d: r = %d, the best leave-one-out predictor among maps with noise "
-                     "at most %g of contrast, misfits the points (reduced chi2 %.3g against "
-                     "%.3g for r = %d, scatter %.3g); r = %d fits them, noise %.2g against "
-                     "contrast %.2g",
-                     out->r, r_cv, o.noise_to_contrast, sw->fits[r_cv - sw->r_min].chi2_red,
-                     f->chi2_red, out->r, scale * scale, out->r, noise * scale, contrast);
+                     "r = %d: %s, misfits the points (reduced chi2 %.3g against %.3g for r = %d, "
+                     "scatter %.3g); r = %d fits them, noise %.2g against contrast %.2g",
+                     out->r, from, fb->chi2_red, f->chi2_red, out->r, scale * scale, out->r,
+                     noise * scale, contrast);
     else if (out->r == r_cv)
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d predicts left-out spot positions best (leave-one-out chi2/N %.3g) "
@@ -192,14 +238,20 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                      "against %.2g)",
                      out->r, f->cv_chi2 / (double)f->n_used, o.noise_to_contrast, noise * scale,
                      contrast);
+    else if (out->r == base)
+        n = snprintf(out->reason, sizeof out->reason,
+                     "r = %d is the smallest r whose leave-one-out chi2/N (%.3g) is within one "
+                     "standard error (%.2g) of the best predictor's, r = %d (%.3g), and whose "
+                     "reduced chi2 (%.3g) is within %gx the data's scatter (%.3g)",
+                     out->r, f->cv_chi2 / (double)f->n_used,
+                     fit_loo_se(fc) / (double)fc->n_used, r_cv, fc->cv_chi2 / (double)fc->n_used,
+                     f->chi2_red, o.coarse_misfit, scale * scale);
     else {
         fit_map_expected_error(f, scale, o.noise_weight, &noise, &res);
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d has the smallest expected map error (noise %.2g, sub-pixel "
-                     "resolution %.2g) of r = %d, which predicts left-out spot positions best "
-                     "among the maps whose noise is at most %g of their contrast, and its "
-                     "neighbours",
-                     out->r, noise, res, r_cv, o.noise_to_contrast);
+                     "resolution %.2g) of %s, and its neighbours",
+                     out->r, noise, res, from);
     }
     if (first_bad && n > 0 && (size_t)n < sizeof out->reason)
         snprintf(out->reason + n, sizeof out->reason - (size_t)n,

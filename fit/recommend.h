@@ -11,7 +11,16 @@
  *      sub-pixels (the r = 1 map, with neither, is always admissible);
  *   2. of those, r_cv, the one with the smallest leave-one-out prediction chi2
  *      (fit_result_t.cv_chi2): the map that best predicts spot positions it was not fitted to;
- *   3. then r_cv against its neighbours r_cv - 1 and r_cv + 1, by the map's expected error
+ *      then the one-standard-error rule (Hastie, Tibshirani and Friedman, The Elements of
+ *      Statistical Learning, 7.10): r_se, the smallest admissible r whose leave-one-out chi2 is
+ *      within one standard error (fit_loo_se) of r_cv's, provided its reduced chi2 is at most
+ *      coarse_misfit times the data's scatter (the guard of step 3: a coarser map that misfits
+ *      the points has an error the data can see); r_cv when there is none. The leave-one-out
+ *      curve is flat within its noise between a map that already represents the pixel and the
+ *      finer ones that only fit noise (a dead corner at 9 x 9, seed 13: r = 3 exact, rms 0.001,
+ *      and r = 6, 0.005, leave-one-out chi2/N 0.956 and 0.918 +- 0.175);
+ *   3. then r_se (below, r_cv names the map step 2 ended with) against its neighbours r_cv - 1
+ *      and r_cv + 1, by the map's expected error
  *      against the truth (fit_map_expected_error): noise_weight x its noise^2 plus its
  *      resolution error^2, the truth's variation inside a sub-pixel that a piecewise-constant map
  *      cannot show, estimated from the differences of neighbouring sub-pixels. The data cannot
@@ -33,10 +42,8 @@
  *      checkerboard out (a noise-dominated r_cv + 1 that fits the points).
  * Measured (bench/fidelity.c, the README's table; seeds 1-3 chose the settings, 4-9 held out,
  * 10-12 held out until they showed the miss the near-misfit clause of step 3 fixes, 13-15 run once
- * after it): within 1.1x of the best map in hindsight in 168, 166, 166, 167 and 165 of 168 cases
- * (worst 1.09x, 1.32x, 1.12x, 1.13x, 4.8x: a dead corner whose exact r = 3 map has rms 0.001, r = 6
- * 0.005), against 120 and 14.6x for BIC, 71 and 5700x for AIC on seeds 1-3. The rule before (no
- * near-misfit clause): the same on seeds 1-9, 166 (1.58x) on 10-12.
+ * after it and showed the dead-corner miss the one-standard-error rule fixes, 16-21 run once
+ * after that): see docs/numerics.md for the tables.
  * Pure, thread-safe. */
 #ifndef IPSD_FIT_RECOMMEND_H
 #define IPSD_FIT_RECOMMEND_H
@@ -53,8 +60,10 @@ typedef struct fit_recommend_opts {
     double escape_noise_to_contrast; /* r_cv + 1's admissibility in step 4 (0.5) */
     double escape_error_ratio; /* step 4 only when r_cv + 1's expected error (fit_map_expected_
                                   error) <= this x r_cv's (2); <= 0: no step 4 */
-    double coarse_near;       /* r_cv - 1 also competes when its chi2_red <= this x r_cv's own
-                                 (1.15): it misfits hardly more than r_cv does; <= 0: never */
+    double coarse_near;        /* r_cv - 1 also competes when its chi2_red <= this x r_cv's own
+                                  (1.15): it misfits hardly more than r_cv does; <= 0: never */
+    double one_se;             /* step 2's one-standard-error rule: the leave-one-out chi2 may
+                                  exceed r_cv's by this many standard errors (1); <= 0: off */
 } fit_recommend_opts_t;
 
 fit_recommend_opts_t fit_recommend_opts_default(void);
@@ -64,9 +73,10 @@ typedef struct fit_recommendation {
     int range_edge;   /* AIC or BIC picked r_max or the largest r the points determine */
     char reason[320]; /* one sentence for people */
     /* how the rule got there, for the evidence harness (bench/fidelity.c --explain): */
-    int r_cv;           /* step 2's pick (0: none) */
-    int step;           /* the step that decided: 2 (r_cv kept), 3 (a neighbour's smaller
-                           expected error), 4 (the misfit escape to r_cv + 1); 0: no pick */
+    int r_cv;           /* step 2's smallest leave-one-out chi2 (0: none) */
+    int r_se;           /* step 2's one-standard-error pick, where steps 3 and 4 start */
+    int step;           /* the step that decided: 2 (r_se kept), 3 (a neighbour's smaller
+                           expected error), 4 (the misfit escape to r_se + 1); 0: no pick */
     int vetoed;         /* r_cv - 1 when step 3 left it out as misfitting the points, else 0 */
     double noise_scale; /* the data's scatter relative to the noise model's sigma */
 } fit_recommendation_t;
@@ -74,6 +84,13 @@ typedef struct fit_recommendation {
 /* Applies the rule to a finished sweep (opts NULL: the defaults). */
 void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                    fit_recommendation_t *out);
+
+/* The standard error of the fit's leave-one-out chi2 (cv_chi2), a sum of one term per point:
+ * sqrt(n) times the terms' standard deviation. A term is e_k^2 / (1 - h_kk)^2 (e the normalised
+ * residual, resid); the leverages h_kk are replaced by the common factor that makes the terms sum
+ * to cv_chi2 (as generalised cross-validation replaces them by their mean). NaN without
+ * residuals (f->resid NULL) or chi2. */
+double fit_loo_se(const fit_result_t *f);
 
 /* The map's own noise (rms of S_err) and contrast (standard deviation of S) over its sub-pixels;
  * NaN without a map. */

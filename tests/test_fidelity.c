@@ -29,6 +29,11 @@ static const struct {
     /* r_cv = 8 and r = 7 both misfit the points (reduced chi2 2.84, 3.08, scatter 1.03): r = 7
      * is the better map (0.036 against 0.057), once vetoed as misfitting: 1.58x */
     {"edge", 19, 0.3, 10, 1},
+    /* a dead corner r = 3 represents exactly (rms 0.001): r_cv = 6, the same map with five times
+     * the noise (4.8x), predicts left-out points within one standard error of r = 3, which the
+     * one-standard-error rule of step 2 then picks (its reduced chi2 0.822 within 1.5 x the
+     * scatter^2 0.550) */
+    {"deadcorner", 9, 0.6, 13, 1},
 };
 
 int main(void)

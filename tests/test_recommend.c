@@ -6,7 +6,8 @@
  * on maps built by hand (a map whose noise exceeds a quarter of its contrast is never recommended,
  * r = 1 always may be, flagged fits never); the expected map error of step 3 against the analytic
  * within-sub-pixel variance of a linear truth, step 3 on a tilt built by hand, and step 4's
- * misfit ratio and expected-error bound on a sweep built by hand. */
+ * misfit ratio and expected-error bound on a sweep built by hand; the standard error of the
+ * leave-one-out chi2 by hand, and step 2's one-standard-error rule on a sweep built by hand. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -286,6 +287,67 @@ static void test_escape(void)
     CHECK(rec.r == 2);
 }
 
+/* fit_loo_se by hand: residuals 1, -1, 2, 0 and one point left out (NaN), chi2 6, leave-one-out
+ * chi2 12: the terms are e^2 x 12 / 6 = 2, 2, 8, 0, mean 3, sample variance (1 + 1 + 25 + 9) / 3
+ * = 12, and the sum's standard error sqrt(4 x 12). No residuals: NaN. */
+static void test_loo_se(void)
+{
+    double e[5] = {1, -1, 2, NAN, 0};
+    fit_result_t f = {.r = 2, .n_used = 4, .n_nonfinite = 1, .chi2 = 6, .cv_chi2 = 12, .resid = e};
+    CHECK_NEAR(fit_loo_se(&f), sqrt(48.0), 1e-12, 0);
+    f.resid = NULL;
+    CHECK(isnan(fit_loo_se(&f)));
+}
+
+/* Step 2's one-standard-error rule on a sweep built by hand: a dead quadrant, exact at r = 2 and
+ * at r = 4 (the same map refined), misaligned at r = 3, 100 points. r = 4 predicts left-out
+ * points best (leave-one-out chi2 250: residuals 0.5 and 1.5 on half the points each, chi2 125,
+ * terms 0.5 and 4.5, standard error sqrt(100 x 4 x 100 / 99) = 20.1); r = 2's 260 is within one
+ * standard error and its reduced chi2 150 / 95 within 1.5 times the scatter (r = 4's 125 / 83):
+ * r = 2. At 280, or misfitting the points (reduced chi2 3.5), or with the rule off, r = 4. */
+static void test_one_se(void)
+{
+    fit_result_t f[4];
+    double S[4][16], E[4][16], e4[100];
+    memset(f, 0, sizeof f);
+    for (int k = 0; k < 100; k++) e4[k] = k % 2 ? 0.5 : -1.5;
+    const double chi2[4] = {1000, 150, 400, 125}, cv[4] = {1100, 260, 500, 250};
+    for (int k = 0; k < 4; k++) {
+        int r = k + 1;
+        f[k].r = r;
+        f[k].params = r * r + 1;
+        f[k].n_used = 100;
+        f[k].chi2 = chi2[k], f[k].chi2_red = chi2[k] / (100 - f[k].params);
+        f[k].cv_chi2 = cv[k];
+        f[k].S = S[k], f[k].S_err = E[k];
+        /* dead below-left quadrant (r = 3: one ninth, misaligned) */
+        for (int j = 0; j < r; j++)
+            for (int i = 0; i < r; i++) {
+                S[k][j * r + i] = 2 * i < r - (r % 2) && 2 * j < r - (r % 2) ? 0 : 1;
+                E[k][j * r + i] = 1e-3;
+            }
+    }
+    S[0][0] = 1;
+    f[3].resid = e4;
+    CHECK_NEAR(fit_loo_se(&f[3]), sqrt(100 * 4 * 100 / 99.0), 1e-12, 0);
+    fit_sweep_t sw = {.r_min = 1, .r_max = 4, .fits = f};
+    fit_recommendation_t rec;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 2 && rec.r_cv == 4 && rec.r_se == 2 && rec.step == 2);
+    CHECK(strstr(rec.reason, "one standard error") != NULL);
+    f[1].cv_chi2 = 280;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 4 && rec.r_se == 4);
+    f[1].cv_chi2 = 260, f[1].chi2_red = 3.5, f[1].chi2 = 3.5 * 95;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 4 && rec.r_se == 4);
+    f[1].chi2_red = 150 / 95.0, f[1].chi2 = 150;
+    fit_recommend_opts_t o = fit_recommend_opts_default();
+    o.one_se = 0;
+    fit_recommend(&sw, &o, &rec);
+    CHECK(rec.r == 4 && rec.r_se == 4);
+}
+
 int main(void)
 {
     ref_scan_t ref;
@@ -296,6 +358,8 @@ int main(void)
     test_expected_error();
     test_refine();
     test_escape();
+    test_loo_se();
+    test_one_se();
     ref_scan_free(&ref);
     CHECK_DONE();
 }
