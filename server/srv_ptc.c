@@ -45,9 +45,9 @@ srv_ptc_params_t srv_ptc_params_default(int64_t sensor_id)
 
 char *srv_ptc_params_dump(const srv_ptc_params_t *p)
 {
-    json_t *o = json_pack("{s:I, s:i, s:i, s:f, s:I}", "sensor_id", (json_int_t)p->sensor_id,
-                          "levels", p->levels, "roi_px", p->roi_px, "flat_e", p->flat_e, "seed",
-                          (json_int_t)p->seed);
+    json_t *o =
+        json_pack("{s:I, s:i, s:i, s:f, s:I}", "sensor_id", (json_int_t)p->sensor_id, "levels",
+                  p->levels, "roi_px", p->roi_px, "flat_e", p->flat_e, "seed", (json_int_t)p->seed);
     char *text = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17)) : NULL;
     json_decref(o);
     return text;
@@ -110,8 +110,8 @@ int srv_ptc_submit(srv_t *srv, storage_t *st, const srv_ptc_params_t *p, int64_t
     return 0;
 }
 
-int srv_ptc_constants(storage_t *st, int64_t sensor_id, double *gain_e_per_dn,
-                      double *read_noise_e, int64_t *ptc_id, err_t *err)
+int srv_ptc_constants(storage_t *st, int64_t sensor_id, double *gain_e_per_dn, double *read_noise_e,
+                      int64_t *ptc_id, err_t *err)
 {
     storage_ptc_list_t l;
     *ptc_id = 0;
@@ -196,15 +196,14 @@ static int on_level(void *ctx, int done, int total)
     if (now - r->last_beat >= HEARTBEAT_S || done == total) {
         r->last_beat = now;
         double progress = (double)done / total < 1 ? (double)done / total : 0.99;
-        int rc = storage_job_heartbeat(r->w->st, r->job->id, progress, done, &r->err);
-        if (rc) return r->stop_rc = rc, 1;
+        r->stop_rc = storage_job_heartbeat(r->w->st, r->job->id, progress, done, &r->err);
+        if (r->stop_rc) return 1;
     }
     publish(r, done);
     if ((r->stop_rc = srv_failpoint(r->w, "ptc.level", &r->err))) return 1; /* test hook */
     if (atomic_load(&r->w->stop))
-        return r->stop_rc = err_set(&r->err, -ECANCELED, "photon-transfer measurement stopped"),
-               1;
-    return 0;
+        r->stop_rc = err_set(&r->err, -ECANCELED, "photon-transfer measurement stopped");
+    return r->stop_rc != 0;
 }
 
 /* The simulated bench as the sensor: a uniform flat field, no spot. */
@@ -312,10 +311,11 @@ static int measure(struct ptc_job *r)
     ret = storage_ptc_store_done(r->w->st, &row, &id, &r->err);
     free(text);
     if (ret == 0) {
-        fprintf(stderr, "ipsd: ptc job %lld: sensor %lld gain %.4f e-/DN, read noise %.3f e- "
-                        "(measurement %lld)\n",
-                (long long)r->job->id, (long long)r->sensor.id, res.gain_e_per_dn,
-                res.read_noise_e, (long long)id);
+        fprintf(stderr,
+                "ipsd: ptc job %lld: sensor %lld gain %.4f e-/DN, read noise %.3f e- "
+                "(measurement %lld)\n",
+                (long long)r->job->id, (long long)r->sensor.id, res.gain_e_per_dn, res.read_noise_e,
+                (long long)id);
         srv_failpoint(r->w, "ptc.after_store", NULL); /* test hook: the job is done */
     }
     return ret;

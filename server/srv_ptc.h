@@ -41,8 +41,8 @@ int srv_ptc_submit(srv_t *srv, storage_t *st, const srv_ptc_params_t *p, int64_t
 /* The gain and read noise a fit of sensor_id's data uses for sigma: the sensor's newest
  * photon-transfer measurement (*ptc_id its id), else *ptc_id = 0 and the values are left as
  * they are (the scan's own constants). Returns 0 or a storage error. */
-int srv_ptc_constants(storage_t *st, int64_t sensor_id, double *gain_e_per_dn,
-                      double *read_noise_e, int64_t *ptc_id, err_t *err);
+int srv_ptc_constants(storage_t *st, int64_t sensor_id, double *gain_e_per_dn, double *read_noise_e,
+                      int64_t *ptc_id, err_t *err);
 
 /* Where the gain and read noise of a fit's sigma (eq. 5) came from, and their values. */
 typedef struct srv_noise_source {

@@ -39,18 +39,15 @@ static void test_job(storage_t *st, int64_t sensor)
     int64_t scan_job, ptc_job, id = 0;
     storage_job_t j;
     err_t err;
+    const unsigned instrument =
+        STORAGE_JOB_BIT(STORAGE_JOB_SCAN) | STORAGE_JOB_BIT(STORAGE_JOB_PTC);
     CHECK(storage_job_enqueue(st, STORAGE_JOB_PTC, "{\"sensor_id\": 1}", 0, &ptc_job, &err) == 0);
     CHECK(storage_job_enqueue(st, STORAGE_JOB_SCAN, "{}", 0, &scan_job, &err) == 0);
     CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, &err) == 0 && j.id == 0); /* not a fit */
-    CHECK(storage_job_claim_kinds(st, STORAGE_JOB_BIT(STORAGE_JOB_SCAN) |
-                                          STORAGE_JOB_BIT(STORAGE_JOB_PTC),
-                                  &j, &err) == 0 &&
-          j.id == ptc_job && j.kind == STORAGE_JOB_PTC && j.state == STORAGE_RUNNING);
+    CHECK(storage_job_claim_kinds(st, instrument, &j, &err) == 0 && j.id == ptc_job &&
+          j.kind == STORAGE_JOB_PTC && j.state == STORAGE_RUNNING);
     storage_job_free(&j);
-    CHECK(storage_job_claim_kinds(st, STORAGE_JOB_BIT(STORAGE_JOB_SCAN) |
-                                          STORAGE_JOB_BIT(STORAGE_JOB_PTC),
-                                  &j, &err) == 0 &&
-          j.id == scan_job);
+    CHECK(storage_job_claim_kinds(st, instrument, &j, &err) == 0 && j.id == scan_job);
     storage_job_free(&j);
     CHECK(storage_job_claim_kinds(st, 0, &j, &err) == -EINVAL);
     CHECK(storage_job_claim_kinds(st, 1u << 7, &j, &err) == -EINVAL);
@@ -96,7 +93,8 @@ static void test_migrate_v4(const char *dir)
 {
     char path[256];
     snprintf(path, sizeof path, "%s/v4.db", dir);
-    for (int i = 0; i < 4; i++) CHECK(raw_exec(path, stg_migrations[i]) == SQLITE_OK);
+    for (int i = 0; i < 4; i++)
+        CHECK(raw_exec(path, stg_migrations[i]) == SQLITE_OK);
     CHECK(raw_exec(path,
                    "INSERT INTO sensors (id, model, serial, n_cols, n_rows, pitch_um, "
                    "gain_e_per_dn, read_noise_e, bias_dn, full_scale_dn, created_ms) VALUES "
