@@ -134,7 +134,8 @@ def test(c, t, argv, daemons):
              "read noise %.4f within 2 %% of the simulator's %.2f"
              % (cur["read_noise_e"], TRUE_NOISE))
         c.ok(cur["gain_err_e_per_dn"] > 0, "the gain has an uncertainty")
-        c.ok(abs(cur["dark_dn"] - 100) < 0.5, "dark level %.3f at the bias, 100 DN" % cur["dark_dn"])
+        c.ok(abs(cur["dark_dn"] - 100) < 0.5,
+             "dark level %.3f at the bias, 100 DN" % cur["dark_dn"])
         c.eq(len(cur["result"]["levels"]), LEVELS, "the report has every level")
         # the same series on the same simulator by `ips ptc --sim`: the same numbers
         out = subprocess.run([ips, "ptc", "--sim", "--levels", str(LEVELS), "--roi", str(ROI),

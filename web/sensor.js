@@ -25,8 +25,8 @@ export function ptcFigure(doc) {
     const sat = pts.find((p) => p.i === doc.saturation_level);
     const hover = 'mean %{x:.4g} DN<br>variance %{y:.4g} DN²<extra></extra>';
     const data = [
-        { type: 'scatter', mode: 'markers', name: 'levels in the gain fit', x: inFit.map((p) => p.x),
-            y: inFit.map((p) => p.y), marker: { color: '#1f77b4', size: 7 }, hovertemplate: hover },
+        { type: 'scatter', mode: 'markers', name: 'levels in the gain fit',
+            x: inFit.map((p) => p.x), y: inFit.map((p) => p.y), marker: { color: '#1f77b4', size: 7 }, hovertemplate: hover },
         { type: 'scatter', mode: 'markers', name: 'other levels', x: rest.map((p) => p.x),
             y: rest.map((p) => p.y), marker: { color: '#9aa4b2', size: 6, symbol: 'circle-open' },
             hovertemplate: hover },
@@ -84,7 +84,8 @@ function history(items) {
         h('thead', {}, h('tr', {}, ['#', 'Measured', 'Gain (e⁻/DN)', 'Read noise (e⁻)', 'Job']
             .map((t) => h('th', { scope: 'col' }, t)))),
         h('tbody', {}, items.map((m, k) => h('tr', { dataset: { ptcId: m.id } },
-            h('td', {}, `${m.id}${k === 0 ? ' (current)' : ''}`), h('td', {}, fmtTime(m.created_ms)),
+            h('td', {}, `${m.id}${k === 0 ? ' (current)' : ''}`),
+            h('td', {}, fmtTime(m.created_ms)),
             h('td', {}, fmt(m.gain_e_per_dn, 5)), h('td', {}, fmt(m.read_noise_e, 4)),
             h('td', {}, m.job_id ? `#${m.job_id}` : '–')))));
 }
@@ -172,7 +173,8 @@ export function renderSensor(root, id, ctx) {
                 ['Array', `${s.n_cols} × ${s.n_rows} pixels`, 'Pitch', `${fmt(s.pitch_um, 6)} µm`,
                     'Gain (as created)', `${fmt(s.gain_e_per_dn)} e⁻/DN`,
                     'Read noise (as created)', `${fmt(s.read_noise_e)} e⁻`,
-                    'Bias', `${fmt(s.bias_dn, 6)} DN`, 'Full scale', `${fmt(s.full_scale_dn, 6)} DN`]
+                    'Bias', `${fmt(s.bias_dn, 6)} DN`,
+                    'Full scale', `${fmt(s.full_scale_dn, 6)} DN`]
                     .map((t, k) => h(k % 2 ? 'dd' : 'dt', {}, t)))),
         h('section', { class: 'panel', 'aria-label': 'Photon transfer' },
             h('h3', {}, 'Photon transfer (EMVA 1288)'),
