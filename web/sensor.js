@@ -26,7 +26,8 @@ export function ptcFigure(doc) {
     const hover = 'mean %{x:.4g} DN<br>variance %{y:.4g} DN²<extra></extra>';
     const data = [
         { type: 'scatter', mode: 'markers', name: 'levels in the gain fit',
-            x: inFit.map((p) => p.x), y: inFit.map((p) => p.y), marker: { color: '#1f77b4', size: 7 }, hovertemplate: hover },
+            x: inFit.map((p) => p.x), y: inFit.map((p) => p.y),
+            marker: { color: '#1f77b4', size: 7 }, hovertemplate: hover },
         { type: 'scatter', mode: 'markers', name: 'other levels', x: rest.map((p) => p.x),
             y: rest.map((p) => p.y), marker: { color: '#9aa4b2', size: 6, symbol: 'circle-open' },
             hovertemplate: hover },
