@@ -91,21 +91,6 @@ int storage_ptc_history(storage_t *st, int64_t sensor_id, int limit, storage_ptc
     return ret;
 }
 
-int storage_ptc_store_done(storage_t *st, const storage_ptc_t *p, int64_t *id, err_t *err)
-{
-    if (!st || !p || !id) return err_set(err, -EINVAL, "ptc store: NULL argument");
-    if (p->job_id <= 0) return err_set(err, -EINVAL, "ptc store: no job");
-    int ret = stg_begin_write(st, err);
-    if (ret) return ret;
-    /* the job's end first: a job cancelled meanwhile stores nothing */
-    if ((ret = stg_job_finish(st, p->job_id, STORAGE_DONE, NULL, err)) ||
-        (ret = storage_ptc_put(st, p, id, err))) {
-        stg_rollback(st);
-        return ret;
-    }
-    return stg_commit(st, err);
-}
-
 int storage_ptc_get(storage_t *st, int64_t id, storage_ptc_t *out, err_t *err)
 {
     sqlite3_stmt *q;
