@@ -174,6 +174,9 @@ void api_h_calib_fits(api_req_t *q);
 void api_h_pixel_calib_fits(api_req_t *q);
 void api_h_sensor_calibs_fits(api_req_t *q);
 void api_h_jitter(api_req_t *q);
+void api_h_sensor_ptc_create(api_req_t *q); /* api_ptc.c */
+void api_h_sensor_ptc(api_req_t *q);
+void api_h_ptc_get(api_req_t *q);
 /* GET / and static files of the web directory (not under /api/). */
 void api_h_static(api_req_t *q, const char *path);
 

@@ -17,7 +17,7 @@ void api_h_jobs_list(api_req_t *q)
     const char *k = api_query(q, "kind");
     storage_job_kind_t kv;
     if (k && storage_job_kind_parse(k, &kv)) {
-        api_error(q, 422, "out_of_range", "kind", "kind must be scan or fit (got '%s')", k);
+        api_error(q, 422, "out_of_range", "kind", "kind must be scan, fit or ptc (got '%s')", k);
         return;
     }
     if (k) kind = (int)kv;

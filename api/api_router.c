@@ -43,6 +43,9 @@ static const api_route_t routes[] = {
     {"GET", "/api/sensors/{id}/pixels/{col}/{row}/calibration.fits", api_h_pixel_calib_fits, 0},
     {"GET", "/api/sensors/{id}/calibrations.fits", api_h_sensor_calibs_fits, 0},
     {"POST", "/api/jitter", api_h_jitter, 1},
+    {"POST", "/api/sensors/{id}/ptc", api_h_sensor_ptc_create, 1},
+    {"GET", "/api/sensors/{id}/ptc", api_h_sensor_ptc, 0},
+    {"GET", "/api/ptc/{id}", api_h_ptc_get, 0},
 };
 #define N_ROUTES (sizeof routes / sizeof routes[0])
 

@@ -198,13 +198,13 @@ void srv_worker_end(srv_worker_t *w)
     atomic_store(&w->job, 0);
 }
 
-void srv_worker_loop(srv_worker_t *w, storage_job_kind_t kind, const char *name,
+void srv_worker_loop(srv_worker_t *w, unsigned kinds, const char *name,
                      void (*run)(srv_worker_t *w, storage_job_t *job))
 {
     err_t err;
     while (!atomic_load(&w->srv->stopping)) {
         storage_job_t job;
-        if (storage_job_claim(w->st, kind, &job, &err)) {
+        if (storage_job_claim_kinds(w->st, kinds, &job, &err)) {
             fprintf(stderr, "ipsd: %s: %s\n", name, err.msg);
             srv_wait_work(w->srv, IDLE_POLL_MS);
             continue;

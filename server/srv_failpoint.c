@@ -40,8 +40,9 @@ struct srv_failpoints {
 
 /* The points the workers have (a misspelt name must not arm nothing silently). */
 static const char *const POINTS[] = {
-    "scan.setup",      "scan.point", "scan.finish", "fit.step",     "fit.before_store",
-    "fit.after_store", "fit.poll",   "fit.poll.lm", "camera.frame", "fit.pixel"};
+    "scan.setup",       "scan.point",      "scan.finish", "fit.step",     "fit.before_store",
+    "fit.after_store",  "fit.poll",        "fit.poll.lm", "camera.frame", "fit.pixel",
+    "ptc.level",        "ptc.before_store", "ptc.after_store"};
 
 static int parse_term(char *text, struct fp_term *t, err_t *err)
 {
@@ -56,7 +57,8 @@ static int parse_term(char *text, struct fp_term *t, err_t *err)
         return err_set(err, -EINVAL,
                        "IPSD_FAILPOINTS: unknown point '%s' (scan.setup, scan.point, fit.step, "
                        "fit.before_store, fit.after_store, fit.poll, fit.poll.lm, "
-                       "camera.frame, fit.pixel)",
+                       "camera.frame, fit.pixel, ptc.level, ptc.before_store, "
+                       "ptc.after_store)",
                        text);
     snprintf(t->name, sizeof t->name, "%s", text);
     if (!strcmp(action, "hold")) t->action = FP_HOLD;

@@ -17,7 +17,10 @@
  * inside the LM only: each iteration, Jacobian and residual; hit after fit.poll), camera.frame (the simulated camera,
  * before each frame it captures: hold makes the camera stop answering until its frame timeout,
  * error makes the capture fail; no held file), fit.pixel (a fit of every pixel a scan covers,
- * after each pixel's fit and the job's count are committed, before the next pixel). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
+ * after each pixel's fit and the job's count are committed, before the next pixel), ptc.level
+ * (a photon-transfer measurement, after each level of its series is measured and published),
+ * ptc.before_store (its analysis done, before the transaction that stores it), ptc.after_store
+ * (after that transaction committed). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
  * process kills itself with SIGKILL there: a kill -9 at a known point) or off. @N: only the N-th hit of that point since ipsd started, counted over all
  * jobs; without it, every hit. Several terms may name one point.
  *

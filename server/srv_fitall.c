@@ -27,6 +27,7 @@
 #include "server/srv_fit.h"
 #include "server/srv_setup.h"
 #include "srv_failpoint.h"
+#include "server/srv_ptc.h"
 #include "srv_fitall.h"
 
 /* Progress of the running pixel: an event per step, the heartbeat at most once a second. */
@@ -96,9 +97,17 @@ static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const stor
     srv_fit_hooks_t hooks = {
         .stop = &w->stop, .poll = on_poll, .progress = on_progress, .user = aw};
     /* every stored point: the fit takes its region (fit/region.h), Wiener the whole raster */
+    srv_noise_source_t noise;
     int ret = srv_pixel_scan(w->st, sc, dcol, drow, 1, &sf, err);
     if (ret) return ret;
-    if ((ret = srv_fit_run(&sf.scan, p, &hooks, &out, err))) goto out;
+    /* sigma's gain and read noise: the request's, the sensor's photon transfer, the scan's */
+    if ((ret = srv_fit_noise(w->st, p, sc->sensor_id, &sf.scan, &noise, err)) ||
+        (ret = srv_fit_run(&sf.scan, p, &hooks, &out, err)))
+        goto out;
+    if (srv_fit_noise_record(out.result, &noise)) {
+        ret = err_set(err, -ENOMEM, "out of memory");
+        goto out;
+    }
     if (!(result = json_dumps(out.result, JSON_COMPACT | JSON_REAL_PRECISION(17)))) {
         ret = err_set(err, -ENOMEM, "out of memory");
         goto out;

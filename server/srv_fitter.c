@@ -21,6 +21,7 @@
 #include "base/thread_sched.h"
 #include "instrument/scanfile.h"
 #include "server/srv_fit.h"
+#include "server/srv_ptc.h"
 #include "server/srv_setup.h"
 #include "srv_failpoint.h"
 #include "srv_fitall.h"
@@ -194,8 +195,15 @@ static void run_job(srv_worker_t *w, storage_job_t *job)
         ret = srv_fitall_run(w, job, &p, &err);
         goto end;
     }
+    srv_noise_source_t noise;
     if (ret == 0) ret = load_input(w->st, &p, &in, &err);
+    /* sigma's gain and read noise: the request's, the sensor's photon transfer, the scan's */
+    if (ret == 0)
+        ret = srv_fit_noise(w->st, &p, p.scan_file ? 0 : in.calib.sensor_id, &in.sf.scan, &noise,
+                            &err);
     if (ret == 0) ret = srv_fit_run(&in.sf.scan, &p, &hooks, &out, &err);
+    if (ret == 0 && srv_fit_noise_record(out.result, &noise))
+        ret = err_set(&err, -ENOMEM, "out of memory");
     if (ret == 0) ret = srv_failpoint(w, "fit.before_store", &err); /* test hook */
     /* the fit and the job's done in one transaction (cancelled meanwhile: nothing stored) */
     if (ret == 0) ret = store(w->st, job->id, &p, &in, &out, &err);
@@ -233,6 +241,6 @@ void *srv_fitter_main(void *arg)
 {
     srv_worker_t *w = arg;
     lower_priority(&w->srv->cfg);
-    srv_worker_loop(w, STORAGE_JOB_FIT, "fit worker", run_job);
+    srv_worker_loop(w, STORAGE_JOB_BIT(STORAGE_JOB_FIT), "fit worker", run_job);
     return NULL;
 }

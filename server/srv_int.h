@@ -39,10 +39,10 @@ struct srv {
     char unrecorded_msg[256];     /* refuses to record yet (srv_scanner.c), and its error */
 };
 
-/* A worker's life: claims jobs of kind in queue order and runs each with run, waiting for
- * new work (or polling every second, for jobs queued by another process) when there is none,
- * until the server stops. name is for log lines. */
-void srv_worker_loop(srv_worker_t *w, storage_job_kind_t kind, const char *name,
+/* A worker's life: claims jobs of the kinds (a mask of STORAGE_JOB_BIT) in queue order and runs
+ * each with run, waiting for new work (or polling every second, for jobs queued by another
+ * process) when there is none, until the server stops. name is for log lines. */
+void srv_worker_loop(srv_worker_t *w, unsigned kinds, const char *name,
                      void (*run)(srv_worker_t *w, storage_job_t *job));
 
 /* Wakes every worker waiting for work. */
@@ -72,6 +72,10 @@ void srv_scan_unrecorded_set(srv_t *srv, int64_t job_id, const char *msg);
 /* Worker threads (arg: their srv_worker_t). */
 void *srv_scanner_main(void *arg);
 void *srv_fitter_main(void *arg);
+
+/* The scan worker's other job kind: one photon-transfer measurement (srv_ptc.c), run to its end
+ * state. */
+void srv_ptc_run_job(srv_worker_t *w, storage_job_t *job);
 
 
 /* The one-shot modes of ipsd (srv_tools.c): --hash-token (reads stdin) and --backup OUT.

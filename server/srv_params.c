@@ -50,7 +50,9 @@ srv_fit_params_t srv_fit_params_default(void)
                               .ftest_r = 7,
                               .wiener = 0,
                               .wavelength_um = NAN,
-                              .na = NAN};
+                              .na = NAN,
+                              .gain_e_per_dn = NAN,
+                              .read_noise_e = NAN};
 }
 
 srv_fit_params_t srv_fit_params_auto(int64_t scan_id)
@@ -118,6 +120,10 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
     if (p->region.kind == FIT_REGION_MARGIN)
         json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
     if (p->all_pixels) json_object_set_new(o, "pixels", json_string("all"));
+    if (isfinite(p->gain_e_per_dn))
+        json_object_set_new(o, "gain_e_per_dn", json_real(p->gain_e_per_dn));
+    if (isfinite(p->read_noise_e))
+        json_object_set_new(o, "read_noise_e", json_real(p->read_noise_e));
     char *text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
     json_decref(o);
     return text;
@@ -172,6 +178,10 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     if ((x = json_object_get(o, "wavelength_um")) && json_is_number(x))
         p->wavelength_um = json_number_value(x);
     if ((x = json_object_get(o, "na")) && json_is_number(x)) p->na = json_number_value(x);
+    if ((x = json_object_get(o, "gain_e_per_dn")) && json_is_number(x))
+        p->gain_e_per_dn = json_number_value(x);
+    if ((x = json_object_get(o, "read_noise_e")) && json_is_number(x))
+        p->read_noise_e = json_number_value(x);
     p->promote = (x = json_object_get(o, "promote")) ? json_is_true(x) : 1;
     if ((x = json_object_get(o, "by")) && json_is_string(x))
         snprintf(p->by, sizeof p->by, "%s", json_string_value(x));

@@ -53,6 +53,9 @@ typedef struct srv_fit_params {
     /* every pixel of the scan's sub-frame its raster covers (instrument/scan_cover.h), one fit
      * each, instead of (dcol, drow): "pixels": "all" (server/srv_fitall.c) */
     int all_pixels;
+    /* the request's gain and read noise for sigma (eq. 5), overriding the sensor's measured
+     * constants (srv_ptc.h) and the scan's; NaN: not given */
+    double gain_e_per_dn, read_noise_e;
 } srv_fit_params_t;
 
 /* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload, not

@@ -5,7 +5,8 @@
  * the raster: a resumed scan continues at the point after its last stored one with the same
  * positions. When the raster is complete the scan is done and the fit of its POI is queued.
  * Cancel (the worker's stop flag, or the database refusing the next point) stops between points;
- * a graceful shutdown gives the job back to the queue.
+ * a graceful shutdown gives the job back to the queue. Photon-transfer measurements need the
+ * instrument too: this worker takes them in queue order with the scans (srv_ptc.c runs them).
  *
  * Storage faults (disk full, read-only, I/O errors; issue 10): the point that cannot be stored
  * fails the scan and its job with the database's error, the instrument is released, and the
@@ -295,6 +296,10 @@ static void conclude(struct scan_run *r, int ret)
 
 static void run_job(srv_worker_t *w, storage_job_t *job)
 {
+    if (job->kind == STORAGE_JOB_PTC) { /* srv_ptc.c */
+        srv_ptc_run_job(w, job);
+        return;
+    }
     struct scan_run r = {.srv = w->srv, .w = w, .st = w->st, .job = job};
     srv_worker_begin(w, job->id);
     int ret = begin(&r);
@@ -327,6 +332,8 @@ int64_t srv_scan_unrecorded(srv_t *srv, char *msg, size_t size)
 void *srv_scanner_main(void *arg)
 {
     srv_worker_t *w = arg;
-    srv_worker_loop(w, STORAGE_JOB_SCAN, "scan worker", run_job);
+    /* the instrument's jobs, in the order queued: scans and photon-transfer measurements */
+    srv_worker_loop(w, STORAGE_JOB_BIT(STORAGE_JOB_SCAN) | STORAGE_JOB_BIT(STORAGE_JOB_PTC),
+                    "scan worker", run_job);
     return NULL;
 }

@@ -275,7 +275,14 @@ void storage_raster_free(storage_raster_t *r);
 
 /* ---- jobs --------------------------------------------------------------------------------- */
 
-typedef enum storage_job_kind { STORAGE_JOB_SCAN = 0, STORAGE_JOB_FIT = 1 } storage_job_kind_t;
+/* ptc: a photon-transfer measurement of a sensor (schema 5), run by the instrument's worker */
+typedef enum storage_job_kind {
+    STORAGE_JOB_SCAN = 0,
+    STORAGE_JOB_FIT = 1,
+    STORAGE_JOB_PTC = 2
+} storage_job_kind_t;
+/* a kind's bit in the mask of storage_job_claim_kinds */
+#define STORAGE_JOB_BIT(kind) (1u << (unsigned)(kind))
 
 /* "scan" / "fit" (static), NULL when out of range; parse gives -EINVAL for unknown names. */
 const char *storage_job_kind_name(int kind);
@@ -308,6 +315,9 @@ int storage_job_enqueue(storage_t *st, storage_job_kind_t kind, const char *para
  * started_ms stamped. Returns 0 with the job in *out (caller frees with storage_job_free), or 0
  * with out->id == 0 when none is queued. Two handles never get the same job. */
 int storage_job_claim(storage_t *st, storage_job_kind_t kind, storage_job_t *out, err_t *err);
+/* The same for the oldest queued job of any of the kinds (a mask of STORAGE_JOB_BIT): the
+ * instrument's worker takes scan and ptc jobs in the order they were queued. */
+int storage_job_claim_kinds(storage_t *st, unsigned kinds, storage_job_t *out, err_t *err);
 /* A running job reports it is alive: heartbeat, progress (0..1) and points done. -ECANCELED
  * when the job was cancelled (the worker should stop), -ESTALE when it is no longer running for
  * another reason (e.g. requeued as stale), -ENOENT for an unknown job. */
@@ -486,6 +496,13 @@ typedef struct storage_ptc_list {
 /* Stores a measurement (one transaction). -ENOENT for an unknown sensor or job, -EINVAL for a
  * gain or read noise out of range or result not JSON. */
 int storage_ptc_put(storage_t *st, const storage_ptc_t *p, int64_t *id, err_t *err);
+/* storage_ptc_put of a ptc job's result (p->job_id > 0) that also ends the job as done, in one
+ * transaction: a crash leaves either nothing (the job is still running and runs again) or both,
+ * so a job never stores two measurements. The job must be running: -ECANCELED (cancelled
+ * meanwhile) / -ESTALE / -ENOENT as storage_job_finish, and then nothing is stored. */
+int storage_ptc_store_done(storage_t *st, const storage_ptc_t *p, int64_t *id, err_t *err);
+/* One measurement by id; -ENOENT when unknown. Free with storage_ptc_free. */
+int storage_ptc_get(storage_t *st, int64_t id, storage_ptc_t *out, err_t *err);
 /* The sensor's measurements, newest first (at most limit; <= 0: all); none is not an error. */
 int storage_ptc_history(storage_t *st, int64_t sensor_id, int limit, storage_ptc_list_t *out,
                         err_t *err);

@@ -1,9 +1,10 @@
 /* storage_compose.c: the writes that span tables, each one transaction composed of the per-table
  * steps of the other files (stg_*_insert, stg_job_set_fit, ...): a scan with the job that runs it,
  * a fit with its job link (and the job's end), the map it offers and (when asked) its
- * calibration, the promotion of a stored fit's map to its pixel's calibration, and the resume of
- * a failed scan with its job. Nothing calls into this file from storage/,
- * so the table files never call each other both ways (docs/schema.md, "The code"). */
+ * calibration, the promotion of a stored fit's map to its pixel's calibration, the resume of
+ * a failed scan with its job, and a photon-transfer measurement with its job's end. Nothing
+ * calls into this file from storage/, so the table files never call each other both ways
+ * (docs/schema.md, "The code"). */
 #include "storage_int.h"
 
 #include <errno.h>
@@ -182,6 +183,21 @@ int storage_scan_resume(storage_t *st, int64_t id, int64_t *job_id, err_t *err)
     if ((ret = stg_scan_resume(st, id, err)) || (ret = stg_job_resume(st, id, job_id, err))) {
         stg_rollback(st);
         *job_id = 0;
+        return ret;
+    }
+    return stg_commit(st, err);
+}
+
+int storage_ptc_store_done(storage_t *st, const storage_ptc_t *p, int64_t *id, err_t *err)
+{
+    if (!st || !p || !id) return err_set(err, -EINVAL, "ptc store: NULL argument");
+    if (p->job_id <= 0) return err_set(err, -EINVAL, "ptc store: no job");
+    int ret = stg_begin_write(st, err);
+    if (ret) return ret;
+    /* the job's end first: a job cancelled meanwhile stores nothing */
+    if ((ret = stg_job_finish(st, p->job_id, STORAGE_DONE, NULL, err)) ||
+        (ret = storage_ptc_put(st, p, id, err))) {
+        stg_rollback(st);
         return ret;
     }
     return stg_commit(st, err);

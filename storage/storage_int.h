@@ -70,6 +70,7 @@ enum stg_id {
     STG_JOB_RESUME,
     STG_PTC_INSERT,
     STG_PTC_HISTORY,
+    STG_PTC_GET,
     STG_N
 };
 

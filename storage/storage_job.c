@@ -8,16 +8,17 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const kind_names[] = {"scan", "fit"};
+static const char *const kind_names[] = {"scan", "fit", "ptc"};
+#define N_KINDS 3
 
 const char *storage_job_kind_name(int kind)
 {
-    return kind == STORAGE_JOB_SCAN || kind == STORAGE_JOB_FIT ? kind_names[kind] : NULL;
+    return kind >= 0 && kind < N_KINDS ? kind_names[kind] : NULL;
 }
 
 int storage_job_kind_parse(const char *name, storage_job_kind_t *out)
 {
-    for (int i = 0; name && i < 2; i++) {
+    for (int i = 0; name && i < N_KINDS; i++) {
         if (strcmp(name, kind_names[i]) == 0) {
             *out = (storage_job_kind_t)i;
             return 0;
@@ -128,13 +129,15 @@ int storage_job_get(storage_t *st, int64_t id, storage_job_t *out, err_t *err)
     return job_load(st, id, out, err);
 }
 
-/* Inside the claim transaction: the id of the oldest queued job of kind, 0 if none. */
-static int next_queued(storage_t *st, storage_job_kind_t kind, int64_t *id, err_t *err)
+/* Inside the claim transaction: the id of the oldest queued job of the kinds (a mask of
+ * STORAGE_JOB_BIT), 0 if none. */
+static int next_queued(storage_t *st, unsigned kinds, int64_t *id, err_t *err)
 {
     sqlite3_stmt *q;
     int ret, rc = SQLITE_OK;
     if ((ret = stg_stmt(st, STG_JOB_NEXT, &q, err))) return ret;
-    stg_bind_text(q, 1, storage_job_kind_name(kind), &rc);
+    for (int k = 0; k < N_KINDS; k++)
+        stg_bind_text(q, k + 1, kinds & STORAGE_JOB_BIT(k) ? kind_names[k] : NULL, &rc);
     ret = rc == SQLITE_OK ? stg_row(st, q, err, "finding a queued job")
                           : stg_error(st, rc, err, "finding a queued job");
     *id = ret == 0 ? sqlite3_column_int64(q, 0) : 0;
@@ -144,16 +147,25 @@ static int next_queued(storage_t *st, storage_job_kind_t kind, int64_t *id, err_
 
 int storage_job_claim(storage_t *st, storage_job_kind_t kind, storage_job_t *out, err_t *err)
 {
+    if (!storage_job_kind_name(kind)) {
+        if (out) memset(out, 0, sizeof *out);
+        return err_set(err, -EINVAL, "job kind: %d is not a kind", (int)kind);
+    }
+    return storage_job_claim_kinds(st, STORAGE_JOB_BIT(kind), out, err);
+}
+
+int storage_job_claim_kinds(storage_t *st, unsigned kinds, storage_job_t *out, err_t *err)
+{
     sqlite3_stmt *q;
     int64_t id = 0;
     int ret, rc = SQLITE_OK;
     if (!st || !out) return err_set(err, -EINVAL, "job claim: NULL argument");
     memset(out, 0, sizeof *out);
-    if (!storage_job_kind_name(kind))
-        return err_set(err, -EINVAL, "job kind: %d is not a kind", (int)kind);
+    if (kinds == 0 || kinds >= STORAGE_JOB_BIT(N_KINDS))
+        return err_set(err, -EINVAL, "job kinds: %#x names no kind or an unknown one", kinds);
     /* BEGIN IMMEDIATE: no other connection can claim between our SELECT and our UPDATE */
     if ((ret = stg_begin_write(st, err))) return ret;
-    if ((ret = next_queued(st, kind, &id, err)) || id == 0) goto out;
+    if ((ret = next_queued(st, kinds, &id, err)) || id == 0) goto out;
     if ((ret = stg_stmt(st, STG_JOB_START, &q, err))) goto out;
     stg_bind_int(q, 1, id, &rc);
     stg_bind_int(q, 2, storage_now_ms(st), &rc);

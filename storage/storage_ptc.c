@@ -90,3 +90,20 @@ int storage_ptc_history(storage_t *st, int64_t sensor_id, int limit, storage_ptc
     if (ret) storage_ptc_list_free(out);
     return ret;
 }
+
+int storage_ptc_get(storage_t *st, int64_t id, storage_ptc_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "ptc get: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_stmt(st, STG_PTC_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a ptc measurement")
+                          : stg_error(st, rc, err, "reading a ptc measurement");
+    if (ret == 0 && read_ptc(q, out)) ret = err_set(err, -ENOMEM, "ptc: out of memory");
+    stg_reset(q);
+    return ret == -ENOENT
+               ? err_set(err, ret, "photon-transfer measurement %lld does not exist", (long long)id)
+               : ret;
+}

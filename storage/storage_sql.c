@@ -203,6 +203,37 @@ const char *const stg_migrations[] = {
     ");\n"
     "CREATE INDEX ptc_sensor ON ptc (sensor_id, id);\n"
     "PRAGMA user_version = 4;\n",
+
+    /* 5: photon-transfer jobs (kind 'ptc', run by the scan worker: it owns the instrument). A
+     * CHECK cannot be altered, so jobs is rebuilt the documented way (new table, copy, drop,
+     * rename; storage_open runs it in one transaction with foreign keys off and checks them
+     * after): every row and id is kept, so the references of ptc to jobs stay valid. */
+    "CREATE TABLE jobs_v5 (\n"
+    "    id           INTEGER PRIMARY KEY,\n"
+    "    kind         TEXT    NOT NULL CHECK (kind IN ('scan', 'fit', 'ptc')),\n"
+    "    params       TEXT    NOT NULL CONSTRAINT params_json CHECK (json_valid(params)),\n"
+    "    state        TEXT    NOT NULL DEFAULT 'queued'\n"
+    "                 CHECK (state IN ('queued', 'running', 'done', 'failed', 'cancelled')),\n"
+    "    progress     REAL    NOT NULL DEFAULT 0 CHECK (progress BETWEEN 0 AND 1),\n"
+    "    points_done  INTEGER NOT NULL DEFAULT 0 CHECK (points_done >= 0),\n"
+    "    error        TEXT,\n"
+    "    attempts     INTEGER NOT NULL DEFAULT 0,\n"
+    "    heartbeat_ms INTEGER,\n"
+    "    created_ms   INTEGER NOT NULL,\n"
+    "    started_ms   INTEGER,\n"
+    "    finished_ms  INTEGER,\n"
+    "    scan_id      INTEGER REFERENCES scans (id),\n"
+    "    fit_id       INTEGER REFERENCES fits (id)\n"
+    ");\n"
+    "INSERT INTO jobs_v5 (id, kind, params, state, progress, points_done, error, attempts,\n"
+    "    heartbeat_ms, created_ms, started_ms, finished_ms, scan_id, fit_id)\n"
+    "    SELECT id, kind, params, state, progress, points_done, error, attempts, heartbeat_ms,\n"
+    "    created_ms, started_ms, finished_ms, scan_id, fit_id FROM jobs;\n"
+    "DROP TABLE jobs;\n"
+    "ALTER TABLE jobs_v5 RENAME TO jobs;\n"
+    "CREATE INDEX jobs_queue ON jobs (kind, state, id);\n"
+    "CREATE INDEX jobs_scan ON jobs (scan_id);\n"
+    "PRAGMA user_version = 5;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -285,7 +316,9 @@ const char *const stg_sql[STG_N] = {
     [STG_JOB_INSERT] = "INSERT INTO jobs (kind, params, state, created_ms, scan_id) "
                        "VALUES (?1, ?2, 'queued', ?3, ?4)",
     [STG_JOB_GET] = "SELECT " STG_JOB_COLS " FROM jobs WHERE id = ?1",
-    [STG_JOB_NEXT] = "SELECT id FROM jobs WHERE kind = ?1 AND state = 'queued' ORDER BY id LIMIT 1",
+    /* the oldest queued job of up to three kinds (NULL: no kind) */
+    [STG_JOB_NEXT] = "SELECT id FROM jobs WHERE kind IN (?1, ?2, ?3) AND state = 'queued' "
+                     "ORDER BY id LIMIT 1",
     [STG_JOB_START] = "UPDATE jobs SET state = 'running', attempts = attempts + 1, "
                       "heartbeat_ms = ?2, started_ms = coalesce(started_ms, ?2) "
                       "WHERE id = ?1 AND state = 'queued'",
@@ -353,6 +386,7 @@ const char *const stg_sql[STG_N] = {
     [STG_PTC_INSERT] = "INSERT INTO ptc (sensor_id, gain_e_per_dn, read_noise_e, dark_dn, "
                        "saturation_dn, linearity_error_pct, result, job_id, created_ms) "
                        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+    [STG_PTC_GET] = "SELECT " STG_PTC_COLS " FROM ptc WHERE id = ?1",
     [STG_PTC_HISTORY] = "SELECT " STG_PTC_COLS " FROM ptc WHERE sensor_id = ?1 "
                         "ORDER BY id DESC LIMIT ?2",
     [STG_CALIB_SEARCH] = "SELECT " STG_CALIB_COLS " " CALIB_FILTER

@@ -6,7 +6,8 @@ if(TARGET ipsstore)
     set_tests_properties(test_storage PROPERTIES TIMEOUT 80) # busy, ASan: 20 s (optimised 11 s)
     # white-box: it reads storage/storage_int.h (the migrations) to build an old schema by hand
     target_include_directories(test_storage PRIVATE ${PROJECT_SOURCE_DIR}/storage)
-    ipsd_add_test(test_storage_ptc ipsstore) # photon-transfer history (schema 4)
+    ipsd_add_test(test_storage_ptc ipsstore) # photon-transfer history (schema 4), jobs (5)
+    target_include_directories(test_storage_ptc PRIVATE ${PROJECT_SOURCE_DIR}/storage)
     ipsd_add_test(test_storage_backup ipsstore) # SQLite (raw reads of the copy) comes with it
     add_test(NAME test_storage_layers
              COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test_storage_layers.sh ${CMAKE_NM}

@@ -43,6 +43,7 @@ storage_compose.c storage.c
 storage_compose.c storage_calib.c
 storage_compose.c storage_fit.c
 storage_compose.c storage_job.c
+storage_compose.c storage_ptc.c
 storage_compose.c storage_scan.c
 storage_fit.c storage.c
 storage_fit.c storage_scan.c

@@ -1,7 +1,7 @@
 // app.js: the dashboard's entry point: the hash router (#/scans, #/scans/ID, #/fits/ID,
-// #/calibrations?filters, #/sensors/ID/pixels/COL/ROW), the token field (kept in localStorage,
-// sent as 'Authorization: Bearer'), the form asking for a token when reads answer 401
-// (token.js), the server's health and the event-stream status.
+// #/calibrations?filters, #/sensors/ID/pixels/COL/ROW, #/sensors/ID: its photon transfer), the
+// token field (kept in localStorage, sent as 'Authorization: Bearer'), the form asking for a
+// token when reads answer 401 (token.js), the server's health and the event-stream status.
 import { get, getToken, onEventStatus, onJob, setToken } from './api.js';
 import { renderCalibrations, renderPixel } from './calib.js';
 import { fill, h } from './dom.js';
@@ -9,6 +9,7 @@ import { setupTokenPrompt } from './token.js';
 import { renderFit } from './fit.js';
 import { renderScan } from './scan_detail.js';
 import { renderScans } from './scans_list.js';
+import { renderSensor } from './sensor.js';
 
 const view = document.getElementById('view');
 const notice = document.getElementById('notice');
@@ -29,6 +30,7 @@ const routes = [
     [/^\/scans\/(\d+)$/, (m) => renderScan(view, Number(m[1]), ctx), 'scans'],
     [/^\/fits\/(\d+)$/, (m) => renderFit(view, Number(m[1]), ctx), 'scans'],
     [/^\/calibrations\/?$/, (m, q) => renderCalibrations(view, q), 'calibrations'],
+    [/^\/sensors\/(\d+)$/, (m) => renderSensor(view, Number(m[1]), ctx), 'calibrations'],
     [/^\/sensors\/(\d+)\/pixels\/(\d+)\/(\d+)$/,
         (m) => renderPixel(view, Number(m[1]), Number(m[2]), Number(m[3])), 'calibrations'],
 ];

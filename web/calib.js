@@ -115,7 +115,8 @@ export function renderCalibrations(root, params) {
                     const s = sensors.get(c.sensor_id);
                     return h('tr', { dataset: { calibId: c.id } },
                         h('td', {}, c.id),
-                        h('td', {}, s ? `${s.model} ${s.serial}` : `#${c.sensor_id}`),
+                        h('td', {}, h('a', { href: `#/sensors/${c.sensor_id}` },
+                            s ? `${s.model} ${s.serial}` : `#${c.sensor_id}`)),
                         h('td', {}, h('a', { href: pixelHref(c) },
                             `(${c.pixel.col}, ${c.pixel.row})`)),
                         h('td', {}, c.r), h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
@@ -261,7 +262,8 @@ export function renderPixel(root, sensorId, col, row) {
         const sensor = await get(`/api/sensors/${sensorId}`);
         const pitch = sensor.pitch_um;
         const title = [h('p', { class: 'crumbs' },
-            h('a', { href: `#/calibrations?sensor=${sensorId}` }, '← Calibrations')),
+            h('a', { href: `#/calibrations?sensor=${sensorId}` }, '← Calibrations'), ' · ',
+            h('a', { href: `#/sensors/${sensorId}` }, 'the sensor and its photon transfer')),
         h('h2', {}, `Pixel (${col}, ${row}) of ${sensor.model} ${sensor.serial}`)];
         let cur;
         try {

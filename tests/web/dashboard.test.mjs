@@ -857,6 +857,41 @@ async function run(base, page, api) {
     await page.screenshot({ path: path.join(SHOTS, 'scans-1280.png') });
     await checkLiveZoom(base, page, api, sensor);
 
+    // the Sensor view: a photon-transfer measurement on the simulated bench from its button, the
+    // job's progress to done, the figures' table equal to the API's, the plot with every level
+    await page.goto(`${base}/#/sensors/${sensor.id}`);
+    await page.getByRole('button', { name: 'Measure photon transfer' }).click();
+    await page.locator('[data-testid="ptc-status"][data-state="done"]')
+        .waitFor({ timeout: LONG_WAIT });
+    await page.locator('[data-testid="ptc-table"]').waitFor({ timeout: WAIT });
+    const ptc = (await api('GET', `/api/sensors/${sensor.id}/ptc`)).body.current;
+    const cell = (f) => page.locator(`[data-testid="ptc-table"] td[data-field="${f}"]`)
+        .getAttribute('data-value');
+    check(ptc && await cell('gain_e_per_dn') === String(ptc.gain_e_per_dn) &&
+        await cell('read_noise_e') === String(ptc.read_noise_e) &&
+        await cell('saturation_dn') === String(ptc.saturation_dn) &&
+        await cell('dark_dn') === String(ptc.dark_dn),
+    'the photon-transfer table shows the API\'s gain, read noise, saturation and dark signal',
+    `${await cell('gain_e_per_dn')} vs ${ptc?.gain_e_per_dn}`);
+    check(ptc && Math.abs(ptc.gain_e_per_dn / sensor.gain_e_per_dn - 1) < 0.02,
+        'the measured gain is within 2 % of the simulated sensor\'s',
+        `${ptc?.gain_e_per_dn} vs ${sensor.gain_e_per_dn}`);
+    const pt = await plotly(page, 'ptc-plot');
+    const lv = ptc.result.levels.map((l) => [l.mu - l.mu_dark, l.sigma2 - l.sigma2_dark])
+        .filter(([x, y]) => x > 0 && y > 0);
+    const ptcShown = [...pt.data[0].x, ...pt.data[1].x].sort((a, b) => a - b);
+    const satLv = ptc.result.levels[ptc.result.saturation_level];
+    check(pt.layout.xaxis.type === 'log' && pt.layout.yaxis.type === 'log' &&
+        ptcShown.length === lv.length && lv.map(([x]) => x).sort((a, b) => a - b)
+        .every((x, k) => near(x, ptcShown[k], 1e-12)),
+    'the photon-transfer plot is log-log with a point for every level', `${ptcShown.length} of ` +
+        `${lv.length}`);
+    const line = pt.data[2], satTr = pt.data[3];
+    check(near(line.y[1] / line.x[1], ptc.result.K, 1e-12) && satTr &&
+        near(satTr.x[0], satLv.mu - satLv.mu_dark, 1e-12),
+    'the plot has the fitted line (slope K) and the saturation point');
+    await page.screenshot({ path: path.join(SHOTS, 'sensor-ptc-1280.png'), fullPage: true });
+
     // on a phone (390 x 844) no view scrolls sideways: wide tables scroll inside their box, the
     // Fit view's plots drawn (their pairs stacked)
     await page.setViewportSize({ width: 390, height: 844 });
