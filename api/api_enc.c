@@ -76,7 +76,7 @@ static json_t *job_params(const char *text)
 
 json_t *api_enc_job(const storage_job_t *j)
 {
-    return json_pack("{s:I, s:s, s:s, s:f, s:i, s:o, s:i, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "id",
+    json_t *o = json_pack("{s:I, s:s, s:s, s:f, s:i, s:o, s:i, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "id",
                      (json_int_t)j->id, "kind", storage_job_kind_name(j->kind), "state",
                      storage_state_name(j->state), "progress", j->progress, "points_done",
                      j->points_done, "error", str_or_null(j->error), "attempts", j->attempts,
@@ -84,6 +84,18 @@ json_t *api_enc_job(const storage_job_t *j)
                      api_time(j->created_ms), "started_ms", api_time(j->started_ms), "finished_ms",
                      api_time(j->finished_ms), "scan_id", id_or_null(j->scan_id), "fit_id",
                      id_or_null(j->fit_id), "params", job_params(j->params));
+    /* a job of every pixel: the fits it stored, in order (storage keeps them in its params'
+     * "fit_ids"; the answer shows them beside the request, not in it) */
+    json_t *params = o ? json_object_get(o, "params") : NULL, *ids;
+    if (json_is_object(params)) {
+        if ((ids = json_object_get(params, "fit_ids")) && json_is_array(ids)) {
+            json_object_set(o, "fit_ids", ids);
+            json_object_del(params, "fit_ids");
+        } else if (json_is_string(json_object_get(params, "pixels"))) {
+            json_object_set_new(o, "fit_ids", json_array()); /* none stored yet */
+        }
+    }
+    return o;
 }
 
 json_t *api_enc_fit(const storage_fit_t *f, int with_result)

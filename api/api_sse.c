@@ -3,7 +3,9 @@
  * its connection (the hub's sleep callback, run under the hub lock) until the hub resumes it for
  * the next event, heartbeat or the shutdown. So a waiting stream costs no thread. Events:
  *   event: job / id: SEQ / data: {"id", "kind", "state", "progress", "points_done",
- *   "points_total", "eta_s", "scan_id", "fit_id", "phase", "error"}
+ *   "points_total", "eta_s", "scan_id", "fit_id", "phase", "error"[, "pixel": {"dcol", "drow",
+ *   "col", "row"}]} (pixel: a job of every pixel, the pixel being fitted or whose fit fit_id was
+ *   just stored)
  * and a ": heartbeat" comment every --heartbeat seconds. ?job=ID sends that job's events only,
  * starting with its current state. POST /api/events/ticket gives a client that cannot send a
  * header (a browser's EventSource) a short-lived ticket for ?ticket= (server/srv_token.h). */
@@ -48,6 +50,10 @@ static void put_event(struct sse *s, const srv_event_t *ev)
         api_num(ev->eta_s), "scan_id", ev->scan_id ? json_integer(ev->scan_id) : json_null(),
         "fit_id", ev->fit_id ? json_integer(ev->fit_id) : json_null(), "phase", ev->phase, "error",
         ev->error[0] ? json_string(ev->error) : json_null());
+    if (o && ev->has_pixel) /* a job of every pixel: which one */
+        json_object_set_new(o, "pixel",
+                            json_pack("{s:i, s:i, s:i, s:i}", "dcol", ev->dcol, "drow", ev->drow,
+                                      "col", ev->col, "row", ev->row));
     char *data = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(10)) : NULL;
     json_decref(o);
     if (!data) return;

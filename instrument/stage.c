@@ -1,5 +1,6 @@
 /* stage.c: the motion stage interface's dispatch over its backends (see stage.h): the simulated
- * stage (stage_sim.c), PI GCS 2.0 controllers (stage_gcs.c) and the follower (stage_follow.c). */
+ * stage (stage_sim.c), the controller families (PI GCS 2.0: stage_gcs.c; Zaber ASCII:
+ * stage_zaber.c) and the follower (stage_follow.c). */
 #include "instrument/stage.h"
 
 #include <errno.h>
@@ -36,6 +37,16 @@ int stage_open_sim(const stage_sim_config_t *cfg, stage_t **out, err_t *err)
     return wrap(&stage_sim_ops, impl, out, err);
 }
 
+/* The controller families: the backend of a parsed stage string, its operations and opening. */
+static const struct family {
+    int url_backend; /* STAGE_URL_... */
+    const struct stage_ops *ops;
+    int (*open)(const stage_url_t *u, void **impl, err_t *err);
+} families[] = {
+    {STAGE_URL_GCS, &stage_gcs_ops, stage_gcs_new},
+    {STAGE_URL_ZABER, &stage_zaber_ops, stage_zaber_new},
+};
+
 int stage_open(const char *backend, const char *id, stage_t **out, err_t *err)
 {
     *out = NULL;
@@ -43,13 +54,14 @@ int stage_open(const char *backend, const char *id, stage_t **out, err_t *err)
         stage_sim_config_t cfg = stage_sim_config_default();
         return stage_open_sim(&cfg, out, err);
     }
-    if (strcmp(backend, "gcs") == 0) {
-        char url[1100];
-        if (!id || snprintf(url, sizeof url, "gcs:%s", id) >= (int)sizeof url)
-            return err_set(err, -EINVAL, "gcs stage: need an address");
-        return stage_open_url(url, out, err);
-    }
-    return err_set(err, -EINVAL, "unknown stage backend '%s' (sim, gcs)", backend);
+    for (size_t f = 0; f < sizeof families / sizeof families[0]; f++)
+        if (strcmp(backend, families[f].ops->backend) == 0) {
+            char url[1100];
+            if (!id || snprintf(url, sizeof url, "%s:%s", backend, id) >= (int)sizeof url)
+                return err_set(err, -EINVAL, "%s stage: need an address", backend);
+            return stage_open_url(url, out, err);
+        }
+    return err_set(err, -EINVAL, "unknown stage backend '%s' (sim, gcs, zaber)", backend);
 }
 
 int stage_url_check(const char *url, int *is_sim, err_t *err)
@@ -67,9 +79,13 @@ int stage_open_url(const char *url, stage_t **out, err_t *err)
     int ret = stage_url_parse(url, &u, err);
     if (ret) return ret;
     if (u.backend == STAGE_URL_SIM) return stage_open("sim", NULL, out, err);
-    void *impl;
-    if ((ret = stage_gcs_new(&u, &impl, err))) return ret;
-    return wrap(&stage_gcs_ops, impl, out, err);
+    for (size_t f = 0; f < sizeof families / sizeof families[0]; f++)
+        if (u.backend == families[f].url_backend) {
+            void *impl;
+            if ((ret = families[f].open(&u, &impl, err))) return ret;
+            return wrap(families[f].ops, impl, out, err);
+        }
+    return err_set(err, -EINVAL, "stage string names no backend"); /* not reached */
 }
 
 int stage_open_follow(stage_t *lead, stage_t *shadow, stage_t **out, err_t *err)
@@ -91,8 +107,7 @@ const char *stage_backend(const stage_t *stage)
 
 const char *stage_identity(const stage_t *stage)
 {
-    if (stage->ops == &stage_follow_ops) return stage_follow_identity(stage->impl);
-    return stage->ops == &stage_gcs_ops ? stage_gcs_idn(stage->impl) : "";
+    return stage->ops->identity ? stage->ops->identity(stage->impl) : "";
 }
 
 void stage_close(stage_t *stage)

@@ -1,23 +1,36 @@
 /* stage.h: the motion stage interface: absolute moves in x, y, z (micrometres), position read
  * back, homing and travel limits. Backends: the simulated stage ("sim", the default) and PI
- * controllers speaking GCS 2.0 over TCP or a serial line ("gcs", stage_gcs.c); a driver for
+ * controllers speaking GCS 2.0 over TCP or a serial line ("gcs", stage_gcs.c) and Zaber devices
+ * speaking the Zaber ASCII protocol ("zaber", stage_zaber.c); a driver for
  * another controller plugs in through stage_impl.h like the camera backends do.
  *
  * The stage string (ipsd --stage, stage_open_url) names a backend and its connection:
  *   sim
  *   gcs:tcp://HOST:PORT[?OPTIONS]          (PI's controllers listen on port 50000)
  *   gcs:serial:/dev/DEVICE[?OPTIONS]       (raw 8N1; a pseudo-terminal works too)
- * OPTIONS, joined by &: unit=mm|um (the controller's position unit, mm), axes=A,B[,C] (the GCS
- * axis identifiers of x, y and z: 1,2,3; with two axes z is fixed at 0), baud=N (serial: 115200),
- * timeout=S (a reply within S seconds: 5), move_timeout=S (a move or referencing on target
- * within S: 60), poll_ms=N (pause between on-target polls: 10), reference=0|1 (reference
- * unreferenced axes with FRF at opening: 1; 0 refuses to open them instead).
+ *   zaber:tcp://HOST:PORT?step_um=S[&...]  (Zaber's Ethernet devices; serial-to-TCP servers)
+ *   zaber:serial:/dev/DEVICE?step_um=S[&...]
+ * OPTIONS, joined by &, common to both families: axes=A,B[,C] (the axes of x, y and z: GCS axis
+ * identifiers, or Zaber axis numbers 1..9; 1,2,3; with two axes z is fixed at 0), baud=N
+ * (serial: 115200), timeout=S (a reply within S seconds: 5), move_timeout=S (a move or
+ * referencing done within S: 60), poll_ms=N (pause between on-target or idle polls: 10),
+ * reference=0|1 (reference unreferenced axes at opening, GCS FRF or Zaber home: 1; 0 refuses to
+ * open them instead).
+ * GCS only: unit=mm|um (the controller's position unit, mm).
+ * Zaber only: step_um=S (required: micrometres per microstep, the unit of Zaber positions, from
+ * the stage's data sheet), device=N (the device number of every axis: 1), devices=D,D[,D] (one
+ * device number per axis, for daisy-chained single-axis devices: devices=1,2&axes=1,1).
  *
  * Errors of a GCS stage: -ERANGE outside the travel (TMN? .. TMX?, checked before moving, or
  * the controller's error 7), -EPERM a move the controller refuses now (error 5: servo off or
  * axis unreferenced), -EIO another controller error or a lost connection, -ETIMEDOUT no reply
  * within timeout= or not on target within move_timeout=. Controller errors carry the GCS code
  * and its text in err. After a lost connection the next call reconnects.
+ * Errors of a Zaber stage: -ERANGE outside the travel (limit.min .. limit.max, checked before
+ * moving, or the device's rejection BADDATA of a move), -EPERM an axis without a reference
+ * position (warning WR / WH) or parked, -EIO another rejection (its reason in err), a fault flag
+ * (F*), an unexpected limit switch (WL), an interrupted move (NI), or a lost connection,
+ * -ETIMEDOUT as for GCS. After a lost connection the next call reconnects.
  *
  * The simulated stage reports the position it was commanded to (an open-loop stage without
  * encoders) while its true position, which the simulated bench's optics use, differs by
@@ -58,7 +71,8 @@ typedef struct stage_sim_config {
 stage_sim_config_t stage_sim_config_default(void);
 
 /* Opens stage id of backend ("sim": a simulated stage with the default configuration, id
- * ignored; "gcs": id is the stage string without its "gcs:"). *out is the caller's (stage_close).
+ * ignored; "gcs", "zaber": id is the stage string without its "gcs:" or "zaber:"). *out is the
+ * caller's (stage_close).
  * Returns 0, -EINVAL (unknown backend) or -ENOMEM. */
 int stage_open(const char *backend, const char *id, stage_t **out, err_t *err);
 
@@ -76,8 +90,9 @@ int stage_url_check(const char *url, int *is_sim, err_t *err);
  * stage is the shadow) from a real stage. */
 int stage_open_follow(stage_t *lead, stage_t *shadow, stage_t **out, err_t *err);
 
-/* The backend's name ("sim", "gcs", "follow") and, for a GCS stage (or a follower of one), the
- * controller's *IDN? reply ("" otherwise). Borrowed, valid until stage_close. */
+/* The backend's name ("sim", "gcs", "zaber", "follow") and what the controller says it is (a GCS
+ * stage's *IDN? reply; a Zaber stage's device IDs and firmware versions; a follower's lead's;
+ * "" for the simulated stage). Borrowed, valid until stage_close. */
 const char *stage_backend(const stage_t *stage);
 const char *stage_identity(const stage_t *stage);
 

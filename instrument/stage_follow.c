@@ -41,6 +41,11 @@ static int follow_position(void *impl, stage_pos_t *pos, err_t *err)
     return stage_get_position(((struct follow *)impl)->lead, pos, err);
 }
 
+static const char *follow_identity(void *impl)
+{
+    return stage_identity(((struct follow *)impl)->lead);
+}
+
 static int follow_home(void *impl, err_t *err)
 {
     struct follow *f = impl;
@@ -70,6 +75,7 @@ const struct stage_ops stage_follow_ops = {
     .position = follow_position,
     .home = follow_home,
     .limits = follow_limits,
+    .identity = follow_identity,
 };
 
 int stage_follow_new(stage_t *lead, stage_t *shadow, void **impl, err_t *err)
@@ -80,9 +86,4 @@ int stage_follow_new(stage_t *lead, stage_t *shadow, void **impl, err_t *err)
     f->shadow = shadow;
     *impl = f;
     return 0;
-}
-
-const char *stage_follow_identity(void *impl)
-{
-    return stage_identity(((struct follow *)impl)->lead);
 }

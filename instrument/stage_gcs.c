@@ -26,7 +26,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "base/clock.h"
 #include "stage_impl.h"
@@ -82,7 +81,7 @@ static int gcs_errno(int code)
 /* A lost link: closed, to be reopened at the next call. */
 static int lost(struct gcs *g, int ret)
 {
-    if (ret == -EIO || ret == -ETIMEDOUT || ret == -EOVERFLOW) {
+    if (stage_link_broken(ret)) {
         stage_link_close(g->link);
         g->link = NULL;
     }
@@ -185,13 +184,6 @@ bad:
     return lost(g, err_set(err, -EIO, "GCS controller: cannot read the reply to %s", q));
 }
 
-static void pause_ms(int ms)
-{
-    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
-    while (ms > 0 && nanosleep(&ts, &ts) && errno == EINTR) {
-    }
-}
-
 /* Polls query q (ONT? or FRF?) until every axis answers 1, at most move_timeout_s. */
 static int wait_all(struct gcs *g, const char *q, const char *what, err_t *err)
 {
@@ -207,7 +199,7 @@ static int wait_all(struct gcs *g, const char *q, const char *what, err_t *err)
         if (clock_mono_s() > deadline)
             return err_set(err, -ETIMEDOUT, "GCS stage: %s not done within %g s", what,
                            g->url.move_timeout_s);
-        pause_ms(g->url.poll_ms);
+        stage_link_pause_ms(g->url.poll_ms);
     }
 }
 
@@ -333,6 +325,11 @@ static int gcs_home(void *impl, err_t *err)
     return wait_all(g, "ONT?", "homing", err);
 }
 
+static const char *gcs_idn(void *impl)
+{
+    return ((struct gcs *)impl)->idn;
+}
+
 static int gcs_limits(void *impl, stage_limits_t *lim, err_t *err)
 {
     struct gcs *g = impl;
@@ -349,6 +346,7 @@ const struct stage_ops stage_gcs_ops = {
     .position = gcs_position,
     .home = gcs_home,
     .limits = gcs_limits,
+    .identity = gcs_idn,
 };
 
 int stage_gcs_new(const stage_url_t *u, void **impl, err_t *err)
@@ -364,9 +362,4 @@ int stage_gcs_new(const stage_url_t *u, void **impl, err_t *err)
     }
     *impl = g;
     return 0;
-}
-
-const char *stage_gcs_idn(void *impl)
-{
-    return ((struct gcs *)impl)->idn;
 }

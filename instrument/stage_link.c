@@ -13,6 +13,7 @@
 #include <string.h>
 #include <sys/socket.h>
 #include <termios.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "base/clock.h"
@@ -217,5 +218,17 @@ int stage_link_read_line(stage_link_t *l, char *buf, size_t n, double timeout_s,
         if (rc)
             return err_set(err, rc, "stage controller %s: %s", l->name,
                            rc == -ETIMEDOUT ? "no reply within the timeout" : "read failed");
+    }
+}
+
+int stage_link_broken(int ret)
+{
+    return ret == -EIO || ret == -ETIMEDOUT || ret == -EOVERFLOW;
+}
+
+void stage_link_pause_ms(int ms)
+{
+    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    while (ms > 0 && nanosleep(&ts, &ts) && errno == EINTR) {
     }
 }

@@ -27,4 +27,12 @@ int stage_link_send(stage_link_t *l, const char *line, err_t *err);
  * -EOVERFLOW (longer than n - 1). */
 int stage_link_read_line(stage_link_t *l, char *buf, size_t n, double timeout_s, err_t *err);
 
+/* Whether an error of the calls above leaves the link unusable (-EIO, -ETIMEDOUT, -EOVERFLOW: a
+ * reply may still be on its way or half read), so that the backend closes it and reconnects at
+ * its next call. */
+int stage_link_broken(int ret);
+
+/* Sleeps ms milliseconds (the pause between two status polls of a moving stage). */
+void stage_link_pause_ms(int ms);
+
 #endif

@@ -1,5 +1,6 @@
 /* stage_url.c: parsing the stage string (stage_url.h; syntax in stage.h). Hand-written: the
- * string is a small fixed grammar (BACKEND:LINK with key=value options), not a general URI. */
+ * string is a small fixed grammar (FAMILY:LINK with key=value options), not a general URI. The
+ * families (gcs, zaber) share the links and the common options; family_option has the rest. */
 #include "stage_url.h"
 
 #include <errno.h>
@@ -40,10 +41,46 @@ static int parse_axes(const char *v, stage_url_t *u, err_t *err)
         p += len + 1;
     }
     if (n < 2) return bad(err, "axes= needs 2 or 3 comma-separated GCS axis names", v);
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j < i; j++)
-            if (strcmp(u->axes[i], u->axes[j]) == 0) return bad(err, "axes= repeats an axis", v);
+    if (u->backend == STAGE_URL_ZABER)
+        for (int i = 0; i < n; i++)
+            if (strlen(u->axes[i]) != 1 || u->axes[i][0] < '1' || u->axes[i][0] > '9')
+                return bad(err, "axes= of a Zaber stage are axis numbers 1..9", v);
     u->n_axes = n;
+    return 0;
+}
+
+/* "D,D[,D]": Zaber device numbers 1..99 of x, y[, z]. */
+static int parse_devices(const char *v, stage_url_t *u, int *n_devices, err_t *err)
+{
+    int n = 0;
+    const char *p = v;
+    for (;;) {
+        size_t len = strcspn(p, ",");
+        char num[8];
+        long long d;
+        if (n == STAGE_URL_AXES || len == 0 || len >= sizeof num)
+            return bad(err, "devices= needs 2 or 3 comma-separated device numbers 1..99", v);
+        memcpy(num, p, len);
+        num[len] = 0;
+        if (parse_ll(num, &d) || d < 1 || d > 99)
+            return bad(err, "devices= needs 2 or 3 comma-separated device numbers 1..99", v);
+        u->devices[n++] = (int)d;
+        if (!p[len]) break;
+        p += len + 1;
+    }
+    if (n < 2) return bad(err, "devices= needs 2 or 3 comma-separated device numbers 1..99", v);
+    *n_devices = n;
+    return 0;
+}
+
+/* No axis named twice (GCS: the same identifier; Zaber: the same device and axis). */
+static int check_repeats(const stage_url_t *u, err_t *err)
+{
+    for (int i = 0; i < u->n_axes; i++)
+        for (int j = 0; j < i; j++)
+            if (strcmp(u->axes[i], u->axes[j]) == 0 &&
+                (u->backend != STAGE_URL_ZABER || u->devices[i] == u->devices[j]))
+                return err_set(err, -EINVAL, "axes= repeats an axis (%s)", u->axes[i]);
     return 0;
 }
 
@@ -57,18 +94,51 @@ static int parse_seconds(const char *key, const char *v, double *out, err_t *err
     return 0;
 }
 
-static int one_option(char *kv, stage_url_t *u, err_t *err)
+/* What one_option saw of the options that depend on each other. */
+struct seen {
+    int n_devices; /* devices= entries (0: not given) */
+    int step_um;   /* step_um= given */
+};
+
+/* The options only one family has: unit= (GCS), step_um=, device=, devices= (Zaber). Returns 1
+ * when k is none of them. */
+static int family_option(const char *k, const char *v, stage_url_t *u, struct seen *seen,
+                         err_t *err)
+{
+    int zaber = u->backend == STAGE_URL_ZABER;
+    if (strcmp(k, "unit") == 0) {
+        if (zaber) return bad(err, "unit= is for gcs stages; a Zaber stage's unit is step_um=", v);
+        if (strcmp(v, "mm") && strcmp(v, "um")) return bad(err, "unit= must be mm or um", v);
+        u->unit_um = v[0] == 'm' ? 1000.0 : 1.0;
+        return 0;
+    }
+    if (strcmp(k, "step_um") && strcmp(k, "device") && strcmp(k, "devices")) return 1;
+    if (!zaber) return err_set(err, -EINVAL, "%s= is for zaber stages", k);
+    if (strcmp(k, "step_um") == 0) {
+        double s;
+        if (parse_double(v, &s) || !(s > 0 && s <= 1000))
+            return bad(err, "step_um= must be the microstep size in um, in (0, 1000]", v);
+        u->unit_um = s;
+        seen->step_um = 1;
+        return 0;
+    }
+    if (strcmp(k, "devices") == 0) return parse_devices(v, u, &seen->n_devices, err);
+    long long d;
+    if (parse_ll(v, &d) || d < 1 || d > 99) return bad(err, "device= must be 1..99", v);
+    for (int a = 0; a < STAGE_URL_AXES; a++)
+        u->devices[a] = (int)d;
+    return 0;
+}
+
+static int one_option(char *kv, stage_url_t *u, struct seen *seen, err_t *err)
 {
     char *eq = strchr(kv, '=');
     if (!eq) return bad(err, "options are key=value", kv);
     *eq = 0;
     const char *k = kv, *v = eq + 1;
     long long n;
-    if (strcmp(k, "unit") == 0) {
-        if (strcmp(v, "mm") && strcmp(v, "um")) return bad(err, "unit= must be mm or um", v);
-        u->unit_um = v[0] == 'm' ? 1000.0 : 1.0;
-        return 0;
-    }
+    int ret = family_option(k, v, u, seen, err);
+    if (ret <= 0) return ret;
     if (strcmp(k, "axes") == 0) return parse_axes(v, u, err);
     if (strcmp(k, "timeout") == 0) return parse_seconds(k, v, &u->timeout_s, err);
     if (strcmp(k, "move_timeout") == 0) return parse_seconds(k, v, &u->move_timeout_s, err);
@@ -94,13 +164,13 @@ static int one_option(char *kv, stage_url_t *u, err_t *err)
         return 0;
     }
     return err_set(err, -EINVAL,
-                   "unknown option '%.40s' (unit, axes, timeout, move_timeout, poll_ms, "
+                   "unknown option '%.40s' (%s, axes, timeout, move_timeout, poll_ms, "
                    "reference, baud)",
-                   k);
+                   k, u->backend == STAGE_URL_ZABER ? "step_um, device, devices" : "unit");
 }
 
 /* "HOST:PORT" or "[V6]:PORT". */
-static int parse_host_port(const char *hp, stage_url_t *u, err_t *err)
+static int parse_host_port(const char *hp, const char *fam, stage_url_t *u, err_t *err)
 {
     const char *colon = strrchr(hp, ':');
     const char *host = hp;
@@ -112,12 +182,19 @@ static int parse_host_port(const char *hp, stage_url_t *u, err_t *err)
     long long port;
     if (!colon || hlen == 0 || hlen >= sizeof u->host || parse_ll(colon + 1, &port) || port < 1 ||
         port > 65535)
-        return bad(err, "need gcs:tcp://HOST:PORT with a port 1..65535", hp);
+        return err_set(err, -EINVAL, "need %s:tcp://HOST:PORT with a port 1..65535 (got '%.120s')",
+                       fam, hp);
     memcpy(u->host, host, hlen);
     u->host[hlen] = 0;
     u->port = (int)port;
     return 0;
 }
+
+/* The controller families: the prefix of their stage strings. */
+static const struct {
+    const char *prefix;
+    int backend;
+} families[] = {{"gcs:", STAGE_URL_GCS}, {"zaber:", STAGE_URL_ZABER}};
 
 int stage_url_parse(const char *text, stage_url_t *u, err_t *err)
 {
@@ -128,6 +205,8 @@ int stage_url_parse(const char *text, stage_url_t *u, err_t *err)
     strcpy(u->axes[1], "2");
     strcpy(u->axes[2], "3");
     u->n_axes = 3;
+    for (int a = 0; a < STAGE_URL_AXES; a++)
+        u->devices[a] = 1;
     u->timeout_s = 5;
     u->move_timeout_s = 60;
     u->poll_ms = 10;
@@ -136,31 +215,55 @@ int stage_url_parse(const char *text, stage_url_t *u, err_t *err)
         u->backend = STAGE_URL_SIM;
         return 0;
     }
-    if (strncmp(text, "gcs:", 4))
-        return bad(err, "need sim, gcs:tcp://HOST:PORT[?OPTIONS] or gcs:serial:DEVICE[?OPTIONS]",
+    size_t skip = 0;
+    char fam[8] = "";
+    for (size_t f = 0; f < sizeof families / sizeof families[0]; f++)
+        if (strncmp(text, families[f].prefix, strlen(families[f].prefix)) == 0) {
+            u->backend = families[f].backend;
+            skip = strlen(families[f].prefix);
+            snprintf(fam, sizeof fam, "%.*s", (int)skip - 1, families[f].prefix);
+        }
+    if (!skip)
+        return bad(err,
+                   "need sim, or gcs: or zaber: followed by tcp://HOST:PORT[?OPTIONS] or "
+                   "serial:DEVICE[?OPTIONS]",
                    text);
-    u->backend = STAGE_URL_GCS;
     char buf[1024];
     if (strlen(text) >= sizeof buf) return err_set(err, -EINVAL, "stage string too long");
-    strcpy(buf, text + 4);
+    strcpy(buf, text + skip);
     char *query = strchr(buf, '?');
     if (query) *query++ = 0;
     int ret;
     if (strncmp(buf, "tcp://", 6) == 0) {
         u->link = STAGE_LINK_TCP;
-        ret = parse_host_port(buf + 6, u, err);
+        ret = parse_host_port(buf + 6, fam, u, err);
     } else if (strncmp(buf, "serial:", 7) == 0) {
         u->link = STAGE_LINK_SERIAL;
         const char *dev = buf + 7;
         if (dev[0] != '/' || strlen(dev) >= sizeof u->device)
-            return bad(err, "need gcs:serial:/dev/DEVICE (an absolute path)", text);
+            return err_set(err, -EINVAL,
+                           "need %s:serial:/dev/DEVICE (an absolute path; got '%.120s')", fam,
+                           text);
         strcpy(u->device, dev);
         ret = 0;
     } else {
-        return bad(err, "need gcs:tcp://HOST:PORT or gcs:serial:DEVICE", text);
+        return err_set(err, -EINVAL, "need %s:tcp://HOST:PORT or %s:serial:DEVICE (got '%.120s')",
+                       fam, fam, text);
     }
-    if (ret || !query) return ret;
-    for (char *save = NULL, *kv = strtok_r(query, "&", &save); kv; kv = strtok_r(NULL, "&", &save))
-        if ((ret = one_option(kv, u, err))) return ret;
-    return 0;
+    if (ret) return ret;
+    struct seen seen = {0, 0};
+    if (query)
+        for (char *save = NULL, *kv = strtok_r(query, "&", &save); kv;
+             kv = strtok_r(NULL, "&", &save))
+            if ((ret = one_option(kv, u, &seen, err))) return ret;
+    if (u->backend == STAGE_URL_ZABER) {
+        if (!seen.step_um)
+            return err_set(err, -EINVAL,
+                           "a zaber stage needs step_um= (its microstep size in um, from the "
+                           "stage's data sheet)");
+        if (seen.n_devices && seen.n_devices != u->n_axes)
+            return err_set(err, -EINVAL, "devices= names %d devices for %d axes", seen.n_devices,
+                           u->n_axes);
+    }
+    return check_repeats(u, err);
 }

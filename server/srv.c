@@ -237,8 +237,9 @@ void srv_wait_work(srv_t *srv, int ms)
     pthread_mutex_unlock(&srv->mu);
 }
 
-void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int points_total,
-                     double eta_s)
+/* The event of job j's state (phase NULL: its state's name). */
+static srv_event_t job_event(const storage_job_t *j, const char *phase, int points_total,
+                             double eta_s)
 {
     srv_event_t ev = {.job_id = j->id,
                       .scan_id = j->scan_id,
@@ -251,6 +252,25 @@ void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int 
                       .eta_s = eta_s};
     snprintf(ev.phase, sizeof ev.phase, "%s", phase ? phase : storage_state_name(j->state));
     if (j->error) snprintf(ev.error, sizeof ev.error, "%s", j->error);
+    return ev;
+}
+
+void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int points_total,
+                     double eta_s)
+{
+    srv_event_t ev = job_event(j, phase, points_total, eta_s);
+    srv_events_publish(srv->events, &ev);
+}
+
+void srv_publish_job_pixel(srv_t *srv, const storage_job_t *j, const char *phase,
+                           int points_total, double eta_s, int dcol, int drow, int col, int row)
+{
+    srv_event_t ev = job_event(j, phase, points_total, eta_s);
+    ev.has_pixel = 1;
+    ev.dcol = dcol;
+    ev.drow = drow;
+    ev.col = col;
+    ev.row = row;
     srv_events_publish(srv->events, &ev);
 }
 

@@ -29,6 +29,9 @@ typedef struct srv_event {
     char phase[16];  /* what the job does now: "queued", "exposure", "centre", "focus",
                         "raster", "fit", "done", ... */
     char error[160]; /* why it failed, "" otherwise */
+    int has_pixel;   /* a job of every pixel: the pixel the event is about (fitting it, or its fit
+                        fit_id just stored), as offsets from the POI and on the sensor */
+    int dcol, drow, col, row;
 } srv_event_t;
 
 typedef struct srv_events srv_events_t;

@@ -6,7 +6,12 @@
  * (and, when the job says "promote", that pixel's new calibration) together with the job's count
  * of pixels done (points_done) in one transaction (storage_fit_store_unit); the last pixel's
  * transaction also ends the job as done. So:
- *   - progress is "pixel k of N" (points_done of points_total in the job's events);
+ *   - progress is "pixel k of N" (points_done of points_total in the job's events), each event
+ *     naming its pixel ("pixel": the one being fitted, or the one whose fit fit_id was just
+ *     stored);
+ *   - the job is linked to its fits: its fit_id is the newest pixel's, its params' "fit_ids"
+ *     every pixel's in the order stored (storage_fit_store_unit); the job's answer lists them
+ *     with their pixels and the pixels not covered (api_jobs.c);
  *   - a cancel stops the job between pixels and inside a pixel's fit (the worker's stop flag,
  *     polled by fit/ through fit/stop.h); the pixels stored before stay, the one in flight
  *     stores nothing;
@@ -37,6 +42,8 @@ struct all_watch {
     int k, n; /* pixel k (0-based) of n */
     double last_beat, t0;
     int done_at_start; /* pixels stored before this run (for the ETA) */
+    int dcol, drow;    /* the pixel being fitted, from the POI */
+    const storage_scan_t *sc;
 };
 
 static double eta(const struct all_watch *aw, double fraction)
@@ -60,7 +67,9 @@ static void on_progress(double fraction, void *user)
         if (storage_job_heartbeat(aw->w->st, j.id, j.progress, aw->k, NULL) == -ECANCELED)
             atomic_store(&aw->w->stop, 1);
     }
-    srv_publish_job(aw->w->srv, &j, "fit", aw->n, eta(aw, fraction));
+    j.fit_id = 0; /* (this pixel's fit is not stored yet) */
+    srv_publish_job_pixel(aw->w->srv, &j, "fit", aw->n, eta(aw, fraction), aw->dcol, aw->drow,
+                          aw->sc->poi_col + aw->dcol, aw->sc->poi_row + aw->drow);
     if (srv_failpoint(aw->w, "fit.step", NULL)) atomic_store(&aw->w->stop, 1); /* test hook */
 }
 
@@ -88,7 +97,7 @@ static void provenance(const srv_fit_params_t *p, int dcol, int drow, storage_ca
 
 /* Fits pixel (dcol, drow) and stores it as unit aw->k of the job. */
 static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const storage_scan_t *sc,
-                     int dcol, int drow, err_t *err)
+                     int dcol, int drow, int64_t *fit_id, err_t *err)
 {
     srv_worker_t *w = aw->w;
     scanfile_t sf;
@@ -137,7 +146,7 @@ static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const stor
                          .noise_model = f.noise_model};
     provenance(p, dcol, drow, &c, reason, sizeof reason);
     ret = storage_fit_store_unit(w->st, &f, out.r > 0 ? &c : NULL, p->promote, aw->job->id, aw->k,
-                                 aw->n, NULL, NULL, err);
+                                 aw->n, fit_id, NULL, err);
 out:
     free(result);
     srv_fit_out_free(&out);
@@ -170,7 +179,8 @@ int srv_fitall_run(srv_worker_t *w, storage_job_t *job, const srv_fit_params_t *
                            .n = n,
                            .last_beat = clock_mono_s(),
                            .t0 = clock_mono_s(),
-                           .done_at_start = job->points_done};
+                           .done_at_start = job->points_done,
+                           .sc = &sc};
     /* every pixel stored already (cannot happen: the last one ends the job) */
     if (ret == 0 && aw.k >= n) ret = storage_job_finish(w->st, job->id, STORAGE_DONE, NULL, err);
     for (; ret == 0 && aw.k < n; aw.k++) {
@@ -179,13 +189,19 @@ int srv_fitall_run(srv_worker_t *w, storage_job_t *job, const srv_fit_params_t *
             break;
         }
         int dcol = todo[aw.k] % m - h, drow = todo[aw.k] / m - h;
-        if ((ret = fit_pixel(&aw, p, &sc, dcol, drow, err))) break;
+        int64_t fit_id = 0;
+        aw.dcol = dcol;
+        aw.drow = drow;
+        if ((ret = fit_pixel(&aw, p, &sc, dcol, drow, &fit_id, err))) break;
         storage_job_t j = *job;
         j.state = aw.k + 1 < n ? STORAGE_RUNNING : STORAGE_DONE;
         j.points_done = aw.k + 1;
         j.progress = (double)(aw.k + 1) / n;
         j.error = NULL;
-        if (aw.k + 1 < n) srv_publish_job(w->srv, &j, "fit", n, eta(&aw, 1));
+        j.fit_id = fit_id; /* the pixel's fit, just stored (the job's fit_id now too) */
+        /* (after the last pixel's, done, the fitter publishes the job's stored state too) */
+        srv_publish_job_pixel(w->srv, &j, "fit", n, eta(&aw, 1), dcol, drow, sc.poi_col + dcol,
+                              sc.poi_row + drow);
         srv_failpoint(w, "fit.pixel", NULL); /* test hook: k + 1 pixels stored */
     }
     /* stopped: cancelled (nothing to do), else the shutdown: the job goes back to the queue

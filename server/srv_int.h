@@ -55,6 +55,9 @@ void srv_wait_work(srv_t *srv, int ms);
 /* Publishes the state of job j (as stored) with the extra fields the stored row lacks. */
 void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int points_total,
                      double eta_s);
+/* srv_publish_job with the pixel the event is about (a job of every pixel, srv_fitall.c). */
+void srv_publish_job_pixel(srv_t *srv, const storage_job_t *j, const char *phase,
+                           int points_total, double eta_s, int dcol, int drow, int col, int row);
 
 /* srv_fit_submit without the shutdown check: the scan worker queues the automatic fit of a scan
  * it just finished even while stopping. */

@@ -416,11 +416,13 @@ int storage_fit_store_done(storage_t *st, const storage_fit_t *fit, const storag
                            int promote, int64_t job_id, int64_t *fit_id, int64_t *calib_id,
                            err_t *err);
 /* One unit of a job that stores several fits (every pixel a scan covers, one fit per pixel):
- * storage_fit_store (the job not linked to the fit) with the job's count of done units
+ * storage_fit_store with the job's count of done units
  * (points_done) moved from done_before to done_before + 1 and its progress to that fraction of
  * total, and on the last unit (done_before + 1 == total) the job's end as done, all in one
- * transaction. So a crash leaves each unit stored once or not at all, and a rerun of the job
- * resumes at unit points_done. The job must be running with exactly done_before units done:
+ * transaction; the job is linked to the fit: its fit_id becomes the unit's fit, and its params'
+ * "fit_ids" (a JSON array) gets the fit's id appended, so element k is unit k's fit. So a crash
+ * leaves each unit stored once or not at all, and a rerun of the job resumes at unit
+ * points_done. The job must be running with exactly done_before units done:
  * -ESTALE (another count: that unit was stored already, or not running), -ECANCELED, -ENOENT, and
  * then nothing is stored. */
 int storage_fit_store_unit(storage_t *st, const storage_fit_t *fit, const storage_calib_t *calib,

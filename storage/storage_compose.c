@@ -131,6 +131,7 @@ int storage_fit_store_unit(storage_t *st, const storage_fit_t *fit, const storag
     if (!ret && done_before + 1 == total)
         ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err);
     if (!ret) ret = fit_rows(st, fit, calib, promote, &fid, &cid, err);
+    if (!ret) ret = stg_job_add_unit_fit(st, job_id, fid, err);
     return fit_rows_end(st, ret, fid, cid, fit_id, calib_id, err);
 }
 

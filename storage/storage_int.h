@@ -50,6 +50,7 @@ enum stg_id {
     STG_JOB_COUNT,
     STG_JOB_LIST,
     STG_JOB_SET_FIT,
+    STG_JOB_ADD_UNIT_FIT,
     STG_JOB_STEP,
     STG_FIT_INSERT,
     STG_FIT_GET,
@@ -219,6 +220,8 @@ int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_js
 int stg_job_resume(storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err);
 /* Records the fit a job produced, inside the caller's write transaction (-ENOENT: no job). */
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
+/* stg_job_set_fit for a unit of a job of several: also appends fit_id to params' "fit_ids". */
+int stg_job_add_unit_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
 /* A running job's done units go from `from` to from + 1 (progress: the fraction): -ESTALE when
  * its count is not `from` (that unit is stored already), else as not_running. */
 int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *err);

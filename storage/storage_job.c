@@ -294,11 +294,11 @@ int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *er
     return ret;
 }
 
-int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
+static int link_fit(storage_t *st, int stmt, int64_t job_id, int64_t fit_id, err_t *err)
 {
     sqlite3_stmt *q;
     int ret, rc = SQLITE_OK;
-    if ((ret = stg_stmt(st, STG_JOB_SET_FIT, &q, err))) return ret;
+    if ((ret = stg_stmt(st, stmt, &q, err))) return ret;
     stg_bind_int(q, 1, job_id, &rc);
     stg_bind_int(q, 2, fit_id, &rc);
     if (rc != SQLITE_OK) {
@@ -309,6 +309,16 @@ int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
     if (sqlite3_changes(st->db) == 0)
         return err_set(err, -ENOENT, "job %lld does not exist", (long long)job_id);
     return 0;
+}
+
+int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
+{
+    return link_fit(st, STG_JOB_SET_FIT, job_id, fit_id, err);
+}
+
+int stg_job_add_unit_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
+{
+    return link_fit(st, STG_JOB_ADD_UNIT_FIT, job_id, fit_id, err);
 }
 
 /* Inside the cancel transaction, after the job changed: cancels its scan if it has one. */

@@ -344,6 +344,12 @@ const char *const stg_sql[STG_N] = {
     [STG_JOB_LIST] =
         "SELECT " STG_JOB_COLS " FROM jobs " JOB_FILTER " ORDER BY id DESC LIMIT ?4 OFFSET ?5",
     [STG_JOB_SET_FIT] = "UPDATE jobs SET fit_id = ?2 WHERE id = ?1",
+    /* a unit's fit of a job of several (every pixel of a scan): the job's fit_id is the newest,
+     * and params' "fit_ids" lists them all in the order stored (unit k: element k) */
+    [STG_JOB_ADD_UNIT_FIT] =
+        "UPDATE jobs SET fit_id = ?2, params = json_set(params, '$.fit_ids', "
+        "json_insert(coalesce(json_extract(params, '$.fit_ids'), json_array()), '$[#]', ?2)) "
+        "WHERE id = ?1",
     /* one unit of a running job done: only from the count the caller read (no unit twice) */
     [STG_JOB_STEP] = "UPDATE jobs SET points_done = ?3, progress = ?4, heartbeat_ms = ?5 "
                      "WHERE id = ?1 AND state = 'running' AND points_done = ?2",

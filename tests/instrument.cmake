@@ -10,6 +10,12 @@ if(Python3_Interpreter_FOUND)
         IPSD_GCS_EMULATOR="${CMAKE_CURRENT_SOURCE_DIR}/gcs_emulator.py"
         IPSD_PYTHON3="${Python3_EXECUTABLE}")
     set_tests_properties(test_stage_gcs PROPERTIES TIMEOUT 300) # 14 emulator starts: 41 s at load 20
+    # the Zaber ASCII backend against the emulated devices tests/zaber_emulator.py
+    ipsd_add_test(test_stage_zaber ipsinstr)
+    target_compile_definitions(test_stage_zaber PRIVATE
+        IPSD_ZABER_EMULATOR="${CMAKE_CURRENT_SOURCE_DIR}/zaber_emulator.py"
+        IPSD_PYTHON3="${Python3_EXECUTABLE}")
+    set_tests_properties(test_stage_zaber PROPERTIES TIMEOUT 300) # 12 emulator starts
 endif()
 ipsd_add_test(test_cam_sim ipsinstr)
 ipsd_add_test(test_scan ipsinstr)

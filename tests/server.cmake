@@ -33,6 +33,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             allpixels:200
             stage:300
             ptc:300
+            zaber:300
             )
         string(REPLACE ":" ";" t ${t})
         list(GET t 0 name)

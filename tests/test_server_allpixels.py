@@ -13,7 +13,11 @@ A simulated paper-like scan (the paper's raster: 5 x 5 pixels of 6 um in 0.6 um 
 - crash after k pixels: a job killed (fit.pixel=crash@5) after its 5th pixel resumes after the
   restart at the 6th: in the end every covered pixel has exactly one fit and one calibration of
   that job, none twice (the database read with Python's sqlite3);
-- progress: the job's events count pixels, points_done k of points_total 25, in order;
+- progress: the job's events count pixels, points_done k of points_total 25, in order, each
+  naming its pixel (and, once stored, the pixel's fit: the database's dcol, drow of that fit);
+- the job's answer lists the fits it stored (fit_ids: the database's fits after the job began,
+  in order; fit_id the newest) and every pixel of the sub-frame: fitted with a fit of that pixel,
+  not_fitted (a cancelled job), or not_covered with the reason;
 - each covered pixel's calibration (the simulated sensor's pixels all share the scene's map)
   matches the simulator's known truth for that map (`ips simulate --truth`): every sub-pixel
   within K_SIGMA of its error plus MODEL (below)."""
@@ -49,6 +53,33 @@ def truth_maps(ips, tmp):
                    stdout=subprocess.DEVNULL)
     with open(path) as f:
         return {m["r"]: m["S_normalised"] for m in json.load(f)["maps"]}
+
+
+def check_job_fits(c, d, db, job, scan, after_id, n):
+    """The job's answer lists the n fits it stored (the database's fits of the scan after
+    after_id, an independent record), its fit_id the newest, and every pixel of the sub-frame with
+    what the job did of it: its fit (of that pixel), not fitted, or not covered."""
+    j = d.get("/api/jobs/%d" % job).json()
+    ids = [i for (i,) in db.all("SELECT id FROM fits WHERE scan_id = ? AND id > ? ORDER BY id",
+                                scan, after_id)]
+    c.eq(j.get("fit_ids"), ids, "the job lists the %d fits it stored, in order" % n)
+    c.eq(len(ids), n, "%d fits" % n)
+    c.eq(j["fit_id"], ids[-1] if ids else None, "the job's fit_id is the newest")
+    c.ok("fit_ids" not in j["params"], "the request's params stay as they were")
+    where = {i: (a, b) for i, a, b in db.all("SELECT id, dcol, drow FROM fits WHERE id > ?",
+                                            after_id)}
+    px = {(p["dcol"], p["drow"]): p for p in j.get("pixels", [])}
+    c.eq(len(px), SUB * SUB, "every pixel of the sub-frame is listed")
+    fitted = {k for k, p in px.items() if p["status"] == "fitted"}
+    c.eq(len(fitted), n, "%d fitted" % n)
+    c.ok(all(where.get(px[k]["fit_id"]) == k for k in fitted), "each with a fit of that pixel")
+    c.ok(all(px[k]["col"] == 40 + k[0] and px[k]["row"] == 50 + k[1] for k in px),
+         "sensor coordinates")
+    c.eq({k for k, p in px.items() if p["status"] == "not_covered" and p["reason"]},
+         {(a, b) for a in range(-3, 4) for b in range(-3, 4)} - COVERED,
+         "the pixels the raster misses are not_covered, with the reason")
+    c.eq(sum(p["status"] == "not_fitted" for p in px.values()), 25 - n,
+         "the covered pixels the job did not get to are not_fitted")
 
 
 def test(c, t, argv, daemons):
@@ -95,6 +126,7 @@ def test(c, t, argv, daemons):
 
     # ---- cancel mid-way: held after 3 pixels, cancelled ----
     fits0 = db.val("SELECT count(*) FROM fits WHERE scan_id = ?", scan)
+    fits0_id = db.val("SELECT max(id) FROM fits")
     r = d.post(url, {"pixels": "all", "r_max": 6})
     c.status(r, 202, "fit every pixel (to cancel)")
     job = r.json()["job"]["id"]
@@ -104,6 +136,8 @@ def test(c, t, argv, daemons):
     c.eq(db.val("SELECT count(*) FROM fits WHERE scan_id = ?", scan) - fits0, 3, "3 fits stored")
     c.status(d.post("/api/jobs/%d/cancel" % job, {}), 200, "cancel the job")
     c.ok(d.wait_hold_ended("fit.pixel", job), "the hold ends with the cancel")
+    c.ok(d.wait_job(job, "cancelled"), "cancelled")
+    check_job_fits(c, d, db, job, scan, fits0_id, 3)
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0 (the worker has left the job)")
     c.eq(db.one("SELECT state, points_done FROM jobs WHERE id = ?", job), ("cancelled", 3),
          "the job is cancelled with its 3 pixels")
@@ -150,11 +184,22 @@ def test(c, t, argv, daemons):
     c.ok(all(e["points_total"] == 25 for e in ev if e["state"] == "running"),
          "of 25 pixels in all")
     c.eq(ev[-1]["state"], "done", "the last event is done")
+    # each pixel's events name it: while fitting (fit_id null), and once stored (its fit_id)
+    where = dict(db.all("SELECT id, dcol || ',' || drow FROM fits WHERE id > ?", fits1))
+    run = [e for e in ev if e["phase"] == "fit" and e["state"] in ("running", "done")]
+    c.ok(all("pixel" in e for e in run), "every pixel event carries its pixel")
+    stored = [e for e in run if e["fit_id"] is not None and "pixel" in e]
+    c.ok(len(stored) >= 19 and all(
+        where.get(e["fit_id"]) == "%d,%d" % (e["pixel"]["dcol"], e["pixel"]["drow"])
+        and (e["pixel"]["col"], e["pixel"]["row"]) == (40 + e["pixel"]["dcol"],
+                                                       50 + e["pixel"]["drow"])
+        for e in stored), "a stored pixel's event names the pixel of its fit (%d)" % len(stored))
     c.eq(db.one("SELECT points_done, attempts FROM jobs WHERE id = ?", job), (25, 2),
          "25 pixels done in two runs")
     rows = db.all("SELECT dcol, drow FROM fits WHERE id > ?", fits1)
     c.eq(len(rows), 25, "25 fits for the job: none twice")
     c.eq(set(rows), COVERED, "one fit of every covered pixel")
+    check_job_fits(c, d, db, job, scan, fits1, 25)
     cal = db.all("SELECT pixel_col - 40, pixel_row - 50, fit_id FROM calibrations "
                  "WHERE changed_by = 'test' AND superseded_by IS NULL")
     c.eq(len(cal), 25, "25 current calibrations by the request")

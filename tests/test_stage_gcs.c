@@ -16,8 +16,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "check.h"
 #include "instrument/stage.h"
@@ -25,65 +23,16 @@
 #ifndef IPSD_GCS_EMULATOR /* set by tests/instrument.cmake */
 #define IPSD_GCS_EMULATOR "gcs_emulator.py"
 #endif
-#ifndef IPSD_PYTHON3
-#define IPSD_PYTHON3 "python3"
-#endif
+#include "stage_emu.h"
 
-typedef struct emu {
-    pid_t pid;
-    int in;          /* the emulator's stdin: closing it ends the emulator */
-    char where[256]; /* "tcp PORT" or "pty /dev/pts/N" */
-} emu_t;
-
-/* Starts the emulator with options (NULL-terminated) and reads where it listens. */
 static int emu_start(emu_t *e, const char *const *opts)
 {
-    int in[2], out[2];
-    if (pipe(in) || pipe(out)) return -1;
-    const char *argv[32] = {IPSD_PYTHON3, "-B", IPSD_GCS_EMULATOR};
-    int n = 3;
-    for (; *opts && n < 31; opts++)
-        argv[n++] = *opts;
-    argv[n] = NULL;
-    e->pid = fork();
-    if (e->pid == 0) {
-        dup2(in[0], 0);
-        dup2(out[1], 1);
-        close(in[1]);
-        close(out[0]);
-        execvp(IPSD_PYTHON3, (char *const *)argv);
-        _exit(127);
-    }
-    close(in[0]);
-    close(out[1]);
-    e->in = in[1];
-    size_t len = 0;
-    while (len + 1 < sizeof e->where) { /* the first line: blocks until the emulator is up */
-        ssize_t r = read(out[0], e->where + len, 1);
-        if (r <= 0 || e->where[len] == '\n') break;
-        len++;
-    }
-    e->where[len] = 0;
-    close(out[0]);
-    return len > 4 ? 0 : -1;
+    return emu_start_script(e, IPSD_GCS_EMULATOR, opts);
 }
 
-static void emu_stop(emu_t *e)
-{
-    close(e->in);
-    int st;
-    waitpid(e->pid, &st, 0);
-}
-
-/* The stage string for emulator e with options. */
 static void url_of(const emu_t *e, const char *opts, char *url, size_t n)
 {
-    if (strncmp(e->where, "tcp ", 4) == 0)
-        snprintf(url, n, "gcs:tcp://127.0.0.1:%s?poll_ms=0%s%s", e->where + 4, *opts ? "&" : "",
-                 opts);
-    else
-        snprintf(url, n, "gcs:serial:%s?baud=115200&poll_ms=0%s%s", e->where + 4, *opts ? "&" : "",
-                 opts);
+    emu_url(e, "gcs", opts, url, n);
 }
 
 /* Opens the stage on a new emulator. */
@@ -307,7 +256,7 @@ static void test_urls(void)
     static const struct {
         const char *url, *says;
     } bad[] = {
-        {"pi:tcp://h:1", "need sim, gcs:"},
+        {"pi:tcp://h:1", "need sim, or gcs:"},
         {"gcs:udp://h:1", "gcs:tcp://HOST:PORT"},
         {"gcs:tcp://h", "port"},
         {"gcs:tcp://h:0", "port"},
@@ -326,6 +275,7 @@ static void test_urls(void)
         {"gcs:tcp://h:1?poll_ms=-1", "poll_ms="},
         {"gcs:tcp://h:1?reference=yes", "reference="},
         {"gcs:tcp://h:1?speed=3", "unknown option 'speed'"},
+        {"gcs:tcp://h:1?step_um=0.1", "for zaber"},
         {"gcs:tcp://h:1?unit", "key=value"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {

@@ -806,10 +806,15 @@ static void test_fit_store_unit(void)
     /* the last unit ends the job as done, in its transaction */
     CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == b);
     storage_job_free(&j);
-    CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 0, 2, NULL, NULL, NULL) == 0);
-    CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 1, 2, NULL, NULL, NULL) == 0);
+    int64_t u0 = 0, u1 = 0;
+    CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 0, 2, &u0, NULL, NULL) == 0);
+    CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 1, 2, &u1, NULL, NULL) == 0);
     CHECK(storage_job_get(st, b, &j, NULL) == 0);
-    CHECK(j.state == STORAGE_DONE && j.points_done == 2 && j.progress == 1 && j.fit_id == 0);
+    /* linked to its fits: fit_id the newest, params' fit_ids every one in the order stored */
+    CHECK(j.state == STORAGE_DONE && j.points_done == 2 && j.progress == 1 && j.fit_id == u1);
+    char want[64];
+    snprintf(want, sizeof want, "[%lld,%lld]", (long long)u0, (long long)u1);
+    CHECK(u0 > 0 && u1 > u0 && j.params && strstr(j.params, want));
     storage_job_free(&j);
     CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 2, 3, NULL, NULL, &err) == -ESTALE);
     CHECK(raw_int("fitunit.db", "SELECT count(*) FROM fits") == 4);

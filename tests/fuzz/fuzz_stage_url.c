@@ -1,6 +1,7 @@
 /* fuzz_stage_url.c: the stage string of ipsd --stage (instrument/stage.h, stage_url_check) on any
  * bytes (up to the first NUL): it answers 0 or -EINVAL, an error says what is wrong, and a string
- * it accepts is "sim" or starts with "gcs:tcp://" or "gcs:serial:/". */
+ * it accepts is "sim" or starts with "gcs:tcp://", "gcs:serial:/", "zaber:tcp://" or
+ * "zaber:serial:/" (a zaber one naming its step_um=). */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -31,8 +32,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     else if (is_sim)
         must(strcmp(s, "sim") == 0, "only 'sim' is the simulated stage");
     else
-        must(strncmp(s, "gcs:tcp://", 10) == 0 || strncmp(s, "gcs:serial:/", 12) == 0,
-             "an accepted stage string names a gcs link");
+        must(strncmp(s, "gcs:tcp://", 10) == 0 || strncmp(s, "gcs:serial:/", 12) == 0 ||
+                 ((strncmp(s, "zaber:tcp://", 12) == 0 || strncmp(s, "zaber:serial:/", 14) == 0) &&
+                  strstr(s, "step_um=")),
+             "an accepted stage string names a gcs or zaber link");
     free(s);
     return 0;
 }
