@@ -25,7 +25,6 @@
 
 #include <errno.h>
 #include <math.h>
-#include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -339,33 +338,30 @@ static void cache_claim(fit_design_cache_t *c, const fit_design_opts_t *o)
 /* ---- the design matrix ---- */
 
 /* A (spot, line) pair of the batch: the line l of direction dir (0: vertical, x = e_l; 1:
- * horizontal) at distance dist from spot k, whose coordinate along the line is `along`. Its
- * wedges (the n1 nodes on the line) depend on dist and along only: pairs that agree in both
- * (bit for bit) share one row of wedge values. */
+ * horizontal) at distance dist from spot k. Its wedges (the n1 nodes on the line) depend only
+ * on dist and on the spot's coordinate along the line (y_k for dir 0, x_k for dir 1): pairs
+ * that agree in both (bit for bit) share one row of wedge values. */
 struct line_pair {
-    double dist;  /* |e_l - the spot's coordinate across the line| (um) */
-    double along; /* the spot's coordinate along the line (um) */
-    int k, l, dir;
+    double dist; /* |e_l - the spot's coordinate across the line| (um) */
+    int k, ld;   /* spot; ld = 2 l + dir */
 };
 
-/* Sorts p[0..np) stably by the bits of the double at byte offset `key` of each entry, through
- * tmp (np entries): an LSD radix sort, one byte a pass, skipping the bytes all keys share (the
- * exponent's, mostly). For dist >= 0 the bits order as the values do; for `along` only the
- * grouping of equal values matters. Sorting by along, then by dist, leaves the pairs ordered by
- * dist with equal (dist, along) adjacent. (qsort with its comparison callback was 7 % of the
- * reference fit's instructions, callgrind.) */
-static void sort_pairs(struct line_pair *p, struct line_pair *tmp, size_t np, size_t key)
+/* Sorts p[0..np) stably by dist (>= 0, so its bits order as unsigned integers do), ping-ponging
+ * with tmp (np entries); returns the sorted array (p or tmp). An LSD radix sort, one byte a pass,
+ * skipping the bytes all keys share (the exponent's, mostly): qsort with its comparison callback
+ * was 7 % of the reference fit's instructions (callgrind). */
+static struct line_pair *sort_pairs(struct line_pair *p, struct line_pair *tmp, size_t np)
 {
     size_t count[8][256] = {{0}};
-    if (!np) return;
+    if (!np) return p;
     for (size_t q = 0; q < np; q++) {
         uint64_t b;
-        memcpy(&b, (const char *)&p[q] + key, sizeof b);
+        memcpy(&b, &p[q].dist, sizeof b);
         for (int d = 0; d < 8; d++) count[d][(b >> (8 * d)) & 255]++;
     }
     for (int d = 0; d < 8; d++) {
         uint64_t b0;
-        memcpy(&b0, (const char *)&p[0] + key, sizeof b0);
+        memcpy(&b0, &p[0].dist, sizeof b0);
         if (count[d][(b0 >> (8 * d)) & 255] == np) continue; /* one byte value: nothing moves */
         size_t at = 0;
         for (int v = 0; v < 256; v++) {
@@ -375,12 +371,22 @@ static void sort_pairs(struct line_pair *p, struct line_pair *tmp, size_t np, si
         }
         for (size_t q = 0; q < np; q++) {
             uint64_t b;
-            memcpy(&b, (const char *)&p[q] + key, sizeof b);
+            memcpy(&b, &p[q].dist, sizeof b);
             tmp[count[d][(b >> (8 * d)) & 255]++] = p[q];
         }
-        memcpy(p, tmp, sizeof *p * np);
+        struct line_pair *t = p;
+        p = tmp;
+        tmp = t;
     }
+    return p;
 }
+
+/* The rows of one line distance: an open-addressing table from the bits of the along-coordinate
+ * to the row, stamped per run of pairs so that it is cleared only once a batch. */
+struct row_slot {
+    uint64_t key;
+    uint32_t row, stamp;
+};
 
 struct work {
     int r, n1;
@@ -397,6 +403,10 @@ struct work {
     unsigned char *rneed;     /* what the rows of one sweep need, per node along the line */
     size_t tg_cap;
     struct line_pair *pairs;  /* 2 * n1 * batch of them, then as many for sort_pairs */
+    uint32_t *prow;           /* [pair]: its row within its line distance */
+    double *ralong;           /* [row]: the along-coordinate of each row of one line distance */
+    struct row_slot *slots;   /* at least 4 * n1 * batch of them, a power of two */
+    size_t nslot;
     size_t batch;
     struct sweep sw;
 };
@@ -469,69 +479,79 @@ static int targets_reserve(struct work *wk, size_t nt)
     return 0;
 }
 
-/* The node of pair p at place m along its line, and the spot's offset from it along the line. */
-static int pair_node(const struct work *wk, const struct line_pair *p, int m)
+/* The row of along-coordinate c among the rows of the current line distance (stamp), a new one
+ * (*nrow grows) when c is not there yet. */
+static uint32_t row_of(struct work *wk, double c, uint32_t stamp, size_t *nrow)
 {
-    return p->dir ? p->l * wk->n1 + m : m * wk->n1 + p->l;
+    uint64_t bits;
+    memcpy(&bits, &c, sizeof bits);
+    size_t mask = wk->nslot - 1, i = (size_t)((bits * 0x9E3779B97F4A7C15ull) >> 24) & mask;
+    for (;; i = (i + 1) & mask) {
+        struct row_slot *sl = &wk->slots[i];
+        if (sl->stamp != stamp) {
+            *sl = (struct row_slot){bits, (uint32_t)*nrow, stamp};
+            wk->ralong[*nrow] = c;
+            memset(wk->rneed + *nrow * (size_t)wk->n1, 0, (size_t)wk->n1);
+            return (uint32_t)(*nrow)++;
+        }
+        if (sl->key == bits) return sl->row;
+    }
 }
 
-/* All wedges of the batch, both directions at once. The pairs are grouped by line distance w
- * (one sweep each) and, inside a group, by the spot's coordinate along the line: pairs equal in
- * both have the same targets, so each such row of n1 wedges is evaluated once and copied to
- * every pair of it (a square raster has each row about five times: the column of spots at one
- * x offset, mirrored across the pixel, and the same offsets along y as along x). The values are
- * those of evaluating every pair on its own, bit for bit (the same arithmetic on the same
- * numbers), and the Q wedges of a node's two lines are summed in wq (0 + one + the other, the
- * same sum in either order). */
+/* All wedges of the batch, both directions at once. The pairs are grouped by line distance (one
+ * sweep per w) and, inside a group, by the spot's coordinate along the line: pairs equal in both
+ * have the same targets, so each such row of n1 wedges is evaluated once and copied to every
+ * pair of it. The values are those of evaluating every pair on its own, bit for bit (the same
+ * arithmetic on the same numbers), and the Q wedges of a node's two lines are summed in wq
+ * (0 + one + the other: the same sum in either order). */
 static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct work *wk, int nb,
                       size_t *evals)
 {
     int n1 = wk->n1;
     size_t np = 0, nodes = (size_t)n1 * n1;
     for (int dir = 0; dir < 2; dir++) {
-        const double *across = dir ? wk->y : wk->x, *along = dir ? wk->x : wk->y;
+        const double *across = dir ? wk->y : wk->x;
         for (int k = 0; k < nb; k++)
             for (int l = 0; l < n1; l++) {
                 double dist = fabs(wk->e[l] - across[k]);
                 if (wk->a * dist < FIT_CORNER_TINY) continue; /* its nodes are axis corners */
-                wk->pairs[np++] = (struct line_pair){dist, along[k], k, l, dir};
+                wk->pairs[np++] = (struct line_pair){dist, k, 2 * l + dir};
             }
     }
-    struct line_pair *tmp = wk->pairs + 2 * (size_t)n1 * wk->batch;
-    sort_pairs(wk->pairs, tmp, np, offsetof(struct line_pair, along));
-    sort_pairs(wk->pairs, tmp, np, offsetof(struct line_pair, dist));
+    const struct line_pair *pr =
+        sort_pairs(wk->pairs, wk->pairs + 2 * (size_t)n1 * wk->batch, np);
     memset(wk->wq, 0, sizeof(double) * nodes * (size_t)nb);
-    for (size_t g0 = 0; g0 < np;) {
-        double w = wk->a * wk->pairs[g0].dist, smax = 0;
-        size_t g1 = g0, nt = 0, nrow = 0;
-        while (g1 < np && wk->a * wk->pairs[g1].dist == w) g1++;
-        if (targets_reserve(wk, (g1 - g0) * (size_t)n1)) return -ENOMEM;
-        /* rows: the runs of equal (dist, along); rneed[row * n1 + m] what any pair of it needs */
-        for (size_t q0 = g0; q0 < g1; nrow++) {
-            const struct line_pair *p0 = &wk->pairs[q0];
-            unsigned char *rn = wk->rneed + nrow * (size_t)n1;
-            memset(rn, 0, (size_t)n1);
-            size_t q1 = q0;
-            for (; q1 < g1 && wk->pairs[q1].dist == p0->dist && wk->pairs[q1].along == p0->along;
-                 q1++) {
-                const struct line_pair *p = &wk->pairs[q1];
-                const unsigned char *need = wk->need + (size_t)p->k * nodes;
-                for (int m = 0; m < n1; m++) {
-                    unsigned char nd = need[pair_node(wk, p, m)];
-                    if (nd > rn[m]) rn[m] = nd;
-                }
-            }
+    for (size_t d0 = 0; d0 < np;) { /* runs of equal dist (inside runs of equal w) */
+        double dist = pr[d0].dist, w = wk->a * dist, smax = 0;
+        size_t d1 = d0, nt = 0, nrow = 0;
+        while (d1 < np && pr[d1].dist == dist) d1++;
+        if (targets_reserve(wk, (d1 - d0) * (size_t)n1)) return -ENOMEM;
+        uint32_t stamp = (uint32_t)d0 + 1; /* unique per run within a batch */
+        if (d0 == 0) /* a new batch: no stamp of the last one may match */
+            memset(wk->slots, 0, sizeof *wk->slots * wk->nslot);
+        for (size_t q = d0; q < d1; q++) { /* rows, and what any pair of each needs */
+            int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
+            uint32_t row = row_of(wk, dir ? wk->x[k] : wk->y[k], stamp, &nrow);
+            wk->prow[q] = row;
+            unsigned char *rn = wk->rneed + row * (size_t)n1;
+            const unsigned char *need = wk->need + (size_t)k * nodes;
             for (int m = 0; m < n1; m++) {
-                double other = fabs(wk->e[m] - p0->along);
+                unsigned char nd = need[dir ? l * n1 + m : m * n1 + l];
+                if (nd > rn[m]) rn[m] = nd;
+            }
+        }
+        for (size_t row = 0; row < nrow; row++) { /* the targets of the rows */
+            unsigned char *rn = wk->rneed + row * (size_t)n1;
+            for (int m = 0; m < n1; m++) {
+                double other = fabs(wk->e[m] - wk->ralong[row]);
                 if (!rn[m] || wk->a * other < FIT_CORNER_TINY) {
                     rn[m] = 0;
                     continue;
                 }
-                double s = (other + sqrt(other * other + p0->dist * p0->dist)) / p0->dist; /* E */
+                double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
                 if (s > smax) smax = s;
-                wk->tg[nt++] = (struct target){s, nrow * (size_t)n1 + (size_t)m, rn[m]};
+                wk->tg[nt++] = (struct target){s, row * (size_t)n1 + (size_t)m, rn[m]};
             }
-            q0 = q1;
         }
         if (smax > 1) { /* some targets */
             const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, smax, evals);
@@ -543,22 +563,20 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 if (wk->tg[t].need == 2)
                     sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[wk->tg[t].at], &wk->vp[wk->tg[t].at]);
         }
-        /* copy each row to its pairs' nodes */
-        size_t row = 0;
-        for (size_t q = g0; q < g1; q++) {
-            const struct line_pair *p = &wk->pairs[q];
-            if (q > g0 && !(p->dist == p[-1].dist && p->along == p[-1].along)) row++;
+        for (size_t q = d0; q < d1; q++) { /* each row to its pairs' nodes */
+            int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
+            size_t row = wk->prow[q];
             const unsigned char *rn = wk->rneed + row * (size_t)n1;
             const double *vq = wk->vq + row * (size_t)n1, *vp = wk->vp + row * (size_t)n1;
-            double *wq = wk->wq + (size_t)p->k * nodes, *wp = wk->wp[p->dir] + (size_t)p->k * nodes;
+            double *wq = wk->wq + (size_t)k * nodes, *wp = wk->wp[dir] + (size_t)k * nodes;
             for (int m = 0; m < n1; m++) {
                 if (!rn[m]) continue;
-                int node = pair_node(wk, p, m);
+                int node = dir ? l * n1 + m : m * n1 + l;
                 wq[node] += vq[m];
                 if (rn[m] == 2) wp[node] = vp[m];
             }
         }
-        g0 = g1;
+        d0 = d1;
     }
     return 0;
 }
@@ -624,8 +642,12 @@ static int work_alloc(struct work *wk, size_t batch)
     wk->need = malloc((nodes + cells) * batch);
     wk->batch = batch;
     wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch * 4); /* and sort_pairs' */
+    wk->prow = malloc(sizeof *wk->prow * (size_t)wk->n1 * batch * 2);
+    wk->ralong = malloc(sizeof *wk->ralong * (size_t)wk->n1 * batch * 2);
+    for (wk->nslot = 16; wk->nslot < 4 * (size_t)wk->n1 * batch;) wk->nslot *= 2;
+    wk->slots = malloc(sizeof *wk->slots * wk->nslot);
     wk->wq = buf;
-    if (!buf || !wk->need || !wk->pairs) return -ENOMEM;
+    if (!buf || !wk->need || !wk->pairs || !wk->prow || !wk->ralong || !wk->slots) return -ENOMEM;
     wk->wp[0] = buf + nodes * batch;
     wk->wp[1] = buf + 2 * nodes * batch;
     wk->gs = buf + 3 * nodes * batch;
@@ -671,7 +693,7 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
     if (rc) return rc;
     fit_design_stats_t st = {.entries = n * (size_t)r * r};
     size_t n1 = (size_t)r + 1, per_spot = n1 * n1 * (3 * sizeof(double) + 1) + (size_t)r * r +
-                                           4 * n1 * sizeof(struct line_pair);
+                                           4 * n1 * (sizeof(struct line_pair) + 2 * sizeof(struct row_slot));
     size_t batch = BATCH_BYTES / per_spot > BATCH_MIN ? BATCH_BYTES / per_spot : BATCH_MIN;
     if (batch > n) batch = n;
     struct work wk = {.r = r, .n1 = r + 1, .a = fit_airy_a(R_um)};
@@ -710,5 +732,8 @@ out:
     free(wk.tg);
     free(wk.vq);
     free(wk.rneed);
+    free(wk.prow);
+    free(wk.ralong);
+    free(wk.slots);
     return rc;
 }
