@@ -36,7 +36,7 @@
 #define MAX_ORDER 64
 /* Spots per batch: as many as BATCH_BYTES of node and pair buffers hold (rows of wedges are
  * shared only inside a batch, so a raster is best done in one), but at least BATCH_MIN. */
-#define BATCH_BYTES ((size_t)32 << 20)
+#define BATCH_BYTES ((size_t)8 << 20)
 #define BATCH_MIN 256
 
 fit_design_opts_t fit_design_opts_for_tol(double tol)
