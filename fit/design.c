@@ -13,7 +13,14 @@
  * (E + 1/E)/2, ds = dE / E and W = int_1^E f(w (E + 1/E) / 2) * 2 / (1 + E^2) dE, and a target
  * is E = (|v| + hypot(u, v)) / |u|: no exp, log or asinh anywhere in the hot loops. Segments are
  * limited to a ratio e^seg_ds in E (the 1/cosh s scale) and to seg_dv in v = w cosh s (the
- * period pi of the oscillating part of Q). Memory is bounded by doing spots in batches. */
+ * period pi of the oscillating part of Q). Memory is bounded by doing spots in batches.
+ *
+ * A node's wedge along one line depends only on the line's distance from the spot and the
+ * spot's coordinate along it, so (spot, line) pairs that agree in both (bit for bit) share one
+ * row of wedge values (wedge_pass). A raster symmetric about the pixel centre with the same
+ * offsets in x as in y has each row about five times (41 x 41 at r = 16: 57072 pairs, 11316
+ * distinct rows; the 9 x 9 reference scan: 3.7 times), so the design matrix costs in proportion
+ * to the distinct edge-line * rows, not to spots x nodes. */
 #include "fit/design.h"
 
 #include <errno.h>
@@ -27,7 +34,10 @@
 #include "radial.h"
 
 #define MAX_ORDER 64
-#define BATCH 256 /* spots per batch: bounds the node buffers at BATCH * (r+1)^2 * 32 bytes */
+/* Spots per batch: as many as BATCH_BYTES of node and pair buffers hold (rows of wedges are
+ * shared only inside a batch, so a raster is best done in one), but at least BATCH_MIN. */
+#define BATCH_BYTES ((size_t)8 << 20)
+#define BATCH_MIN 256
 
 fit_design_opts_t fit_design_opts_for_tol(double tol)
 {
@@ -327,28 +337,31 @@ static void cache_claim(fit_design_cache_t *c, const fit_design_opts_t *o)
 
 /* ---- the design matrix ---- */
 
+/* A (spot, line) pair of the batch: the line l of direction dir (0: vertical, x = e_l; 1:
+ * horizontal) at distance dist from spot k. Its wedges (the n1 nodes on the line) depend only
+ * on dist and on the spot's coordinate along the line (y_k for dir 0, x_k for dir 1): pairs
+ * that agree in both (bit for bit) share one row of wedge values. */
 struct line_pair {
-    double w;     /* a * distance from the spot to the line */
-    int k, l;     /* spot in the batch, line index */
+    double dist; /* |e_l - the spot's coordinate across the line| (um) */
+    int k, ld;   /* spot; ld = 2 l + dir */
 };
 
-/* Sorts p[0..np) by w, ascending and stably, through tmp (np entries): an LSD radix sort on the
- * bits of w, one byte a pass, skipping the bytes all keys share (the exponent's, mostly). w > 0
- * and finite, so its bits order as unsigned integers do; stable like glibc's merge sort, so the
- * order is the one qsort gave, in a fraction of its time (qsort with its comparison callback was
- * 7 % of the reference fit's instructions, callgrind). */
-static void sort_pairs(struct line_pair *p, struct line_pair *tmp, size_t np)
+/* Sorts p[0..np) stably by dist (>= 0, so its bits order as unsigned integers do), ping-ponging
+ * with tmp (np entries); returns the sorted array (p or tmp). An LSD radix sort, one byte a pass,
+ * skipping the bytes all keys share (the exponent's, mostly): qsort with its comparison callback
+ * was 7 % of the reference fit's instructions (callgrind). */
+static struct line_pair *sort_pairs(struct line_pair *p, struct line_pair *tmp, size_t np)
 {
     size_t count[8][256] = {{0}};
+    if (!np) return p;
     for (size_t q = 0; q < np; q++) {
         uint64_t b;
-        memcpy(&b, &p[q].w, sizeof b);
+        memcpy(&b, &p[q].dist, sizeof b);
         for (int d = 0; d < 8; d++) count[d][(b >> (8 * d)) & 255]++;
     }
     for (int d = 0; d < 8; d++) {
         uint64_t b0;
-        if (!np) return;
-        memcpy(&b0, &p[0].w, sizeof b0);
+        memcpy(&b0, &p[0].dist, sizeof b0);
         if (count[d][(b0 >> (8 * d)) & 255] == np) continue; /* one byte value: nothing moves */
         size_t at = 0;
         for (int v = 0; v < 256; v++) {
@@ -358,12 +371,22 @@ static void sort_pairs(struct line_pair *p, struct line_pair *tmp, size_t np)
         }
         for (size_t q = 0; q < np; q++) {
             uint64_t b;
-            memcpy(&b, &p[q].w, sizeof b);
+            memcpy(&b, &p[q].dist, sizeof b);
             tmp[count[d][(b >> (8 * d)) & 255]++] = p[q];
         }
-        memcpy(p, tmp, sizeof *p * np);
+        struct line_pair *t = p;
+        p = tmp;
+        tmp = t;
     }
+    return p;
 }
+
+/* The rows of one line distance: an open-addressing table from the bits of the along-coordinate
+ * to the row, stamped per run of pairs so that it is cleared only once a batch. */
+struct row_slot {
+    uint64_t key;
+    uint32_t row, stamp;
+};
 
 struct work {
     int r, n1;
@@ -371,12 +394,19 @@ struct work {
     double a;
     double near2;             /* cells nearer than sqrt(near2) to the spot are never left out */
     const double *x, *y;      /* spot positions of the batch */
-    double *wq[2], *wp[2];    /* [k][node]: wedge values of the vertical [0] and horizontal [1] lines */
+    double *wq;               /* [k][node]: the sum of the Q wedges of the node's two lines */
+    double *wp[2];            /* [k][node]: P wedges of the vertical [0] and horizontal [1] line */
     unsigned char *need, *skip; /* [k][node] wedges needed (1: Q, 2: Q and P), [k][cell] left out */
     double *gs;               /* [node]: signed node values of the row being assembled */
     struct target *tg;        /* the targets of one sweep */
+    double *vq, *vp;          /* their values: Q and P wedges of the rows of one sweep */
+    unsigned char *rneed;     /* what the rows of one sweep need, per node along the line */
     size_t tg_cap;
-    struct line_pair *pairs;  /* n1 * batch of them, then as many for sort_pairs */
+    struct line_pair *pairs;  /* 2 * n1 * batch of them, then as many for sort_pairs */
+    uint32_t *prow;           /* [pair]: its row within its line distance */
+    double *ralong;           /* [row]: the along-coordinate of each row of one line distance */
+    struct row_slot *slots;   /* at least 4 * n1 * batch of them, a power of two */
+    size_t nslot;
     size_t batch;
     struct sweep sw;
 };
@@ -432,55 +462,121 @@ static void mark_cells(const fit_design_opts_t *o, struct work *wk, int k, fit_d
         }
 }
 
-/* All wedges of direction dir (0: vertical lines, targets along y; 1: horizontal) for the batch. */
-static int direction_pass(const struct cheb *ch, const fit_design_opts_t *o, struct work *wk,
-                          int nb, int dir, size_t *evals)
+/* Room for nt targets (and their values) in the work buffers. Returns 0 or -ENOMEM. */
+static int targets_reserve(struct work *wk, size_t nt)
 {
-    int n1 = wk->n1, np = 0;
-    const double *across = dir ? wk->y : wk->x, *along = dir ? wk->x : wk->y;
-    for (int k = 0; k < nb; k++)
-        for (int l = 0; l < n1; l++) {
-            double w = wk->a * fabs(wk->e[l] - across[k]);
-            if (w < FIT_CORNER_TINY) continue; /* its nodes are axis corners */
-            wk->pairs[np++] = (struct line_pair){w, k, l};
+    if (nt <= wk->tg_cap) return 0;
+    size_t cap = 2 * nt;
+    struct target *t = realloc(wk->tg, sizeof *t * cap);
+    if (t) wk->tg = t;
+    double *v = t ? realloc(wk->vq, sizeof *v * 2 * cap) : NULL;
+    unsigned char *rn = v ? realloc(wk->rneed, cap) : NULL;
+    if (v) wk->vq = v;
+    if (rn) wk->rneed = rn;
+    if (!rn) return -ENOMEM;
+    wk->vp = wk->vq + cap;
+    wk->tg_cap = cap;
+    return 0;
+}
+
+/* The row of along-coordinate c among the rows of the current line distance (stamp), a new one
+ * (*nrow grows) when c is not there yet. */
+static uint32_t row_of(struct work *wk, double c, uint32_t stamp, size_t *nrow)
+{
+    uint64_t bits;
+    memcpy(&bits, &c, sizeof bits);
+    size_t mask = wk->nslot - 1, i = (size_t)((bits * 0x9E3779B97F4A7C15ull) >> 24) & mask;
+    for (;; i = (i + 1) & mask) {
+        struct row_slot *sl = &wk->slots[i];
+        if (sl->stamp != stamp) {
+            *sl = (struct row_slot){bits, (uint32_t)*nrow, stamp};
+            wk->ralong[*nrow] = c;
+            memset(wk->rneed + *nrow * (size_t)wk->n1, 0, (size_t)wk->n1);
+            return (uint32_t)(*nrow)++;
         }
-    sort_pairs(wk->pairs, wk->pairs + (size_t)wk->n1 * wk->batch, (size_t)np);
-    for (int g0 = 0; g0 < np;) {
-        int g1 = g0;
-        while (g1 < np && wk->pairs[g1].w == wk->pairs[g0].w) g1++;
-        double w = wk->pairs[g0].w, smax = 0;
-        size_t nt = 0;
-        for (int q = g0; q < g1; q++) { /* the targets of this line distance */
-            int k = wk->pairs[q].k, l = wk->pairs[q].l;
-            const unsigned char *need = wk->need + (size_t)k * n1 * n1;
-            double dist = fabs(wk->e[l] - across[k]);
-            if (nt + (size_t)n1 > wk->tg_cap) {
-                size_t cap = 2 * (nt + (size_t)n1);
-                struct target *t = realloc(wk->tg, sizeof *t * cap);
-                if (!t) return -ENOMEM;
-                wk->tg = t;
-                wk->tg_cap = cap;
+        if (sl->key == bits) return sl->row;
+    }
+}
+
+/* All wedges of the batch, both directions at once. The pairs are grouped by line distance (one
+ * sweep per w) and, inside a group, by the spot's coordinate along the line: pairs equal in both
+ * have the same targets, so each such row of n1 wedges is evaluated once and copied to every
+ * pair of it. The values are those of evaluating every pair on its own, bit for bit (the same
+ * arithmetic on the same numbers), and the Q wedges of a node's two lines are summed in wq
+ * (0 + one + the other: the same sum in either order). */
+static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct work *wk, int nb,
+                      size_t *evals)
+{
+    int n1 = wk->n1;
+    size_t np = 0, nodes = (size_t)n1 * n1;
+    for (int dir = 0; dir < 2; dir++) {
+        const double *across = dir ? wk->y : wk->x;
+        for (int k = 0; k < nb; k++)
+            for (int l = 0; l < n1; l++) {
+                double dist = fabs(wk->e[l] - across[k]);
+                if (wk->a * dist < FIT_CORNER_TINY) continue; /* its nodes are axis corners */
+                wk->pairs[np++] = (struct line_pair){dist, k, 2 * l + dir};
             }
+    }
+    const struct line_pair *pr =
+        sort_pairs(wk->pairs, wk->pairs + 2 * (size_t)n1 * wk->batch, np);
+    memset(wk->wq, 0, sizeof(double) * nodes * (size_t)nb);
+    for (size_t d0 = 0; d0 < np;) { /* runs of equal dist (inside runs of equal w) */
+        double dist = pr[d0].dist, w = wk->a * dist, smax = 0;
+        size_t d1 = d0, nt = 0, nrow = 0;
+        while (d1 < np && pr[d1].dist == dist) d1++;
+        if (targets_reserve(wk, (d1 - d0) * (size_t)n1)) return -ENOMEM;
+        uint32_t stamp = (uint32_t)d0 + 1; /* unique per run within a batch */
+        if (d0 == 0) /* a new batch: no stamp of the last one may match */
+            memset(wk->slots, 0, sizeof *wk->slots * wk->nslot);
+        for (size_t q = d0; q < d1; q++) { /* rows, and what any pair of each needs */
+            int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
+            uint32_t row = row_of(wk, dir ? wk->x[k] : wk->y[k], stamp, &nrow);
+            wk->prow[q] = row;
+            unsigned char *rn = wk->rneed + row * (size_t)n1;
+            const unsigned char *need = wk->need + (size_t)k * nodes;
             for (int m = 0; m < n1; m++) {
-                int node = dir ? l * n1 + m : m * n1 + l;
-                double other = fabs(wk->e[m] - along[k]);
-                if (!need[node] || wk->a * other < FIT_CORNER_TINY) continue;
+                unsigned char nd = need[dir ? l * n1 + m : m * n1 + l];
+                if (nd > rn[m]) rn[m] = nd;
+            }
+        }
+        for (size_t row = 0; row < nrow; row++) { /* the targets of the rows */
+            unsigned char *rn = wk->rneed + row * (size_t)n1;
+            for (int m = 0; m < n1; m++) {
+                double other = fabs(wk->e[m] - wk->ralong[row]);
+                if (!rn[m] || wk->a * other < FIT_CORNER_TINY) {
+                    rn[m] = 0;
+                    continue;
+                }
                 double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
                 if (s > smax) smax = s;
-                wk->tg[nt++] = (struct target){s, (size_t)k * n1 * n1 + (size_t)node, need[node]};
+                wk->tg[nt++] = (struct target){s, row * (size_t)n1 + (size_t)m, rn[m]};
             }
         }
-        g0 = g1;
-        if (smax <= 1) continue; /* no targets */
-        const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, smax, evals);
-        if (!sw) return -ENOMEM;
-        size_t t = 0;
-        for (; t + 4 <= nt; t += 4) sweep_eval4(sw, ch->m, wk->tg + t, wk->wq[dir]);
-        for (; t < nt; t++) sweep_eval(sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at], NULL);
-        for (t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot (rare) */
-            if (wk->tg[t].need == 2)
-                sweep_eval(sw, ch->m, wk->tg[t].s, &wk->wq[dir][wk->tg[t].at],
-                           &wk->wp[dir][wk->tg[t].at]);
+        if (smax > 1) { /* some targets */
+            const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, smax, evals);
+            if (!sw) return -ENOMEM;
+            size_t t = 0;
+            for (; t + 4 <= nt; t += 4) sweep_eval4(sw, ch->m, wk->tg + t, wk->vq);
+            for (; t < nt; t++) sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[wk->tg[t].at], NULL);
+            for (t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot (rare) */
+                if (wk->tg[t].need == 2)
+                    sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[wk->tg[t].at], &wk->vp[wk->tg[t].at]);
+        }
+        for (size_t q = d0; q < d1; q++) { /* each row to its pairs' nodes */
+            int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
+            size_t row = wk->prow[q];
+            const unsigned char *rn = wk->rneed + row * (size_t)n1;
+            const double *vq = wk->vq + row * (size_t)n1, *vp = wk->vp + row * (size_t)n1;
+            double *wq = wk->wq + (size_t)k * nodes, *wp = wk->wp[dir] + (size_t)k * nodes;
+            for (int m = 0; m < n1; m++) {
+                if (!rn[m]) continue;
+                int node = dir ? l * n1 + m : m * n1 + l;
+                wq[node] += vq[m];
+                if (rn[m] == 2) wp[node] = vp[m];
+            }
+        }
+        d0 = d1;
     }
     return 0;
 }
@@ -506,7 +602,7 @@ static void assemble_row(struct work *wk, int k, double *row)
             if (!need[j * n1 + i] || sg == 0) g[j * n1 + i] = 0;
             else if (wk->a * fabs(u) < FIT_CORNER_TINY || wk->a * fabs(v) < FIT_CORNER_TINY)
                 g[j * n1 + i] = sg * (M_PI / 2); /* corner on an axis through the spot */
-            else g[j * n1 + i] = sg * (wk->wq[0][node] + wk->wq[1][node]);
+            else g[j * n1 + i] = sg * wk->wq[node];
         }
     }
     for (int j = 0; j < r; j++)
@@ -530,7 +626,7 @@ static void assemble_row(struct work *wk, int k, double *row)
                         fq[b][c] = M_PI / 2; /* corner on an axis through the spot */
                         fp[b][c] = 0;
                     } else {
-                        fq[b][c] = wk->wq[0][node] + wk->wq[1][node];
+                        fq[b][c] = wk->wq[node];
                         fp[b][c] = wk->wp[0][node] + wk->wp[1][node];
                     }
                 }
@@ -542,16 +638,19 @@ static void assemble_row(struct work *wk, int k, double *row)
 static int work_alloc(struct work *wk, size_t batch)
 {
     size_t nodes = (size_t)wk->n1 * wk->n1, cells = (size_t)wk->r * wk->r;
-    double *buf = malloc(sizeof(double) * (4 * nodes * batch + nodes));
+    double *buf = malloc(sizeof(double) * (3 * nodes * batch + nodes));
     wk->need = malloc((nodes + cells) * batch);
     wk->batch = batch;
-    wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch * 2); /* and sort_pairs' */
-    wk->wq[0] = buf;
-    if (!buf || !wk->need || !wk->pairs) return -ENOMEM;
-    wk->wq[1] = buf + nodes * batch;
-    wk->wp[0] = buf + 2 * nodes * batch;
-    wk->wp[1] = buf + 3 * nodes * batch;
-    wk->gs = buf + 4 * nodes * batch;
+    wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch * 4); /* and sort_pairs' */
+    wk->prow = malloc(sizeof *wk->prow * (size_t)wk->n1 * batch * 2);
+    wk->ralong = malloc(sizeof *wk->ralong * (size_t)wk->n1 * batch * 2);
+    for (wk->nslot = 16; wk->nslot < 4 * (size_t)wk->n1 * batch;) wk->nslot *= 2;
+    wk->slots = malloc(sizeof *wk->slots * wk->nslot);
+    wk->wq = buf;
+    if (!buf || !wk->need || !wk->pairs || !wk->prow || !wk->ralong || !wk->slots) return -ENOMEM;
+    wk->wp[0] = buf + nodes * batch;
+    wk->wp[1] = buf + 2 * nodes * batch;
+    wk->gs = buf + 3 * nodes * batch;
     wk->skip = wk->need + nodes * batch;
     return 0;
 }
@@ -593,7 +692,10 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
     int rc = check_args(R_um, pitch, r, x, y, n, &o, err);
     if (rc) return rc;
     fit_design_stats_t st = {.entries = n * (size_t)r * r};
-    size_t batch = n < BATCH ? n : BATCH;
+    size_t n1 = (size_t)r + 1, per_spot = n1 * n1 * (3 * sizeof(double) + 1) + (size_t)r * r +
+                                           4 * n1 * (sizeof(struct line_pair) + 2 * sizeof(struct row_slot));
+    size_t batch = BATCH_BYTES / per_spot > BATCH_MIN ? BATCH_BYTES / per_spot : BATCH_MIN;
+    if (batch > n) batch = n;
     struct work wk = {.r = r, .n1 = r + 1, .a = fit_airy_a(R_um)};
     struct cheb *ch = malloc(sizeof *ch);
     double *e = malloc(sizeof(double) * (size_t)(r + 1));
@@ -612,8 +714,7 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
         wk.x = x + k0;
         wk.y = y + k0;
         for (int k = 0; k < nb; k++) mark_cells(&o, &wk, k, &st);
-        for (int dir = 0; dir < 2 && rc == 0; dir++)
-            rc = direction_pass(ch, &o, &wk, nb, dir, &st.radial_evals);
+        rc = wedge_pass(ch, &o, &wk, nb, &st.radial_evals);
         if (rc) {
             rc = err_set(err, rc, "out of memory for the design matrix (r = %d)", r);
             goto out;
@@ -625,9 +726,14 @@ out:
     free(wk.sw.seg);
     free(ch);
     free(e);
-    free(wk.wq[0]);
+    free(wk.wq);
     free(wk.need);
     free(wk.pairs);
     free(wk.tg);
+    free(wk.vq);
+    free(wk.rneed);
+    free(wk.prow);
+    free(wk.ralong);
+    free(wk.slots);
     return rc;
 }
