@@ -306,9 +306,12 @@ int stg_commit(storage_t *st, err_t *err)
         stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
     } else {
         stg_gate_committed(st);
+        /* health is cleared while this handle still holds the gate: after it leaves, the next
+         * writer's fault can be recorded first, and a late clear would hide it (a race seen in
+         * test_server_storfault on a busy machine) */
+        if (wrote) wrote_ok(st);
         stg_gate_leave(st);
     }
-    if (ret == 0 && wrote) wrote_ok(st);
     return ret;
 }
 
