@@ -23,24 +23,18 @@ MOV the servo of the first axis switches off, as a following-error trip does), -
 (the first ONT? after the N-th MOV closes the connection: a connection dropped mid-move),
 --silent-after-mov N (after the N-th MOV nothing is answered any more: a hung controller).
 
-Transports: --tcp PORT (127.0.0.1; 0 picks a free port; connections are served one after the
-other, the controller's state lives on between them) or --pty (a pseudo-terminal; its slave is
-the "serial line"). The first line on stdout says where: "tcp PORT" or "pty /dev/pts/N". The
-emulator exits when its stdin reaches end of file (so it never outlives the test that runs it)
-or on SIGTERM.
+Transports (tests/emu_serve.py): --tcp PORT (127.0.0.1; 0 picks a free port; connections are
+served one after the other, the controller's state lives on between them) or --pty (a
+pseudo-terminal; its slave is the "serial line"). The first line on stdout says where: "tcp PORT"
+or "pty /dev/pts/N". The emulator exits when its stdin reaches end of file (so it never outlives
+the test that runs it) or on SIGTERM.
 """
 import argparse
-import os
-import select
-import socket
 import sys
-import tty
+
+from emu_serve import Drop, add_transport, run
 
 ERR_SYNTAX, ERR_UNKNOWN, ERR_NO_SERVO, ERR_LIMITS, ERR_STOP, ERR_AXIS = 1, 2, 5, 7, 10, 15
-
-
-class Drop(Exception):
-    """The connection is to be closed now (--drop-after-mov)."""
 
 
 class Controller:
@@ -208,39 +202,16 @@ def reply_bytes(lines):
     return (" \n".join(lines) + "\n").encode("ascii")
 
 
-def serve(ctl, rfd, write):
-    """Reads command lines from rfd until it closes or the emulator is told to drop it."""
-    buf = b""
-    while True:
-        r, _, _ = select.select([rfd, sys.stdin], [], [])
-        if sys.stdin in r and not os.read(sys.stdin.fileno(), 4096):
-            sys.exit(0)
-        if rfd not in r:
-            continue
-        try:
-            data = os.read(rfd.fileno() if hasattr(rfd, "fileno") else rfd, 4096)
-        except OSError:
-            return
-        if not data:
-            return
-        buf += data
-        while b"\n" in buf:
-            line, buf = buf.split(b"\n", 1)
-            if ctl.silent:
-                continue
-            try:
-                out = reply_bytes(ctl.handle(line.decode("ascii", "replace").strip("\r")))
-            except Drop:
-                return
-            if out:
-                write(out)
+def respond(ctl, line):
+    """The reply bytes to one received line (LF-ended; a CR before the LF is dropped)."""
+    if ctl.silent:
+        return b""
+    return reply_bytes(ctl.handle(line.decode("ascii", "replace").strip("\r")))
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--tcp", type=int, metavar="PORT")
-    g.add_argument("--pty", action="store_true")
+    add_transport(p)
     p.add_argument("--axes", default="1,2,3")
     p.add_argument("--travel", type=lambda s: [float(v) for v in s.split(":")],
                    default=[-25.0, 25.0], help="LO:HI of every axis (controller units)")
@@ -256,28 +227,7 @@ def main():
     p.add_argument("--verbose", action="store_true")
     a = p.parse_args()
     ctl = Controller(a)
-    if a.pty:
-        master, slave = os.openpty()
-        tty.setraw(slave)  # no echo, no line editing: a plain byte line, like a serial port
-        print("pty %s" % os.ttyname(slave), flush=True)
-        # the emulator keeps the slave open too, so the master never sees a hang-up when the
-        # backend closes and reopens the line
-        serve(ctl, master, lambda b: os.write(master, b))
-        return
-    ls = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    ls.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    ls.bind(("127.0.0.1", a.tcp))
-    ls.listen(4)
-    print("tcp %d" % ls.getsockname()[1], flush=True)
-    while True:
-        r, _, _ = select.select([ls, sys.stdin], [], [])
-        if sys.stdin in r and not os.read(sys.stdin.fileno(), 4096):
-            return
-        if ls not in r:
-            continue
-        conn, _ = ls.accept()
-        serve(ctl, conn, conn.sendall)
-        conn.close()
+    run(a, lambda line: respond(ctl, line))
 
 
 if __name__ == "__main__":

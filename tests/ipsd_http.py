@@ -314,6 +314,18 @@ class Ipsd:
         self.proc.wait()
         self.proc = None
 
+    def wait_exit(self, timeout=DEADLINE_S):
+        """Until ipsd exits by itself (a crash failpoint); returns the exit status (-9: SIGKILL),
+        or None when it is still running at the deadline (it is then left running)."""
+        try:
+            rc = self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            rc = None
+        self.client.close()
+        if rc is not None:
+            self.proc = None
+        return rc
+
     def cleanup(self):
         if self.proc and self.proc.poll() is None:
             self.proc.kill()

@@ -1,10 +1,14 @@
 /* stage_emu.h: starting and stopping an emulated stage controller (tests/gcs_emulator.py,
  * tests/zaber_emulator.py) from a C test: the emulator runs as a child with its stdin on a pipe
  * (closing it ends the emulator, so no test leaves one running) and says on its first stdout line
- * where it listens ("tcp PORT" or "pty /dev/pts/N"). Header-only, for test_stage_*.c. */
+ * where it listens ("tcp PORT" or "pty /dev/pts/N"). Also the fault cases every stage protocol
+ * family shares (a connection dropped mid-move over TCP, a controller falling silent and a line
+ * going away over a pseudo-terminal), run on the family's own emulator. Header-only, for
+ * test_stage_*.c (after check.h and instrument/stage.h). */
 #ifndef IPSD_TEST_STAGE_EMU_H
 #define IPSD_TEST_STAGE_EMU_H
 
+#include <errno.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/wait.h>
@@ -69,6 +73,64 @@ static void emu_url(const emu_t *e, const char *family, const char *opts, char *
     else
         snprintf(url, n, "%s:serial:%s?baud=115200&poll_ms=0%s%s", family, e->where + 4,
                  *opts ? "&" : "", opts);
+}
+
+/* A family's opener: starts its emulator with emu_opts and opens the stage with url_opts (the
+ * options after the transport's in the stage string); *ret is stage_open_url's return. */
+typedef stage_t *(*emu_open_fn)(emu_t *e, const char *const *emu_opts, const char *url_opts,
+                                int *ret, err_t *err);
+
+/* The fault cases, on the family's emulator opened by open_on. second_move: the emulator's move
+ * count (its --drop-after-mov / --silent-after-mov N) at which the second stage move starts (a
+ * GCS MOV carries every axis: 2; a Zaber "move abs" one axis, three a stage move: 4). tol: how
+ * far a position read back may be from the one commanded (0: exactly; 1e-4 um: POS?'s 7
+ * decimals of mm).
+ * 1. TCP, the connection dropped mid-move: the move fails at once, the next call reconnects.
+ * 2. Pseudo-terminal, a controller that stops answering: a timeout (again at the next call:
+ *    reopening the line does not hang either).
+ * 3. Pseudo-terminal, a line that goes away: -EIO. */
+static void emu_test_faults(emu_open_fn open_on, const char *second_move, double tol)
+{
+    emu_t e;
+    err_t err;
+    int ret;
+    const char *drop[] = {"--tcp=0", "--drop-after-mov", second_move, NULL};
+    stage_t *st = open_on(&e, drop, "", &ret, &err);
+    CHECK(ret == 0);
+    if (st) {
+        stage_pos_t a = {100, 200, 5}, b = {-100, -200, -5}, c = {7, 8, 9}, p;
+        CHECK(stage_move(st, &a, NULL) == 0);
+        CHECK(stage_move(st, &b, &err) == -EIO && strstr(err.msg, "closed"));
+        CHECK(stage_move(st, &c, &err) == 0);
+        CHECK(stage_get_position(st, &p, NULL) == 0);
+        CHECK_NEAR(p.x_um, 7, 0, tol);
+        CHECK_NEAR(p.y_um, 8, 0, tol);
+        CHECK_NEAR(p.z_um, 9, 0, tol);
+        stage_close(st);
+    }
+    emu_stop(&e);
+    const char *silent[] = {"--pty", "--silent-after-mov", second_move, NULL};
+    st = open_on(&e, silent, "timeout=1.5", &ret, &err);
+    CHECK(ret == 0);
+    if (st) {
+        stage_pos_t a = {1, 2, 3}, p;
+        CHECK(stage_move(st, &a, NULL) == 0);
+        CHECK(stage_move(st, &a, &err) == -ETIMEDOUT && strstr(err.msg, "no reply"));
+        CHECK(stage_get_position(st, &p, &err) == -ETIMEDOUT);
+        stage_close(st);
+    }
+    emu_stop(&e);
+    const char *gone[] = {"--pty", "--drop-after-mov", "1", NULL};
+    st = open_on(&e, gone, "timeout=5", &ret, &err);
+    CHECK(ret == 0);
+    if (st) {
+        stage_pos_t a = {1, 2, 3};
+        int rc = stage_move(st, &a, &err); /* the emulator closes its end of the line and exits */
+        CHECK(rc == -EIO);
+        if (rc != -EIO) fprintf(stderr, "pty drop: %d %s\n", rc, err.msg);
+        stage_close(st);
+    }
+    emu_stop(&e);
 }
 
 #endif

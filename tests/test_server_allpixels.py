@@ -152,13 +152,7 @@ def test(c, t, argv, daemons):
     r = d.post(url, {"pixels": "all", "r_max": 8, "promote": True, "by": "test"})
     c.status(r, 202, "fit every pixel, promoted (to crash)")
     job = r.json()["job"]["id"]
-    try:
-        rc = d.proc.wait(ipsd_http.DEADLINE_S)
-    except Exception:
-        rc = None
-    d.client.close()
-    d.proc = None if rc is not None else d.proc
-    c.eq(rc, -9, "ipsd crashed after the 5th pixel")
+    c.eq(d.wait_exit(), -9, "ipsd crashed after the 5th pixel")
     c.eq(db.one("SELECT state, points_done FROM jobs WHERE id = ?", job), ("running", 5),
          "the job is left running with 5 pixels done")
     c.eq(db.val("SELECT count(*) FROM fits WHERE id > ?", fits1), 5, "5 fits stored")

@@ -111,13 +111,7 @@ def test(c, t, argv, daemons):
     r = d.post("/api/sensors/%d/ptc" % sensor, ptc_body())
     c.status(r, 202, "queue a second measurement")
     job2 = r.json()["job"]["id"]
-    try:
-        rc = d.proc.wait(ipsd_http.DEADLINE_S * 2)
-    except subprocess.TimeoutExpired:
-        rc = None
-    d.client.close()
-    d.proc = None if rc is not None else d.proc
-    c.eq(rc, -9, "ipsd crashed at ptc.after_store")
+    c.eq(d.wait_exit(ipsd_http.DEADLINE_S * 2), -9, "ipsd crashed at ptc.after_store")
     d.start(failpoints="ptc.before_store=crash@1")
     c.eq(db.one("SELECT state, attempts FROM jobs WHERE id = ?", job2), ("done", 1),
          "after the crash past its store the job is done (claimed once)")
@@ -171,13 +165,7 @@ def test(c, t, argv, daemons):
     r = d.post("/api/sensors/%d/ptc" % sensor, ptc_body())
     c.status(r, 202, "queue a third measurement")
     job3 = r.json()["job"]["id"]
-    try:
-        rc = d.proc.wait(ipsd_http.DEADLINE_S * 2)
-    except subprocess.TimeoutExpired:
-        rc = None
-    d.client.close()
-    d.proc = None if rc is not None else d.proc
-    c.eq(rc, -9, "ipsd crashed at ptc.before_store")
+    c.eq(d.wait_exit(ipsd_http.DEADLINE_S * 2), -9, "ipsd crashed at ptc.before_store")
     c.eq(db.val("SELECT count(*) FROM ptc WHERE job_id = ?", job3), 0, "nothing stored")
     # a newer measurement of the sensor (as another bench would give): 4 G, 2 R
     if cur:

@@ -156,59 +156,6 @@ static void test_controller_errors(const char *transport)
     emu_stop(&e);
 }
 
-/* A TCP connection dropped mid-move: the move fails at once, the next call reconnects. */
-static void test_drop_tcp(void)
-{
-    emu_t e;
-    err_t err;
-    int ret;
-    const char *opts[] = {"--tcp", "0", "--drop-after-mov", "2", NULL};
-    stage_t *st = open_on(&e, opts, "", &ret, &err);
-    CHECK(ret == 0);
-    if (st) {
-        stage_pos_t a = {100, 200, 5}, b = {-100, -200, -5}, c = {7, 8, 9}, p;
-        CHECK(stage_move(st, &a, NULL) == 0);
-        CHECK(stage_move(st, &b, &err) == -EIO && strstr(err.msg, "closed"));
-        CHECK(stage_move(st, &c, &err) == 0);
-        CHECK(stage_get_position(st, &p, NULL) == 0);
-        CHECK_NEAR(p.x_um, 7, 0, 1e-4);
-        CHECK_NEAR(p.z_um, 9, 0, 1e-4);
-        stage_close(st);
-    }
-    emu_stop(&e);
-}
-
-/* Over the pseudo-terminal: a controller that stops answering gives a timeout (again at the next
- * call: reopening the line does not hang either); a line that goes away gives -EIO. */
-static void test_pty_faults(void)
-{
-    emu_t e;
-    err_t err;
-    int ret;
-    const char *opts[] = {"--pty", "--silent-after-mov", "2", NULL};
-    stage_t *st = open_on(&e, opts, "timeout=1.5", &ret, &err);
-    CHECK(ret == 0);
-    if (st) {
-        stage_pos_t a = {1, 2, 3}, p;
-        CHECK(stage_move(st, &a, NULL) == 0);
-        CHECK(stage_move(st, &a, &err) == -ETIMEDOUT && strstr(err.msg, "no reply"));
-        CHECK(stage_get_position(st, &p, &err) == -ETIMEDOUT);
-        stage_close(st);
-    }
-    emu_stop(&e);
-    const char *opts2[] = {"--pty", "--drop-after-mov", "1", NULL};
-    st = open_on(&e, opts2, "timeout=5", &ret, &err);
-    CHECK(ret == 0);
-    if (st) {
-        stage_pos_t a = {1, 2, 3};
-        int rc = stage_move(st, &a, &err); /* the emulator closes its end of the line and exits */
-        CHECK(rc == -EIO);
-        if (rc != -EIO) fprintf(stderr, "pty drop: %d %s\n", rc, err.msg);
-        stage_close(st);
-    }
-    emu_stop(&e);
-}
-
 /* The follower: a simulated stage (the simulated bench's) following the GCS stage's reported
  * position; its travel is the intersection (sim: +-50 mm in x, y, +-5 mm in z; emulator: +-25 mm).
  */
@@ -306,8 +253,7 @@ int main(void)
     test_units_axes();
     test_controller_errors("--tcp=0");
     test_controller_errors("--pty");
-    test_drop_tcp();
     test_follow();
-    test_pty_faults();
+    emu_test_faults(open_on, "2", 1e-4); /* tests/stage_emu.h */
     CHECK_DONE();
 }

@@ -158,58 +158,6 @@ static void test_device_errors(const char *transport)
     emu_stop(&e);
 }
 
-/* A TCP connection dropped mid-move: the move fails at once, the next call reconnects. */
-static void test_drop_tcp(void)
-{
-    emu_t e;
-    err_t err;
-    int ret;
-    const char *opts[] = {"--tcp=0", "--drop-after-mov", "4", NULL}; /* move 2's x */
-    stage_t *st = open_on(&e, opts, "", &ret, &err);
-    CHECK(ret == 0);
-    if (st) {
-        stage_pos_t a = {100, 200, 5}, b = {-100, -200, -5}, c = {7, 8, 9}, p;
-        CHECK(stage_move(st, &a, NULL) == 0);
-        CHECK(stage_move(st, &b, &err) == -EIO && strstr(err.msg, "closed"));
-        CHECK(stage_move(st, &c, &err) == 0);
-        CHECK(stage_get_position(st, &p, NULL) == 0);
-        CHECK(p.x_um == 7 && p.y_um == 8 && p.z_um == 9);
-        stage_close(st);
-    }
-    emu_stop(&e);
-}
-
-/* Over the pseudo-terminal: devices that stop answering give a timeout (again at the next call);
- * a line that goes away gives -EIO. */
-static void test_pty_faults(void)
-{
-    emu_t e;
-    err_t err;
-    int ret;
-    const char *opts[] = {"--pty", "--silent-after-mov", "4", NULL};
-    stage_t *st = open_on(&e, opts, "timeout=1.5", &ret, &err);
-    CHECK(ret == 0);
-    if (st) {
-        stage_pos_t a = {1, 2, 3}, p;
-        CHECK(stage_move(st, &a, NULL) == 0);
-        CHECK(stage_move(st, &a, &err) == -ETIMEDOUT && strstr(err.msg, "no reply"));
-        CHECK(stage_get_position(st, &p, &err) == -ETIMEDOUT);
-        stage_close(st);
-    }
-    emu_stop(&e);
-    const char *opts2[] = {"--pty", "--drop-after-mov", "1", NULL};
-    st = open_on(&e, opts2, "timeout=5", &ret, &err);
-    CHECK(ret == 0);
-    if (st) {
-        stage_pos_t a = {1, 2, 3};
-        int rc = stage_move(st, &a, &err); /* the emulator closes its end of the line and exits */
-        CHECK(rc == -EIO);
-        if (rc != -EIO) fprintf(stderr, "pty drop: %d %s\n", rc, err.msg);
-        stage_close(st);
-    }
-    emu_stop(&e);
-}
-
 /* The follower: the simulated bench's stage following the Zaber stage's reported position (on
  * the microstep grid); its travel is the intersection (sim: z +-5 mm; emulator: +-25 mm). */
 static void test_follow(void)
@@ -294,8 +242,7 @@ int main(void)
     test_chain_axes();
     test_device_errors("--tcp=0");
     test_device_errors("--pty");
-    test_drop_tcp();
     test_follow();
-    test_pty_faults();
+    emu_test_faults(open_on, "4", 0); /* tests/stage_emu.h */
     CHECK_DONE();
 }

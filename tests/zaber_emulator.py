@@ -34,20 +34,15 @@ nothing is answered any more), --chatty (alerts after every move, an info line a
 "warnings" reply: a host must skip both).
 
 Devices: --device D:K (device number D with K axes; repeat for a daisy chain; default 1:3).
-Transports: --tcp PORT (127.0.0.1; 0 picks a free port; connections served one after the other,
-the devices' state lives on) or --pty (a pseudo-terminal). The first line on stdout says where:
-"tcp PORT" or "pty /dev/pts/N". The emulator exits at the end of its stdin or on SIGTERM.
+Transports (tests/emu_serve.py): --tcp PORT (127.0.0.1; 0 picks a free port; connections served
+one after the other, the devices' state lives on) or --pty (a pseudo-terminal). The first line on
+stdout says where: "tcp PORT" or "pty /dev/pts/N". The emulator exits at the end of its stdin or
+on SIGTERM.
 """
 import argparse
-import os
-import select
-import socket
 import sys
-import tty
 
-
-class Drop(Exception):
-    """The connection is to be closed now (--drop-after-mov)."""
+from emu_serve import Drop, add_transport, run
 
 
 class Axis:
@@ -205,41 +200,20 @@ class Devices:
         return bad("BADCOMMAND")
 
 
-def serve(devs, rfd, write):
-    """Reads messages from rfd until it closes or the emulator is told to drop it."""
-    buf = b""
-    while True:
-        r, _, _ = select.select([rfd, sys.stdin], [], [])
-        if sys.stdin in r and not os.read(sys.stdin.fileno(), 4096):
-            sys.exit(0)
-        if rfd not in r:
-            continue
-        try:
-            data = os.read(rfd if isinstance(rfd, int) else rfd.fileno(), 4096)
-        except OSError:
-            return
-        if not data:
-            return
-        buf += data.replace(b"\r", b"\n")  # CR, LF or both end a command
-        while b"\n" in buf:
-            line, buf = buf.split(b"\n", 1)
-            if devs.silent or not line.strip():
-                continue
-            try:
-                out = devs.handle(line.decode("ascii", "replace").strip())
-            except Drop:
-                return
-            out += devs.pending
-            devs.pending = []
-            if out:
-                write("".join(o + "\r\n" for o in out).encode("ascii"))
+def respond(devs, line):
+    """The reply bytes to one received message (CR, LF or both end it): its reply, then the
+    alerts and info lines it gave rise to."""
+    if devs.silent or not line.strip():
+        return b""
+    out = devs.handle(line.decode("ascii", "replace").strip())
+    out += devs.pending
+    devs.pending = []
+    return "".join(o + "\r\n" for o in out).encode("ascii")
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--tcp", type=int, metavar="PORT")
-    g.add_argument("--pty", action="store_true")
+    add_transport(p)
     p.add_argument("--device", action="append", help="D:K (device D with K axes)")
     p.add_argument("--limits", type=lambda s: [int(v) for v in s.split(":")],
                    default=[-250000, 250000], help="LO:HI of every axis (microsteps)")
@@ -255,26 +229,7 @@ def main():
     p.add_argument("--verbose", action="store_true")
     a = p.parse_args()
     devs = Devices(a)
-    if a.pty:
-        master, slave = os.openpty()
-        tty.setraw(slave)  # a plain byte line, like a serial port
-        print("pty %s" % os.ttyname(slave), flush=True)
-        serve(devs, master, lambda b: os.write(master, b))
-        return
-    ls = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    ls.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    ls.bind(("127.0.0.1", a.tcp))
-    ls.listen(4)
-    print("tcp %d" % ls.getsockname()[1], flush=True)
-    while True:
-        r, _, _ = select.select([ls, sys.stdin], [], [])
-        if sys.stdin in r and not os.read(sys.stdin.fileno(), 4096):
-            return
-        if ls not in r:
-            continue
-        conn, _ = ls.accept()
-        serve(devs, conn, conn.sendall)
-        conn.close()
+    run(a, lambda line: respond(devs, line), cr_ends_line=True)
 
 
 if __name__ == "__main__":
