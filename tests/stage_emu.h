@@ -1,14 +1,15 @@
 /* stage_emu.h: starting and stopping an emulated stage controller (tests/gcs_emulator.py,
  * tests/zaber_emulator.py) from a C test: the emulator runs as a child with its stdin on a pipe
  * (closing it ends the emulator, so no test leaves one running) and says on its first stdout line
- * where it listens ("tcp PORT" or "pty /dev/pts/N"). Also the fault cases every stage protocol
- * family shares (a connection dropped mid-move over TCP, a controller falling silent and a line
- * going away over a pseudo-terminal), run on the family's own emulator. Header-only, for
- * test_stage_*.c (after check.h and instrument/stage.h). */
+ * where it listens ("tcp PORT" or "pty /dev/pts/N"). Also the cases every stage protocol family
+ * shares, run on the family's own emulator: the faults (a connection dropped mid-move over TCP,
+ * a controller falling silent and a line going away over a pseudo-terminal), the follower, and
+ * wrong stage strings. Header-only, for test_stage_*.c (after check.h and instrument/stage.h). */
 #ifndef IPSD_TEST_STAGE_EMU_H
 #define IPSD_TEST_STAGE_EMU_H
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/wait.h>
@@ -131,6 +132,62 @@ static void emu_test_faults(emu_open_fn open_on, const char *second_move, double
         stage_close(st);
     }
     emu_stop(&e);
+}
+
+/* The follower: the simulated bench's stage (sim: x, y +-50 mm, z +-5 mm) following the
+ * family's stage's reported position, its travel the intersection (xy_um: the family's x, y
+ * travel end where it is the smaller). identity: a word of the family's identity; tol: how far
+ * a position read back may be from the one commanded; step_um > 0: the reported position is a
+ * whole microstep of it. */
+static void emu_test_follow(emu_open_fn open_on, const char *url_opts, const char *identity,
+                            double xy_um, double tol, double step_um)
+{
+    emu_t e;
+    err_t err;
+    int ret;
+    const char *opts[] = {"--tcp=0", NULL};
+    stage_t *lead = open_on(&e, opts, url_opts, &ret, &err), *shadow, *st;
+    CHECK(ret == 0);
+    if (lead) {
+        CHECK(stage_open("sim", NULL, &shadow, NULL) == 0);
+        CHECK(stage_open_follow(lead, shadow, &st, &err) == 0);
+        CHECK(strcmp(stage_backend(st), "follow") == 0 && strstr(stage_identity(st), identity));
+        stage_limits_t lim;
+        CHECK(stage_get_limits(st, &lim, NULL) == 0);
+        CHECK(lim.min.x_um == -xy_um && lim.max.y_um == xy_um);
+        CHECK(lim.min.z_um == -5000 && lim.max.z_um == 5000);
+        stage_pos_t t = {183.3, 183.9, -1.25}, p, q;
+        CHECK(stage_move(st, &t, NULL) == 0);
+        CHECK(stage_get_position(st, &p, NULL) == 0 && stage_get_position(shadow, &q, NULL) == 0);
+        CHECK_NEAR(p.x_um, 183.3, 0, tol);
+        if (step_um > 0) /* a whole microstep */
+            CHECK(fabs(p.x_um / step_um - round(p.x_um / step_um)) < 1e-6);
+        CHECK(q.x_um == p.x_um && q.y_um == p.y_um && q.z_um == p.z_um); /* the reported one */
+        t.z_um = 6000; /* inside the controller's travel, outside the shadow's */
+        CHECK(stage_move(st, &t, &err) == -ERANGE && strstr(err.msg, "z ="));
+        CHECK(stage_home(st, NULL) == 0 && stage_get_position(shadow, &q, NULL) == 0);
+        CHECK(q.x_um == 0 && q.y_um == 0 && q.z_um == 0);
+        stage_close(st); /* closes the lead */
+        stage_close(shadow);
+    }
+    emu_stop(&e);
+}
+
+/* A stage string that is wrong, and a word of the error that must say why. */
+typedef struct emu_bad_url {
+    const char *url, *says;
+} emu_bad_url_t;
+
+/* Each of the n strings is refused by stage_url_check with -EINVAL, the error saying why. */
+static void emu_check_bad_urls(const emu_bad_url_t *bad, size_t n)
+{
+    err_t err;
+    for (size_t i = 0; i < n; i++) {
+        int rc = stage_url_check(bad[i].url, NULL, &err);
+        CHECK(rc == -EINVAL && strstr(err.msg, bad[i].says));
+        if (rc != -EINVAL || !strstr(err.msg, bad[i].says))
+            fprintf(stderr, "  %s: %d '%s'\n", bad[i].url, rc, rc ? err.msg : "");
+    }
 }
 
 #endif

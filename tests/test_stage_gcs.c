@@ -156,40 +156,6 @@ static void test_controller_errors(const char *transport)
     emu_stop(&e);
 }
 
-/* The follower: a simulated stage (the simulated bench's) following the GCS stage's reported
- * position; its travel is the intersection (sim: +-50 mm in x, y, +-5 mm in z; emulator: +-25 mm).
- */
-static void test_follow(void)
-{
-    emu_t e;
-    err_t err;
-    int ret;
-    const char *opts[] = {"--tcp=0", NULL};
-    stage_t *lead = open_on(&e, opts, "", &ret, &err), *shadow, *st;
-    CHECK(ret == 0);
-    if (lead) {
-        CHECK(stage_open("sim", NULL, &shadow, NULL) == 0);
-        CHECK(stage_open_follow(lead, shadow, &st, &err) == 0);
-        CHECK(strcmp(stage_backend(st), "follow") == 0 && strstr(stage_identity(st), "emulator"));
-        stage_limits_t lim;
-        CHECK(stage_get_limits(st, &lim, NULL) == 0);
-        CHECK(lim.min.x_um == -25000 && lim.max.y_um == 25000 && lim.min.z_um == -5000 &&
-              lim.max.z_um == 5000);
-        stage_pos_t t = {183.3, 183.9, -1.25}, p, q;
-        CHECK(stage_move(st, &t, NULL) == 0);
-        CHECK(stage_get_position(st, &p, NULL) == 0 && stage_get_position(shadow, &q, NULL) == 0);
-        CHECK_NEAR(p.x_um, 183.3, 0, 1e-4);
-        CHECK(q.x_um == p.x_um && q.y_um == p.y_um && q.z_um == p.z_um); /* the reported one */
-        t.z_um = 6000; /* inside the controller's travel, outside the shadow's */
-        CHECK(stage_move(st, &t, &err) == -ERANGE && strstr(err.msg, "z ="));
-        CHECK(stage_home(st, NULL) == 0 && stage_get_position(shadow, &q, NULL) == 0);
-        CHECK(q.x_um == 0 && q.y_um == 0 && q.z_um == 0);
-        stage_close(st); /* closes the lead */
-        stage_close(shadow);
-    }
-    emu_stop(&e);
-}
-
 /* Stage strings: the syntax, and errors that say what is wrong. */
 static void test_urls(void)
 {
@@ -200,9 +166,7 @@ static void test_urls(void)
     CHECK(stage_url_check("gcs:tcp://[::1]:50000?unit=um&axes=X,Y,Z&timeout=0.5", NULL, NULL) == 0);
     CHECK(stage_url_check("gcs:serial:/dev/ttyUSB0?baud=115200&move_timeout=120&reference=0", NULL,
                           NULL) == 0);
-    static const struct {
-        const char *url, *says;
-    } bad[] = {
+    static const emu_bad_url_t bad[] = {
         {"pi:tcp://h:1", "need sim, or gcs:"},
         {"gcs:udp://h:1", "gcs:tcp://HOST:PORT"},
         {"gcs:tcp://h", "port"},
@@ -225,12 +189,7 @@ static void test_urls(void)
         {"gcs:tcp://h:1?step_um=0.1", "for zaber"},
         {"gcs:tcp://h:1?unit", "key=value"},
     };
-    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
-        int rc = stage_url_check(bad[i].url, NULL, &err);
-        CHECK(rc == -EINVAL && strstr(err.msg, bad[i].says));
-        if (rc != -EINVAL || !strstr(err.msg, bad[i].says))
-            fprintf(stderr, "  %s: %d '%s'\n", bad[i].url, rc, rc ? err.msg : "");
-    }
+    emu_check_bad_urls(bad, sizeof bad / sizeof bad[0]);
     /* nobody listening: refused at once; a device that does not exist */
     stage_t *st;
     emu_t e;
@@ -253,7 +212,7 @@ int main(void)
     test_units_axes();
     test_controller_errors("--tcp=0");
     test_controller_errors("--pty");
-    test_follow();
+    emu_test_follow(open_on, "", "emulator", 25000, 1e-4, 0);
     emu_test_faults(open_on, "2", 1e-4); /* tests/stage_emu.h */
     CHECK_DONE();
 }

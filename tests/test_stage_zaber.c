@@ -158,35 +158,6 @@ static void test_device_errors(const char *transport)
     emu_stop(&e);
 }
 
-/* The follower: the simulated bench's stage following the Zaber stage's reported position (on
- * the microstep grid); its travel is the intersection (sim: z +-5 mm; emulator: +-25 mm). */
-static void test_follow(void)
-{
-    emu_t e;
-    err_t err;
-    int ret;
-    const char *opts[] = {"--tcp=0", NULL};
-    stage_t *lead = open_on(&e, opts, "step_um=0.047625", &ret, &err), *shadow, *st;
-    CHECK(ret == 0);
-    if (lead) {
-        CHECK(stage_open("sim", NULL, &shadow, NULL) == 0);
-        CHECK(stage_open_follow(lead, shadow, &st, &err) == 0);
-        CHECK(strcmp(stage_backend(st), "follow") == 0 && strstr(stage_identity(st), "30222"));
-        stage_limits_t lim;
-        CHECK(stage_get_limits(st, &lim, NULL) == 0);
-        CHECK(lim.min.z_um == -5000 && lim.max.z_um == 5000);
-        stage_pos_t t = {183.3, 183.9, -1.25}, p, q;
-        CHECK(stage_move(st, &t, NULL) == 0);
-        CHECK(stage_get_position(st, &p, NULL) == 0 && stage_get_position(shadow, &q, NULL) == 0);
-        CHECK_STEP(p.x_um, 183.3, 0.047625);
-        CHECK(fabs(p.x_um / 0.047625 - round(p.x_um / 0.047625)) < 1e-6); /* a whole microstep */
-        CHECK(q.x_um == p.x_um && q.y_um == p.y_um && q.z_um == p.z_um);  /* the reported one */
-        stage_close(st);
-        stage_close(shadow);
-    }
-    emu_stop(&e);
-}
-
 /* Stage strings of the zaber family: the syntax, and errors that say what is wrong. */
 static void test_urls(void)
 {
@@ -199,9 +170,7 @@ static void test_urls(void)
                           NULL, NULL) == 0);
     CHECK(stage_url_check("zaber:serial:/dev/ttyUSB0?step_um=0.1&devices=1,2,3&axes=1,1,1", NULL,
                           NULL) == 0);
-    static const struct {
-        const char *url, *says;
-    } bad[] = {
+    static const emu_bad_url_t bad[] = {
         {"zaber:tcp://h:1", "step_um="},
         {"zaber:udp://h:1?step_um=1", "zaber:tcp://HOST:PORT"},
         {"zaber:tcp://h?step_um=1", "zaber:tcp://HOST:PORT"},
@@ -221,12 +190,7 @@ static void test_urls(void)
         {"zaber:tcp://h:1?step_um=1&speed=3", "unknown option 'speed' (step_um"},
         {"zaber:tcp://h:1?step_um=1&baud=9600", "serial lines only"},
     };
-    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
-        int rc = stage_url_check(bad[i].url, NULL, &err);
-        CHECK(rc == -EINVAL && strstr(err.msg, bad[i].says));
-        if (rc != -EINVAL || !strstr(err.msg, bad[i].says))
-            fprintf(stderr, "  %s: %d '%s'\n", bad[i].url, rc, rc ? err.msg : "");
-    }
+    emu_check_bad_urls(bad, sizeof bad / sizeof bad[0]);
     stage_t *st;
     CHECK(stage_open_url("zaber:serial:/dev/nonexistent-ipsd-stage?step_um=1", &st, &err) ==
           -ENOENT);
@@ -242,7 +206,8 @@ int main(void)
     test_chain_axes();
     test_device_errors("--tcp=0");
     test_device_errors("--pty");
-    test_follow();
+    emu_test_follow(open_on, "step_um=0.047625", "30222", 250000 * 0.047625, 0.047625 / 2 + 1e-9,
+                    0.047625);
     emu_test_faults(open_on, "4", 0); /* tests/stage_emu.h */
     CHECK_DONE();
 }
