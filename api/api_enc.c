@@ -84,16 +84,12 @@ json_t *api_enc_job(const storage_job_t *j)
                      api_time(j->created_ms), "started_ms", api_time(j->started_ms), "finished_ms",
                      api_time(j->finished_ms), "scan_id", id_or_null(j->scan_id), "fit_id",
                      id_or_null(j->fit_id), "params", job_params(j->params));
-    /* a job of every pixel: the fits it stored, in order (storage keeps them in its params'
-     * "fit_ids"; the answer shows them beside the request, not in it) */
-    json_t *params = o ? json_object_get(o, "params") : NULL, *ids;
-    if (json_is_object(params)) {
-        if ((ids = json_object_get(params, "fit_ids")) && json_is_array(ids)) {
-            json_object_set(o, "fit_ids", ids);
-            json_object_del(params, "fit_ids");
-        } else if (json_is_string(json_object_get(params, "pixels"))) {
-            json_object_set_new(o, "fit_ids", json_array()); /* none stored yet */
-        }
+    /* a job of every pixel: the fits it stored, in order (storage reads them from the fits'
+     * job_id), beside the request */
+    if (o && j->fit_ids) {
+        json_t *ids = json_loads(j->fit_ids, 0, NULL);
+        json_object_set_new(o, "fit_ids", json_is_array(ids) ? ids : json_array());
+        if (!json_is_array(ids)) json_decref(ids);
     }
     return o;
 }

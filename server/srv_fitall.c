@@ -9,9 +9,10 @@
  *   - progress is "pixel k of N" (points_done of points_total in the job's events), each event
  *     naming its pixel ("pixel": the one being fitted, or the one whose fit fit_id was just
  *     stored);
- *   - the job is linked to its fits: its fit_id is the newest pixel's, its params' "fit_ids"
- *     every pixel's in the order stored (storage_fit_store_unit); the job's answer lists them
- *     with their pixels and the pixels not covered (api_jobs.c);
+ *   - the job is linked to its fits: its fit_id is the newest pixel's, and each pixel's fit
+ *     records the job (fits.job_id, in the pixel's transaction: storage_fit_store_unit), so the
+ *     job's fit_ids are every pixel's in the order stored; the job's answer lists them with
+ *     their pixels and the pixels not covered (api_jobs.c);
  *   - a cancel stops the job between pixels and inside a pixel's fit (the worker's stop flag,
  *     polled by fit/ through fit/stop.h); the pixels stored before stay, the one in flight
  *     stores nothing;

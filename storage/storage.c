@@ -206,6 +206,21 @@ int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
     return ret;
 }
 
+int stg_run_ids(storage_t *st, enum stg_id id, int64_t a, int64_t b, err_t *err,
+                const char *what)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, id, &q, err))) return ret;
+    stg_bind_id(q, 1, a, &rc);
+    stg_bind_id(q, 2, b, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, what);
+    }
+    return stg_run(st, q, err, what);
+}
+
 int stg_row(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
 {
     int rc = sqlite3_step(s);

@@ -299,6 +299,8 @@ typedef struct storage_job {
     int attempts;            /* times claimed */
     int64_t heartbeat_ms, created_ms, started_ms, finished_ms;
     int64_t scan_id, fit_id; /* links, 0 = none */
+    char *fit_ids;           /* a job of every pixel ("pixels" in params): a JSON array of the fits
+                              * it stored, in the order stored (fits.job_id); NULL otherwise */
 } storage_job_t;
 
 typedef struct storage_job_list {
@@ -419,8 +421,8 @@ int storage_fit_store_done(storage_t *st, const storage_fit_t *fit, const storag
  * storage_fit_store with the job's count of done units
  * (points_done) moved from done_before to done_before + 1 and its progress to that fraction of
  * total, and on the last unit (done_before + 1 == total) the job's end as done, all in one
- * transaction; the job is linked to the fit: its fit_id becomes the unit's fit, and its params'
- * "fit_ids" (a JSON array) gets the fit's id appended, so element k is unit k's fit. So a crash
+ * transaction; the job is linked to the fit: its fit_id becomes the unit's fit, and the fit's
+ * job_id the job, so element k of the job's fit_ids (storage_job_t) is unit k's fit. So a crash
  * leaves each unit stored once or not at all, and a rerun of the job resumes at unit
  * points_done. The job must be running with exactly done_before units done:
  * -ESTALE (another count: that unit was stored already, or not running), -ECANCELED, -ENOENT, and

@@ -69,6 +69,14 @@ static int fit_rows(storage_t *st, const storage_fit_t *fit, const storage_calib
     return promote ? stg_calib_insert(st, &c, cid, err) : 0;
 }
 
+/* Links a job and the fit it stored, both ways, inside the caller's transaction: the job's
+ * fit_id (-ENOENT: no such job) and the fit's job_id (how a job of every pixel lists its fits). */
+static int link_job(storage_t *st, int64_t job_id, int64_t fid, err_t *err)
+{
+    int ret = stg_job_set_fit(st, job_id, fid, err);
+    return ret ? ret : stg_fit_set_job(st, fid, job_id, err);
+}
+
 /* Ends the transaction of a fit store: commit when ret is 0, else roll back; the ids out on
  * success. */
 static int fit_rows_end(storage_t *st, int ret, int64_t fid, int64_t cid, int64_t *fit_id,
@@ -96,7 +104,7 @@ static int fit_store(storage_t *st, const storage_fit_t *fit, const storage_cali
     /* first the job's end: a job no longer running (cancelled meanwhile) stores nothing */
     if (done) ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err);
     if (!ret) ret = fit_rows(st, fit, calib, promote, &fid, &cid, err);
-    if (!ret && job_id > 0) ret = stg_job_set_fit(st, job_id, fid, err);
+    if (!ret && job_id > 0) ret = link_job(st, job_id, fid, err);
     return fit_rows_end(st, ret, fid, cid, fit_id, calib_id, err);
 }
 
@@ -131,7 +139,7 @@ int storage_fit_store_unit(storage_t *st, const storage_fit_t *fit, const storag
     if (!ret && done_before + 1 == total)
         ret = stg_job_finish(st, job_id, STORAGE_DONE, NULL, err);
     if (!ret) ret = fit_rows(st, fit, calib, promote, &fid, &cid, err);
-    if (!ret) ret = stg_job_add_unit_fit(st, job_id, fid, err);
+    if (!ret) ret = link_job(st, job_id, fid, err);
     return fit_rows_end(st, ret, fid, cid, fit_id, calib_id, err);
 }
 

@@ -94,6 +94,11 @@ int stg_fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *er
     return ret;
 }
 
+int stg_fit_set_job(storage_t *st, int64_t fit_id, int64_t job_id, err_t *err)
+{
+    return stg_run_ids(st, STG_FIT_SET_JOB, fit_id, job_id, err, "recording the fit's job");
+}
+
 int storage_fit_get(storage_t *st, int64_t id, storage_fit_t *out, err_t *err)
 {
     sqlite3_stmt *q;

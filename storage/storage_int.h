@@ -50,9 +50,9 @@ enum stg_id {
     STG_JOB_COUNT,
     STG_JOB_LIST,
     STG_JOB_SET_FIT,
-    STG_JOB_ADD_UNIT_FIT,
     STG_JOB_STEP,
     STG_FIT_INSERT,
+    STG_FIT_SET_JOB,
     STG_FIT_GET,
     STG_FIT_COUNT,
     STG_FIT_LIST,
@@ -83,9 +83,15 @@ enum stg_id {
     "id, sensor_id, poi_col, poi_row, wavelength_um, na, spot_radius_um, area_px, step_um, "      \
     "sub_px, frames, exposure_us, points_total, state, points_done, error, created_ms, "          \
     "started_ms, finished_ms"
+/* the last column: a job of every pixel ("pixels" a string) gets its fits (schema 6: fits.job_id)
+ * as a JSON array in id order, the order stored ('[]' before the first; NULL for other jobs).
+ * A window, not a plain aggregate: only its ORDER BY makes json_group_array's order certain. */
 #define STG_JOB_COLS                                                                              \
     "id, kind, params, state, progress, points_done, error, attempts, heartbeat_ms, created_ms, " \
-    "started_ms, finished_ms, scan_id, fit_id"
+    "started_ms, finished_ms, scan_id, fit_id, "                                                  \
+    "CASE WHEN json_type(params, '$.pixels') = 'text' THEN coalesce((SELECT "                     \
+    "json_group_array(f.id) OVER (ORDER BY f.id ROWS BETWEEN UNBOUNDED PRECEDING AND "            \
+    "UNBOUNDED FOLLOWING) FROM fits f WHERE f.job_id = jobs.id LIMIT 1), '[]') END"
 #define STG_FIT_COLS                                                                              \
     "f.id, f.scan_id, f.dcol, f.drow, f.noise_model, f.best_r_aic, f.best_r_bic, f.f_value, "     \
     "f.p_value, f.result, f.created_ms, m.sensor_id, m.pixel_col, m.pixel_row, m.r, c.id, "       \
@@ -167,6 +173,9 @@ char *stg_col_text(sqlite3_stmt *s, int i, int *oom);
 
 /* Runs a bound statement that returns no rows and resets it: 0 or a negative errno. */
 int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what);
+/* stg_run of statement id with ids ?1 = a and ?2 = b (0: NULL). */
+int stg_run_ids(storage_t *st, enum stg_id id, int64_t a, int64_t b, err_t *err,
+                const char *what);
 /* Steps a bound statement expecting one row: 0 (row ready), -ENOENT (no row), or an error. */
 int stg_row(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what);
 
@@ -220,8 +229,6 @@ int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_js
 int stg_job_resume(storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err);
 /* Records the fit a job produced, inside the caller's write transaction (-ENOENT: no job). */
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
-/* stg_job_set_fit for a unit of a job of several: also appends fit_id to params' "fit_ids". */
-int stg_job_add_unit_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err);
 /* A running job's done units go from `from` to from + 1 (progress: the fraction): -ESTALE when
  * its count is not `from` (that unit is stored already), else as not_running. */
 int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *err);
@@ -234,6 +241,8 @@ int stg_job_finish(storage_t *st, int64_t id, storage_state_t state, const char 
 /* storage_fit.c: checks a fit (its pixel inside the scan's sub-frame) and inserts it, inside the
  * caller's write transaction. */
 int stg_fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *err);
+/* Records the job that stored fit_id (fits.job_id, schema 6), inside the caller's transaction. */
+int stg_fit_set_job(storage_t *st, int64_t fit_id, int64_t job_id, err_t *err);
 /* Keeps c (its pixel, map and optics; checked by the caller) as the map fit_id offers. */
 int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, err_t *err);
 /* The map fit_id offers, as a calibration (fit_id, scan_id and noise_model from the fit; the

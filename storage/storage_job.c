@@ -32,6 +32,7 @@ void storage_job_free(storage_job_t *j)
     if (!j) return;
     free(j->params);
     free(j->error);
+    free(j->fit_ids);
     memset(j, 0, sizeof *j);
 }
 
@@ -63,6 +64,7 @@ static int read_job(sqlite3_stmt *s, void *item)
     o->finished_ms = stg_col_id(s, 11);
     o->scan_id = stg_col_id(s, 12);
     o->fit_id = stg_col_id(s, 13);
+    o->fit_ids = stg_col_text(s, 14, &oom);
     if (oom) storage_job_free(o);
     return oom ? -ENOMEM : 0;
 }
@@ -294,31 +296,12 @@ int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *er
     return ret;
 }
 
-static int link_fit(storage_t *st, int stmt, int64_t job_id, int64_t fit_id, err_t *err)
-{
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
-    if ((ret = stg_stmt(st, stmt, &q, err))) return ret;
-    stg_bind_int(q, 1, job_id, &rc);
-    stg_bind_int(q, 2, fit_id, &rc);
-    if (rc != SQLITE_OK) {
-        stg_reset(q);
-        return stg_error(st, rc, err, "linking the job to its fit");
-    }
-    if ((ret = stg_run(st, q, err, "linking the job to its fit"))) return ret;
-    if (sqlite3_changes(st->db) == 0)
-        return err_set(err, -ENOENT, "job %lld does not exist", (long long)job_id);
-    return 0;
-}
-
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
 {
-    return link_fit(st, STG_JOB_SET_FIT, job_id, fit_id, err);
-}
-
-int stg_job_add_unit_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
-{
-    return link_fit(st, STG_JOB_ADD_UNIT_FIT, job_id, fit_id, err);
+    int ret = stg_run_ids(st, STG_JOB_SET_FIT, job_id, fit_id, err, "linking the job to its fit");
+    if (ret == 0 && sqlite3_changes(st->db) == 0)
+        return err_set(err, -ENOENT, "job %lld does not exist", (long long)job_id);
+    return ret;
 }
 
 /* Inside the cancel transaction, after the job changed: cancels its scan if it has one. */

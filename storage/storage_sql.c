@@ -234,6 +234,23 @@ const char *const stg_migrations[] = {
     "CREATE INDEX jobs_queue ON jobs (kind, state, id);\n"
     "CREATE INDEX jobs_scan ON jobs (scan_id);\n"
     "PRAGMA user_version = 5;\n",
+
+    /* 6: each fit knows the job that stored it (fits.job_id), so the fits of a job of every
+     * pixel are a query (the job's fit_ids: its fits in id order, the order stored), not a list
+     * kept in the job's params. Filled from the links schema 5 kept: a job's fit_id (its fit;
+     * a job of every pixel: its newest) and the params' "fit_ids" of a job of every pixel, which
+     * then leave the params (they are the request again, as every other job's). ALTER TABLE ADD
+     * COLUMN keeps every row and id. Fits are never deleted and get ascending ids, so id order
+     * is the order a job stored them. */
+    "ALTER TABLE fits ADD COLUMN job_id INTEGER REFERENCES jobs (id);\n"
+    "UPDATE fits SET job_id = (SELECT min(j.id) FROM jobs j WHERE j.fit_id = fits.id);\n"
+    "UPDATE fits SET job_id = (SELECT min(j.id) FROM jobs j, json_each(j.params, '$.fit_ids') e\n"
+    "    WHERE e.value = fits.id)\n"
+    "    WHERE id IN (SELECT e.value FROM jobs j, json_each(j.params, '$.fit_ids') e);\n"
+    "UPDATE jobs SET params = json_remove(params, '$.fit_ids')\n"
+    "    WHERE json_type(params, '$.fit_ids') IS NOT NULL;\n"
+    "CREATE INDEX fits_job ON fits (job_id);\n"
+    "PRAGMA user_version = 6;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -344,12 +361,6 @@ const char *const stg_sql[STG_N] = {
     [STG_JOB_LIST] =
         "SELECT " STG_JOB_COLS " FROM jobs " JOB_FILTER " ORDER BY id DESC LIMIT ?4 OFFSET ?5",
     [STG_JOB_SET_FIT] = "UPDATE jobs SET fit_id = ?2 WHERE id = ?1",
-    /* a unit's fit of a job of several (every pixel of a scan): the job's fit_id is the newest,
-     * and params' "fit_ids" lists them all in the order stored (unit k: element k) */
-    [STG_JOB_ADD_UNIT_FIT] =
-        "UPDATE jobs SET fit_id = ?2, params = json_set(params, '$.fit_ids', "
-        "json_insert(coalesce(json_extract(params, '$.fit_ids'), json_array()), '$[#]', ?2)) "
-        "WHERE id = ?1",
     /* one unit of a running job done: only from the count the caller read (no unit twice) */
     [STG_JOB_STEP] = "UPDATE jobs SET points_done = ?3, progress = ?4, heartbeat_ms = ?5 "
                      "WHERE id = ?1 AND state = 'running' AND points_done = ?2",
@@ -361,6 +372,8 @@ const char *const stg_sql[STG_N] = {
     [STG_FIT_COUNT] = "SELECT count(*) FROM fits WHERE scan_id = ?1",
     [STG_FIT_LIST] = "SELECT " STG_FIT_COLS " " FIT_FROM " WHERE f.scan_id = ?1 "
                      "ORDER BY f.id DESC LIMIT ?2 OFFSET ?3",
+    /* the job that stored the fit (schema 6) */
+    [STG_FIT_SET_JOB] = "UPDATE fits SET job_id = ?2 WHERE id = ?1",
     [STG_FIT_MAP_INSERT] =
         "INSERT INTO fit_maps (fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
         "chi2_red, status, wavelength_um, na, spot_radius_um, software_version) "

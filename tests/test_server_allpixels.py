@@ -16,8 +16,8 @@ A simulated paper-like scan (the paper's raster: 5 x 5 pixels of 6 um in 0.6 um 
 - progress: the job's events count pixels, points_done k of points_total 25, in order, each
   naming its pixel (and, once stored, the pixel's fit: the database's dcol, drow of that fit);
 - the job's answer lists the fits it stored (fit_ids: the database's fits after the job began,
-  in order; fit_id the newest) and every pixel of the sub-frame: fitted with a fit of that pixel,
-  not_fitted (a cancelled job), or not_covered with the reason;
+  in order; fit_id the newest; the list GET /api/jobs too) and every pixel of the sub-frame:
+  fitted with a fit of that pixel, not_fitted (a cancelled job), or not_covered with the reason;
 - each covered pixel's calibration (the simulated sensor's pixels all share the scene's map)
   matches the simulator's known truth for that map (`ips simulate --truth`): every sub-pixel
   within K_SIGMA of its error plus MODEL (below)."""
@@ -66,6 +66,9 @@ def check_job_fits(c, d, db, job, scan, after_id, n):
     c.eq(len(ids), n, "%d fits" % n)
     c.eq(j["fit_id"], ids[-1] if ids else None, "the job's fit_id is the newest")
     c.ok("fit_ids" not in j["params"], "the request's params stay as they were")
+    listed = [x for x in d.get("/api/jobs?kind=fit&scan=%d&limit=100" % scan).json()["items"]
+              if x["id"] == job]
+    c.eq([x.get("fit_ids") for x in listed], [ids], "the list GET /api/jobs carries the same")
     where = {i: (a, b) for i, a, b in db.all("SELECT id, dcol, drow FROM fits WHERE id > ?",
                                             after_id)}
     px = {(p["dcol"], p["drow"]): p for p in j.get("pixels", [])}

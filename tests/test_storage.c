@@ -145,7 +145,7 @@ static void test_open_migrate(void)
     struct stat sb;
     char mode[32];
     CHECK(stat(db_path("open.db"), &sb) == 0);
-    CHECK(storage_schema_version() == 5); /* docs/schema.md: "currently 5" (keep in step) */
+    CHECK(storage_schema_version() == 6); /* docs/schema.md: "currently 6" (keep in step) */
     CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
     raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
     CHECK(strcmp(mode, "wal") == 0);
@@ -773,7 +773,7 @@ static void test_fit_store_unit(void)
     err_t err = {{0}};
     storage_job_t j;
     CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &a, NULL) == 0);
-    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", scan, &b, NULL) == 0);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{\"pixels\": \"all\"}", scan, &b, NULL) == 0);
     CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == a);
     storage_job_free(&j);
     storage_fit_t f;
@@ -810,11 +810,15 @@ static void test_fit_store_unit(void)
     CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 0, 2, &u0, NULL, NULL) == 0);
     CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 1, 2, &u1, NULL, NULL) == 0);
     CHECK(storage_job_get(st, b, &j, NULL) == 0);
-    /* linked to its fits: fit_id the newest, params' fit_ids every one in the order stored */
+    /* linked to its fits: fit_id the newest, fit_ids every one in the order stored (each fit
+     * records its job: schema 6), the params the request as it was */
     CHECK(j.state == STORAGE_DONE && j.points_done == 2 && j.progress == 1 && j.fit_id == u1);
     char want[64];
     snprintf(want, sizeof want, "[%lld,%lld]", (long long)u0, (long long)u1);
-    CHECK(u0 > 0 && u1 > u0 && j.params && strstr(j.params, want));
+    CHECK(u0 > 0 && u1 > u0 && j.fit_ids && strcmp(j.fit_ids, want) == 0);
+    CHECK(j.params && strcmp(j.params, "{\"pixels\": \"all\"}") == 0);
+    storage_job_free(&j);
+    CHECK(storage_job_get(st, a, &j, NULL) == 0 && j.fit_ids == NULL); /* not every pixel */
     storage_job_free(&j);
     CHECK(storage_fit_store_unit(st, &f, NULL, 0, b, 2, 3, NULL, NULL, &err) == -ESTALE);
     CHECK(raw_int("fitunit.db", "SELECT count(*) FROM fits") == 4);
@@ -1127,6 +1131,91 @@ static void test_migrate_v2(void)
     storage_close(st);
 }
 
+/* A schema-5 database (migrations 1 to 5 run by hand), where a job of every pixel kept its fits
+ * in its params' "fit_ids", migrates to schema 6 with each fit's job recorded: the jobs answer
+ * the same fit_ids in the same order (from SQL now) and their params lose only "fit_ids"; an
+ * ordinary fit job's fit records it from the job's fit_id, a fit without a job records none,
+ * other params stay byte for byte. The half-done job of every pixel then resumes: its next
+ * pixel joins its fit_ids, a pixel stored already is refused (a rerun stores none twice). */
+static void test_migrate_v5(void)
+{
+    for (int i = 0; i < 5; i++)
+        CHECK(raw_exec("v5m.db", stg_migrations[i]) == SQLITE_OK);
+    CHECK(raw_int("v5m.db", "PRAGMA user_version") == 5);
+    CHECK(raw_exec("v5m.db",
+                   "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"
+                   "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, "
+                   "spot_radius_um, area_px, step_um, sub_px, frames, exposure_us, points_total, "
+                   "state, points_done, created_ms) VALUES "
+                   "(1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 'done', 9, 1);"
+                   "INSERT INTO fits (id, scan_id, dcol, drow, noise_model, result, created_ms) "
+                   "VALUES (11, 1, -1, -1, 'paper', '{}', 2), (12, 1, 0, -1, 'paper', '{}', 3), "
+                   "(13, 1, 1, -1, 'paper', '{}', 4), (14, 1, 0, 0, 'paper', '{}', 5), "
+                   "(15, 1, 0, 0, 'paper', '{}', 6), (16, 1, -1, -1, 'paper', '{}', 7), "
+                   "(17, 1, 0, -1, 'paper', '{}', 8);"
+                   "INSERT INTO jobs (id, kind, params, state, progress, points_done, created_ms, "
+                   "scan_id, fit_id) VALUES "
+                   "(5, 'fit', '{\"scan_id\":1,\"pixels\":\"all\",\"r_max\":4,"
+                   "\"fit_ids\":[11,12,13]}', 'done', 1, 3, 2, 1, 13),"
+                   "(6, 'fit', '{\"scan_id\": 1, \"r_max\": 4}', 'done', 1, 0, 5, 1, 14),"
+                   "(7, 'scan', '{\"seed\": 3}', 'done', 1, 9, 1, 1, NULL),"
+                   "(8, 'fit', '{\"scan_id\":1,\"pixels\":\"all\",\"fit_ids\":[16,17]}', "
+                   "'running', 0.67, 2, 7, 1, 17),"
+                   "(9, 'fit', '{\"scan_id\": 1, \"pixels\": \"all\"}', 'queued', 0, 0, 9, "
+                   "1, NULL);") == SQLITE_OK);
+    storage_t *st = open_db("v5m.db");
+    if (!st) return;
+    CHECK(raw_int("v5m.db", "PRAGMA user_version") == storage_schema_version()); /* and on */
+    CHECK(raw_int("v5m.db", "SELECT count(*) FROM pragma_foreign_key_check") == 0);
+    CHECK(raw_int("v5m.db", "SELECT count(*) FROM pragma_index_list('fits') "
+                            "WHERE name = 'fits_job'") == 1);
+    CHECK(raw_int("v5m.db", "SELECT count(*) FROM fits WHERE job_id = 5 AND id IN (11, 12, 13)") ==
+          3);
+    CHECK(raw_int("v5m.db", "SELECT job_id FROM fits WHERE id = 14") == 6);
+    CHECK(raw_int("v5m.db", "SELECT count(*) FROM fits WHERE job_id IS NULL") == 1); /* 15 */
+    CHECK(raw_int("v5m.db", "SELECT count(*) FROM jobs WHERE params LIKE '%fit_ids%'") == 0);
+    storage_job_t j;
+    CHECK(storage_job_get(st, 5, &j, NULL) == 0 && j.fit_id == 13 && j.points_done == 3);
+    CHECK(j.fit_ids && strcmp(j.fit_ids, "[11,12,13]") == 0);
+    CHECK(j.params && strcmp(j.params, "{\"scan_id\":1,\"pixels\":\"all\",\"r_max\":4}") == 0);
+    storage_job_free(&j);
+    CHECK(storage_job_get(st, 6, &j, NULL) == 0 && j.fit_id == 14 && j.fit_ids == NULL);
+    CHECK(j.params && strcmp(j.params, "{\"scan_id\": 1, \"r_max\": 4}") == 0);
+    storage_job_free(&j);
+    CHECK(storage_job_get(st, 7, &j, NULL) == 0 && strcmp(j.params, "{\"seed\": 3}") == 0);
+    storage_job_free(&j);
+    CHECK(storage_job_get(st, 9, &j, NULL) == 0 && j.fit_ids && strcmp(j.fit_ids, "[]") == 0);
+    storage_job_free(&j);
+    /* the list answers the same fit_ids (newest first: 9, 8, 7, 6, 5) */
+    storage_job_list_t l;
+    CHECK(storage_job_list(st, STORAGE_ANY, STORAGE_ANY, 0, 10, 0, &l, NULL) == 0 && l.n == 5);
+    if (l.n == 5) {
+        CHECK(l.items[1].id == 8 && l.items[1].fit_ids &&
+              strcmp(l.items[1].fit_ids, "[16,17]") == 0);
+        CHECK(l.items[3].id == 6 && l.items[3].fit_ids == NULL);
+        CHECK(l.items[4].id == 5 && l.items[4].fit_ids &&
+              strcmp(l.items[4].fit_ids, "[11,12,13]") == 0);
+    }
+    storage_job_list_free(&l);
+    /* job 8, running at 2 of 3 pixels when the old ipsd stopped: requeued and claimed again */
+    int requeued = 0;
+    CHECK(storage_job_requeue_stale(st, 0, 0, &requeued, NULL, NULL) == 0 && requeued == 1);
+    CHECK(storage_job_claim(st, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == 8);
+    CHECK(j.points_done == 2 && j.fit_ids && strcmp(j.fit_ids, "[16,17]") == 0);
+    storage_job_free(&j);
+    storage_fit_t f = {.scan_id = 1, .dcol = 0, .drow = -1, .noise_model = "paper", .result = "{}"};
+    err_t err = {{0}};
+    CHECK(storage_fit_store_unit(st, &f, NULL, 0, 8, 1, 3, NULL, NULL, &err) == -ESTALE);
+    f.dcol = 1;
+    int64_t u = 0;
+    CHECK(storage_fit_store_unit(st, &f, NULL, 0, 8, 2, 3, &u, NULL, &err) == 0 && u == 18);
+    CHECK(storage_job_get(st, 8, &j, NULL) == 0 && j.state == STORAGE_DONE && j.fit_id == 18);
+    CHECK(j.fit_ids && strcmp(j.fit_ids, "[16,17,18]") == 0);
+    storage_job_free(&j);
+    CHECK(raw_int("v5m.db", "SELECT count(*) FROM fits") == 8);
+    storage_close(st);
+}
+
 /* ---- driver --------------------------------------------------------------------------------- */
 
 /* ---- schema 2 (ipsd server): scan setup, job release, fits of uploaded scans --------------- */
@@ -1262,6 +1351,7 @@ int main(void)
     test_migrate_v1();
     test_promote();
     test_migrate_v2();
+    test_migrate_v5();
     test_setup_release_upload();
     remove_tmpdir();
     CHECK_DONE();
