@@ -25,7 +25,7 @@ DEFAULT = dict(ntc=0.25, w=2, coarse=1.5, esc=1.7, esc_ntc=0.5, esc_ratio=2, nea
 
 def load(path):
     """The dump's cases: F (fit) and R (residual) lines, then the case's C line."""
-    cases, fits = [], {}
+    cases, fits, sim = [], {}, None
     for line in open(path):
         t = line.split()
         if not t:
@@ -40,12 +40,15 @@ def load(path):
             fits[r] = f
         elif t[0] == "R":
             fits[int(t[1])]["resid"] = [float(x) for x in t[3:]]
+        elif t[0] == "K":  # --simcheck's picks: down, up, down else up
+            sim = [int(x) for x in t[1:4]]
         elif t[0] == "C":
             rms = {i + 1: float(x) for i, x in enumerate(t[5:])}
             fin = [r for r in rms if math.isfinite(rms[r])]
             cases.append(dict(scene=t[1], raster=int(t[2]), flux=float(t[3]), seed=int(t[4]),
-                              rms=rms, fits=fits, best=min(fin, key=rms.get) if fin else 0))
-            fits = {}
+                              rms=rms, fits=fits, best=min(fin, key=rms.get) if fin else 0,
+                              sim=sim))
+            fits, sim = {}, None
     return cases
 
 
@@ -284,8 +287,11 @@ def scale_finest(fits):
     return math.sqrt(fits[max(v)]["chi2_red"]) if v else 1
 
 
-def candidates():
+def candidates(with_sim):
     c = {"fit_recommend (current)": lambda k: recommend(k)}
+    if with_sim:  # computed by the bench (--simcheck): it refits, the dump cannot
+        for i, name in enumerate(("down", "up", "down, else up")):
+            c[f"simulation-based check (bench), {name}"] = (lambda i: lambda k: k["sim"][i])(i)
     c["leave-one-out alone"] = lambda k: pick_min(k, lambda f: f["cv_chi2"])
     c["GCV alone"] = lambda k: pick_min(k, gcv)
     c["without the one-SE step"] = lambda k: recommend(k, dict(DEFAULT, one_se=0))
@@ -362,7 +368,7 @@ def main(argv):
     def score(cs, fn):
         q = [ratio(c, fn(c)) for c in cs]
         return f"{sum(x <= OK_RATIO for x in q):4d} ({max(q, default=1):6.2f}x)"
-    for name, fn in candidates().items():
+    for name, fn in candidates(all(c["sim"] for c in cases)).items():
         print(f"{name:42s} {score(tune, fn)}  {score(held, fn)}  {score(cases, fn)}", flush=True)
     return 0
 
