@@ -11,7 +11,8 @@
  * the seeds the rule was chosen on: --first-seed 4 gives held-out ones; --dump writes every fit of
  * every case for studying rules offline; --explain prints, under every case whose recommendation
  * misses the best r by more than 1.1x, the criteria the rule weighed for each r: reduced chi2,
- * leave-one-out chi2 per point, noise, contrast, resolution error and expected error). */
+ * leave-one-out chi2 per point, noise, contrast, resolution error and expected error; --simcheck
+ * scores the simulation-based check of the rule's pick, docs/numerics.md's fifth round). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -58,11 +59,13 @@ static void score_add(struct score *s, double ratio)
 }
 
 enum { RULE_AIC, RULE_BIC, RULE_CV, RULE_REC, N_FIXED };
+enum { SIM_DOWN, SIM_UP, SIM_BOTH, N_SIM }; /* --simcheck's variants (simcheck below) */
 
 struct tally {
     int cases;
     struct score s[N_FIXED + FID_MAX_RULES];
     struct score fixed[FID_R_MAX + 1]; /* fixed[r]: always r */
+    struct score sim[N_SIM];           /* --simcheck's picks */
     double wiener_sum, best_sum;
 };
 
@@ -70,7 +73,7 @@ struct run {
     int quick, tune, r_max, seeds, first_seed, raster; /* raster: index + 1, 0 all */
     const char *scene;                                  /* NULL: every family */
     FILE *dump;
-    int explain;
+    int explain, simcheck;
     fit_noise_t noise;
     fit_recommend_opts_t rules[FID_MAX_RULES];
     int n_rules;
@@ -83,6 +86,7 @@ static int parse(int argc, char **argv, struct run *u)
         if (strcmp(argv[i], "--quick") == 0) u->quick = 1;
         else if (strcmp(argv[i], "--tune") == 0) u->tune = 1;
         else if (strcmp(argv[i], "--explain") == 0) u->explain = 1;
+        else if (strcmp(argv[i], "--simcheck") == 0) u->simcheck = 1;
         else if (strcmp(argv[i], "--sigma") == 0 && i + 1 < argc &&
                  fit_noise_parse(argv[i + 1], &u->noise) == 0)
             i++;
@@ -107,7 +111,7 @@ static int parse(int argc, char **argv, struct run *u)
         else {
             fprintf(stderr, "usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max 1..%d] "
                             "[--seeds N] [--first-seed S] [--raster 1..%zu] [--scene NAME] "
-                            "[--sigma paper|shot+read] [--dump FILE] [--explain]\n"
+                            "[--sigma paper|shot+read] [--dump FILE] [--explain] [--simcheck]\n"
                             "  seeds S..S+N-1 (default 1..3); --raster: 9x9, 13x13, 19x19, "
                             "51x51 full; --dump: every fit's map, S_err and chi2 and the "
                             "case's rms by r, as text, for studying rules offline; --explain: "
@@ -187,20 +191,98 @@ static void explain_print(const struct explain *x, const fid_result_t *f)
                    r == f->r_best ? "  best" : r == c->r ? "  recommended" : "");
 }
 
+/* --simcheck: the simulation-based check of the rule's pick p, with fit/'s own model as the
+ * simulator. The stand-in truth is a fitted map S_q; its noise-free data are fit q's model of
+ * every point (model_dn); refitting them at r gives the bias of r against S_q exactly, because
+ * the fit is linear: the mean of parametric-bootstrap refits is this one refit and their spread
+ * is S_err, so no replicates are needed. Risk of r against the stand-in S_q:
+ * |S_r(A S_q) - S_q|^2 + noise_r^2 (noise: rms S_err times the rule's scatter), and S_q's own
+ * risk is noise_q^2. Down: stand-in S_p, p - 1 replaces p when its risk is smaller; up: stand-in
+ * S_p+1, p + 1 replaces p when its own noise^2 is below p's risk; both: down, else up. */
+
 struct sweep_ctx {
     FILE *dump;
     struct explain *explain;
+    int simcheck;
+    int r_sim[N_SIM];
 };
+
+static double noise2(const fit_result_t *f, double scale)
+{
+    double v = 0;
+    for (int j = 0; j < f->r * f->r; j++) v += f->S_err[j] * f->S_err[j];
+    return v / (f->r * f->r) * scale * scale;
+}
+
+/* The risk of fitting r against the stand-in fit q (NaN when either has no usable map). */
+static double sim_risk(const fit_scan_t *scan, const fit_options_t *opts, const fit_sweep_t *sw,
+                       int r, int q, double scale)
+{
+    if (r < sw->r_min || q > sw->r_max || r < 1) return NAN;
+    const fit_result_t *fq = &sw->fits[q - sw->r_min], *fr = &sw->fits[r - sw->r_min];
+    if (!fq->S || !fq->model_dn || !fr->S) return NAN;
+    double *y = malloc(sizeof(double) * scan->n);
+    if (!y) return NAN;
+    for (size_t k = 0; k < scan->n; k++) /* points fit q left out keep their signal */
+        y[k] = isfinite(fq->model_dn[k]) ? fq->model_dn[k] : scan->signal_dn[k];
+    fit_scan_t s = *scan;
+    s.signal_dn = y;
+    fit_result_t f;
+    err_t err;
+    double risk = NAN;
+    if (fit_map(&s, r, opts, &f, &err) == 0) {
+        if (f.S) {
+            double b = fid_map_rms(f.S, r, fq->S, q, 240);
+            risk = b * b + noise2(fr, scale);
+        }
+        fit_result_free(&f);
+    }
+    free(y);
+    return risk;
+}
+
+static int trusted(const fit_sweep_t *sw, int r)
+{
+    if (r < sw->r_min || r > sw->r_max) return 0;
+    const fit_result_t *f = &sw->fits[r - sw->r_min];
+    return f->S && !(f->flags & (FIT_UNDERDETERMINED | FIT_NO_SIGNAL | FIT_ILL_CONDITIONED |
+                                 FIT_UNCONSTRAINED | FIT_NO_POINTS));
+}
+
+static void simcheck(const fit_scan_t *scan, const fit_options_t *opts, const fit_sweep_t *sw,
+                     int r_sim[N_SIM])
+{
+    fit_recommendation_t rec;
+    fit_recommend(sw, NULL, &rec);
+    int p = rec.r, down = p, up = p;
+    double sc = rec.noise_scale;
+    if (p >= 2 && trusted(sw, p - 1)) {
+        double rd = sim_risk(scan, opts, sw, p - 1, p, sc);
+        if (rd < noise2(&sw->fits[p - sw->r_min], sc)) down = p - 1;
+    }
+    if (p >= 1 && trusted(sw, p + 1)) {
+        double ru = sim_risk(scan, opts, sw, p, p + 1, sc);
+        if (noise2(&sw->fits[p + 1 - sw->r_min], sc) < ru) up = p + 1;
+    }
+    r_sim[SIM_DOWN] = down;
+    r_sim[SIM_UP] = up;
+    r_sim[SIM_BOTH] = down != p ? down : up;
+}
 
 /* --dump: one line per fit of the sweep ("F r flags n_used params chi2 chi2_red cv_chi2
  * S[r*r] S_err[r*r]"), each followed by its normalised residuals ("R r n resid[n]", nan for a
  * point left out; they give the spread of the per-point leave-one-out terms a one-standard-error
- * rule needs), then the case line from main ("C scene raster flux seed rms[1..r_max]"). */
-static void on_sweep(const fit_sweep_t *sw, void *ctx)
+ * rule needs), with --simcheck its three picks ("K down up both"), then the case line from main
+ * ("C scene raster flux seed rms[1..r_max]"). */
+static void on_sweep(const fit_scan_t *scan, const fit_options_t *opts, const fit_sweep_t *sw,
+                     void *ctx)
 {
-    const struct sweep_ctx *k = ctx;
+    struct sweep_ctx *k = ctx;
     if (k->explain) explain_sweep(sw, k->explain);
+    if (k->simcheck) simcheck(scan, opts, sw, k->r_sim);
     FILE *fp = k->dump;
+    if (fp && k->simcheck)
+        fprintf(fp, "K %d %d %d\n", k->r_sim[SIM_DOWN], k->r_sim[SIM_UP], k->r_sim[SIM_BOTH]);
     for (int r = sw->r_min; fp && r <= sw->r_max; r++) {
         const fit_result_t *f = &sw->fits[r - sw->r_min];
         fprintf(fp, "F %d %u %zu %d %.9g %.9g %.9g", r, f->flags, f->n_used, f->params, f->chi2,
@@ -312,7 +394,9 @@ int main(int argc, char **argv)
     memset(t, 0, sizeof t);
     memset(ts, 0, sizeof ts);
     static struct explain ex;
-    struct sweep_ctx sctx = {.dump = u.dump, .explain = u.explain ? &ex : NULL};
+    struct sweep_ctx sctx = {.dump = u.dump, .explain = u.explain ? &ex : NULL,
+                             .simcheck = u.simcheck};
+    struct tally sim_all = {0};
     double t0 = clock_mono_s();
     printf("map rms error against the simulator's truth (mean-1 maps, 240 x 240 samples)\n");
     printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s %3s | %7s %7s %7s %7s | %7s | rms by r = "
@@ -330,7 +414,8 @@ int main(int argc, char **argv)
                                     .flux_scale = fluxes[fi], .seed = (unsigned long)seed,
                                     .noise = u.noise, .rules = u.rules,
                                     .n_rules = u.n_rules,
-                                    .on_sweep = u.dump || u.explain ? on_sweep : NULL,
+                                    .on_sweep = u.dump || u.explain || u.simcheck ? on_sweep
+                                                                                  : NULL,
                                     .on_sweep_ctx = &sctx};
                     fid_result_t f;
                     err_t err;
@@ -346,6 +431,11 @@ int main(int argc, char **argv)
                         fprintf(u.dump, "\n");
                         fflush(u.dump);
                     }
+                    if (u.simcheck) {
+                        sim_all.cases++;
+                        for (int k = 0; k < N_SIM; k++)
+                            score_add(&sim_all.sim[k], ratio(&f, sctx.r_sim[k]));
+                    }
                     tally_case(&t[ri], &f, u.n_rules);
                     tally_case(&ts[si], &f, u.n_rules);
                     if (ratio(&f, f.r_rec[0]) > OK_RATIO) {
@@ -355,6 +445,14 @@ int main(int argc, char **argv)
                     }
                 }
     print_summary(t, ts, &u);
+    if (u.simcheck) {
+        static const char *const names[N_SIM] = {"down", "up", "down, else up"};
+        printf("\nsimulation-based check of the recommended r (cases within %.1fx, worst):\n",
+               OK_RATIO);
+        for (int k = 0; k < N_SIM; k++)
+            printf("  %-14s %4d/%-4d %8.2f\n", names[k], sim_all.sim[k].ok, sim_all.cases,
+                   sim_all.sim[k].worst);
+    }
     printf("\ntotal %.1f s\n", clock_mono_s() - t0);
     if (u.dump) fclose(u.dump);
     return 0;

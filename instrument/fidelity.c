@@ -148,7 +148,7 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
         out->rms[r] = fid_map_rms(f->S, r, T, m, SAMPLES);
         if (out->rms[r] < best) best = out->rms[r], out->r_best = r;
     }
-    if (c->on_sweep) c->on_sweep(&sw, c->on_sweep_ctx);
+    if (c->on_sweep) c->on_sweep(&fitted.scan, &o, &sw, c->on_sweep_ctx);
     out->r_aic = sw.best_aic;
     out->r_bic = sw.best_bic;
     int n_rules = c->rules && c->n_rules > 0 ? c->n_rules : 1;

@@ -34,8 +34,10 @@ typedef struct fid_case {
     int n_rules;
     fit_region_t region; /* the points fitted (fit/region.h; inside): the full raster keeps
                             every point of the raster, the fit takes the region's */
-    /* called with the finished sweep before it is freed (NULL: none); the bench's --dump */
-    void (*on_sweep)(const fit_sweep_t *sw, void *ctx);
+    /* called with the finished sweep before it is freed, with the points it fitted and its
+     * options (NULL: none); the bench's --dump, --explain and --simcheck */
+    void (*on_sweep)(const fit_scan_t *scan, const fit_options_t *opts, const fit_sweep_t *sw,
+                     void *ctx);
     void *on_sweep_ctx;
 } fid_case_t;
 
