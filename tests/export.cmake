@@ -1,5 +1,6 @@
-# FITS export and jitter photometry through a real ipsd and the ips tool: test_server_export.py,
-# which reads the files back with astropy (Debian's python3-astropy; exit 77: skipped without it).
+# FITS export and import: test_server_export.py (calibrations as FITS and jitter photometry
+# through a real ipsd and ips, read back with astropy) and test_import_fits.py (ips import-fits;
+# Debian's python3-astropy; exit 77: skipped without it).
 find_package(Python3 COMPONENTS Interpreter)
 if(TARGET ipsd AND TARGET ips AND Python3_Interpreter_FOUND)
     add_test(NAME test_server_export
@@ -8,4 +9,15 @@ if(TARGET ipsd AND TARGET ips AND Python3_Interpreter_FOUND)
              WORKING_DIRECTORY ${IPSD_TEST_DATA})
     # a small scan and two small fits: ~10 s optimised on a quiet machine; 4x for busy, ASan
     set_tests_properties(test_server_export PROPERTIES TIMEOUT 240 SKIP_RETURN_CODE 77)
+endif()
+
+# ips import-fits: a lab's FITS scan cube (written by astropy, the independent writer) as a scan
+# file, equal to the simulator's, and its bad inputs (test_import_fits.py; 77: no astropy).
+if(TARGET ips AND Python3_Interpreter_FOUND)
+    add_test(NAME test_import_fits
+             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_import_fits.py
+                     $<TARGET_FILE:ips>
+             WORKING_DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR})
+    # 14 simulations and 2 fits of small scans: ~20 s on a busy machine; 4x for ASan
+    set_tests_properties(test_import_fits PROPERTIES TIMEOUT 240 SKIP_RETURN_CODE 77)
 endif()
