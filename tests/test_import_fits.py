@@ -3,9 +3,9 @@
 (docs/contracts.md, "FITS scan cube"), with astropy (Debian's python3-astropy) as the independent
 writer of the cube.
 
-The simulated bench rasters one scan; `ips simulate --pixel DC,DR --all-points` writes each of
-six sub-frame pixels' responses (a 3-column x 2-row sub-frame, the POI at its FITS column 2,
-row 1). astropy writes them as the cube a lab would: plane k the means at position k (float64),
+The simulated bench rasters one scan; `ips simulate --pixel DC,DR --all-points` writes three of
+its sub-frame pixels' responses into a 3-column x 2-row sub-frame (the POI at its FITS column 2,
+row 1; the other three pixels hold constants). astropy writes them as the cube a lab would: plane k the means at position k (float64),
 the positions (relative to the POI's corner) in the binary table POSITIONS, the sensor constants
 as header keywords with 17 significant digits. Then:
 
@@ -42,6 +42,7 @@ except ImportError:
     sys.exit(77)
 
 COLS, ROWS = (-1, 0, 1), (0, 1)  # the sub-frame pixels (dcol, drow) in the cube
+SIMULATED = ((0, 0), (1, 0), (-1, 1))  # the others hold a constant: each simulation takes time
 POICOL, POIROW = 2, 1            # the POI (0, 0): FITS column 2, row 1
 SIM = ["--seed", "7", "--area", "3", "--step", "0.6", "--subframe", "3", "--frames", "4"]
 CONSTS = {"PITCH": "pitch_um", "SPOTRAD": "spot_radius_um", "BIAS": "bias_dn",
@@ -77,7 +78,8 @@ def cube_hdul(scans, poi, **change):
     for j, dr in enumerate(ROWS):
         for i, dc in enumerate(COLS):
             # None (a JSON null) never occurs in these scans; NaN would stand for it
-            data[:, j, i] = np.array(scans[(dc, dr)]["signal_dn"], dtype=np.float64)
+            data[:, j, i] = np.array(scans[(dc, dr)]["signal_dn"], dtype=np.float64) \
+                if (dc, dr) in scans else 1000.0 + 10 * i + j
     prim = fits.PrimaryHDU(data)
     prim.header["BUNIT"] = ("DN", "mean of NCOMBINE frames, bias included")
     for key, field in CONSTS.items():
@@ -240,7 +242,7 @@ def main():
         # one raster, six pixels of it (all positions each), and the POI's inside-only file
         scans = {(dc, dr): simulate(c, ips, t, "p%d%d.json" % (dc, dr),
                                     ["--pixel", "%d,%d" % (dc, dr), "--all-points"])
-                 for dc in COLS for dr in ROWS}
+                 for dc, dr in SIMULATED}
         poi_all = scans[(0, 0)]
         poi_path = os.path.join(t, "poi.json")
         poi = simulate(c, ips, t, "poi.json", [])
