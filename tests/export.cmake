@@ -11,14 +11,16 @@ if(TARGET ipsd AND TARGET ips AND Python3_Interpreter_FOUND)
     set_tests_properties(test_server_export PROPERTIES TIMEOUT 240 SKIP_RETURN_CODE 77)
 endif()
 
-# ips import-fits: a lab's FITS scan cube (written by astropy, the independent writer) as a scan
+# ips import-fits (and POST /api/fits's scan_fits): a lab's FITS scan cube (written by astropy, the independent writer) as a scan
 # file, equal to the simulator's, and its bad inputs (test_import_fits.py; 77: no astropy).
-if(TARGET ips AND Python3_Interpreter_FOUND)
+# With ipsd, POST /api/fits's scan_fits too; its answers are recorded for tests/apilint.cmake.
+if(TARGET ips AND TARGET ipsd AND Python3_Interpreter_FOUND)
     add_test(NAME test_import_fits
              COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_import_fits.py
-                     $<TARGET_FILE:ips>
+                     $<TARGET_FILE:ips> $<TARGET_FILE:ipsd>
              WORKING_DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR})
-    # 6 simulations and 2 fits of small scans: ~15 s optimised, ~90 s under ASan (a simulation
+    # 6 simulations and 6 fits of small scans: ~15 s optimised, ~90 s under ASan (a simulation
     # takes 5 s of CPU there) on a busy machine
-    set_tests_properties(test_import_fits PROPERTIES TIMEOUT 360 SKIP_RETURN_CODE 77)
+    set_tests_properties(test_import_fits PROPERTIES TIMEOUT 360 SKIP_RETURN_CODE 77
+        ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}" FIXTURES_SETUP api_records)
 endif()

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_import_fits.py IPS: `ips import-fits`, a lab's FITS scan cube as a scan file
+"""test_import_fits.py IPS [IPSD]: `ips import-fits` and POST /api/fits's scan_fits, a lab's FITS scan cube as a scan file
 (docs/contracts.md, "FITS scan cube"), with astropy (Debian's python3-astropy) as the independent
 writer of the cube.
 
@@ -20,15 +20,18 @@ as header keywords with 17 significant digits. Then:
 - bad input (not FITS, truncated, a missing keyword or column, wrong dimensions, a non-finite
   position, rows that disagree, a pixel outside the cube, a unit that is not um, ...) exits 2
   with one line on stderr naming what is wrong, and writes no file.
+With IPSD, a real ipsd: POST /api/fits with the cube as scan_fits (base64) fits the same scan
+file as an upload of the import (the stored results equal, timings aside), for the POI and for
+pixel (1, 0) with all_points; bad cubes are 422 naming scan_fits.data / scan_fits.dcol.
 Exits 77 (skipped) without astropy."""
+import base64
 import json
-import math
 import os
 import subprocess
 import sys
 import tempfile
 
-from ipsd_http import Checks
+from ipsd_http import Checks, Ipsd
 
 try:
     import numpy as np
@@ -235,8 +238,55 @@ def bad_inputs(c, ips, t, scans, poi, good):
     c.ok(p.returncode == 2 and "-o" in p.stderr, "no -o: exit 2 (%r)" % p.stderr)
 
 
+def api_fit_result(c, d, body, what):
+    """POSTs body to /api/fits and returns the stored fit's result (timings aside), or None."""
+    r = d.post("/api/fits", body)
+    c.status(r, 202, what)
+    job = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    c.ok(job and job.get("fit_id"), what + ": the job is done with a fit")
+    if not job or not job.get("fit_id"):
+        return None
+    doc = d.get("/api/fits/%d" % job["fit_id"]).json().get("result") or {}
+    doc.pop("timing_ms", None)
+    for f in doc.get("fits", []):
+        for k in ("timing_ms", "design_ms", "solve_ms"):
+            f.pop(k, None)
+    return doc
+
+
+def api_checks(c, ipsd, t, good, poi, pixel_file, daemons):
+    """POST /api/fits with scan_fits against the same upload as a scan file."""
+    d = Ipsd(ipsd, t).start()
+    daemons.append(d)
+    with open(good, "rb") as f:
+        b64 = base64.b64encode(f.read()).decode()
+    opts = {"r_max": 4}
+    want = api_fit_result(c, d, dict(opts, scan=poi), "upload of the POI's scan file")
+    got = api_fit_result(c, d, dict(opts, scan_fits={"data": b64}), "scan_fits, the POI")
+    c.ok(want and got == want, "scan_fits: the POI's fit equals the scan file's")
+    want = api_fit_result(c, d, dict(opts, scan=load(pixel_file)), "upload of pixel 1,0, all")
+    got = api_fit_result(c, d, dict(opts, scan_fits={"data": b64, "dcol": 1, "drow": 0,
+                                                     "all_points": True}),
+                         "scan_fits, pixel 1,0, all points")
+    c.ok(want and got == want, "scan_fits: pixel 1,0's fit equals its import's")
+    notfits = base64.b64encode(json.dumps(poi).encode()).decode()
+    for body, field, what in (
+            ({"scan_fits": {"data": "not base64!"}}, "scan_fits.data", "not base64"),
+            ({"scan_fits": {"data": notfits}}, "scan_fits.data", "not FITS"),
+            ({"scan_fits": {"data": b64[:len(b64) // 2]}}, "scan_fits.data", "cut short"),
+            ({"scan_fits": {"data": b64, "dcol": 5}}, "scan_fits.dcol", "pixel outside"),
+            ({"scan_fits": {"data": b64, "pixel": 1}}, "scan_fits.pixel", "unknown member"),
+            ({"scan_fits": {}}, "scan_fits.data", "no data"),
+            ({"scan": poi, "scan_fits": {"data": b64}}, "scan_fits", "both scan and scan_fits"),
+            ({}, "scan", "neither")):
+        c.error(d.post("/api/fits", body), 422, field, "POST /api/fits, " + what)
+    c.eq(d.stop_term(), 0, "ipsd: SIGTERM, exit 0")
+
+
 def main():
     ips = sys.argv[1]
+    ipsd = sys.argv[2] if len(sys.argv) > 2 else None
+    daemons = []
     c = Checks()
     with tempfile.TemporaryDirectory() as t:
         # one raster, six pixels of it (all positions each), and the POI's inside-only file
@@ -278,9 +328,10 @@ def main():
             c.ok(p.returncode == 0, "import --pixel %s (%r)" % (arg, p.stderr))
             same_scan(c, load(path), scans[(dc, dr)], "pixel %s, all" % arg, pos_tol=1e-12)
             want_in = simulate(c, ips, t, "in%d%d.json" % (dc, dr), ["--pixel", arg])
-            p = import_fits(ips, good, path, "--pixel", arg)
+            path_in = os.path.join(t, "imp_in%d%d.json" % (dc, dr))
+            p = import_fits(ips, good, path_in, "--pixel", arg)
             c.ok(p.returncode == 0, "import --pixel %s, inside (%r)" % (arg, p.stderr))
-            same_scan(c, load(path), want_in, "pixel %s, inside" % arg, pos_tol=1e-12)
+            same_scan(c, load(path_in), want_in, "pixel %s, inside" % arg, pos_tol=1e-12)
 
         # through ips's stdin and stdout, the same file
         with open(good, "rb") as f:
@@ -305,6 +356,12 @@ def main():
         bad_inputs(c, ips, t, scans, poi_all, good)
         p = run([ips, "--help"])
         c.ok("import-fits" in p.stdout, "ips --help lists import-fits")
+        if ipsd:
+            try:
+                api_checks(c, ipsd, t, good, poi, os.path.join(t, "imp10.json"), daemons)
+            finally:
+                for d in daemons:
+                    d.cleanup()
     return c.finish()
 
 
