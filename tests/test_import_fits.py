@@ -16,7 +16,8 @@ as header keywords with 17 significant digits. Then:
   (the cube holds the POI's positions; x - pitch in double and the simulator's own subtraction
   from the stage position differ by rounding), the same inside points;
 - a NaN in the cube becomes null (a non-finite point the fit counts); per-row NCOMBINE / EXPTIME
-  columns that agree are accepted, and stdin / stdout work as files do;
+  columns that agree are accepted; a uint16 cube (BITPIX 16, BZERO 32768) reads as its integers;
+  stdin / stdout work as files do;
 - bad input (not FITS, truncated, a missing keyword or column, wrong dimensions, a non-finite
   position, rows that disagree, a pixel outside the cube, a unit that is not um, ...) exits 2
   with one line on stderr naming what is wrong, and writes no file.
@@ -352,6 +353,20 @@ def main():
         c.eq((imp["signal_dn"][0], imp["signal_dn"][1:], imp.get("exptime_s"), imp["frames"]),
              (None, poi_all["signal_dn"][1:], 0.125, poi["frames"]),
              "NaN mean as null, the rest bit for bit, EXPTIME and NCOMBINE from the table")
+
+        # an integer cube (uint16: BITPIX 16 with BZERO 32768, as cameras write): the values
+        # cfitsio scales back are the integers astropy was given
+        h = cube_hdul(scans, poi_all)
+        ints = np.round(h[0].data).astype(np.uint16)
+        h[0].data = ints
+        intc = os.path.join(t, "uint16.fits")
+        h.writeto(intc)
+        c.eq((fits.getheader(intc)["BITPIX"], fits.getheader(intc)["BZERO"]), (16, 32768),
+             "astropy wrote uint16 as BITPIX 16, BZERO 32768")
+        p = import_fits(ips, intc, out, "--all-points")
+        c.ok(p.returncode == 0, "uint16 cube (%r)" % p.stderr)
+        c.eq(load(out)["signal_dn"], [float(v) for v in ints[:, POIROW - 1, POICOL - 1]],
+             "uint16 cube: the integers")
 
         bad_inputs(c, ips, t, scans, poi_all, good)
         p = run([ips, "--help"])
