@@ -233,7 +233,7 @@ static int read_upload(api_req_t *q, json_t *o, double *pitch)
     err_t err = {{0}};
     if (api_get_obj(q, o, "scan", "scan", &scan)) return -1;
     if (!scan) {
-        api_error(q, 422, "missing", "scan", "scan (a scan file object) is required");
+        api_error(q, 422, "missing", "scan", "scan (a scan file object) or scan_fits (a FITS scan cube) is required");
         return -1;
     }
     int ret = srv_upload_check(scan, pitch, &n, &field, &err);
@@ -304,13 +304,14 @@ static int read_target(api_req_t *q, json_t *o, storage_t *st, double pitch, srv
 
 void api_h_fit_upload(api_req_t *q)
 {
-    static const char *const keys[] = {"scan",          "sensor_id",      "pixel", "optics",
-                                       FIT_OPTION_KEYS, FIT_PROMOTE_KEYS, NULL};
+    static const char *const keys[] = {"scan",          "scan_fits",      "sensor_id", "pixel",
+                                       "optics",        FIT_OPTION_KEYS, FIT_PROMOTE_KEYS, NULL};
     srv_fit_params_t p = srv_fit_params_default();
     storage_t *st;
     double pitch = 0;
     json_t *o = api_body_object(q);
-    if (o && api_no_unknown(q, o, "", keys) == 0 && read_options(q, o, &p) == 0 &&
+    if (o && api_no_unknown(q, o, "", keys) == 0 && api_fits_cube_scan(q, o) == 0 &&
+        read_options(q, o, &p) == 0 &&
         read_upload(q, o, &pitch) == 0 && (st = api_db(q)) &&
         read_target(q, o, st, pitch, &p) == 0 && read_promote(q, o, p.sensor_id > 0, &p) == 0) {
         if (p.promote && !p.sensor_id) {

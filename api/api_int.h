@@ -111,6 +111,9 @@ int api_get_bool(api_req_t *q, json_t *o, const char *key, const char *path, int
 int api_get_obj(api_req_t *q, json_t *o, const char *key, const char *path, json_t **v);
 /* Replies 422 when o has a member not in the NULL-terminated list keys. */
 int api_no_unknown(api_req_t *q, json_t *o, const char *prefix, const char *const *keys);
+/* POST /api/fits's "scan_fits" (a FITS scan cube, base64, and the pixel to cut) replaced by the
+ * "scan" file of that pixel (api_fitscube.c). 0 when done or absent; -1 after replying. */
+int api_fits_cube_scan(api_req_t *q, json_t *o);
 /* The client asked for CSV (?format=csv or Accept: text/csv); -1 after replying 400 to a bad
  * format value. */
 int api_wants_csv(api_req_t *q);

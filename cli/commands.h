@@ -10,6 +10,8 @@ int cmd_bench(int argc, char **argv);    /* accuracy against run time, speed fig
 int cmd_simulate(int argc, char **argv); /* a scan by the simulated bench, as a scan file */
 int cmd_export(int argc, char **argv);   /* IPS maps as a FITS file (ips-export) */
 int cmd_export_exec(int argc, char **argv); /* ips: runs ips-export beside it */
+int cmd_import_fits(int argc, char **argv); /* a FITS scan cube as a scan file (ips-import-fits) */
+int cmd_import_fits_exec(int argc, char **argv); /* ips: runs ips-import-fits beside it */
 int cmd_jitter(int argc, char **argv);   /* jitter photometry with a pixel's map */
 int cmd_ptc(int argc, char **argv);      /* photon transfer (EMVA 1288) on the simulated bench */
 

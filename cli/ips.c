@@ -17,6 +17,7 @@ static const struct command {
     {"bench", cmd_bench, "design-matrix accuracy against run time, and the speed of a full fit"},
     {"simulate", cmd_simulate, "a scan by the simulated bench, written as a scan file"},
     {"export", cmd_export_exec, "IPS maps (calibrations, fits) as a FITS file"},
+    {"import-fits", cmd_import_fits_exec, "a pixel's scan file from a lab's FITS scan cube"},
     {"jitter", cmd_jitter, "the flux error a pixel's map adds under pointing jitter"},
     {"ptc", cmd_ptc, "photon transfer (EMVA 1288): gain, read noise, saturation on the bench"},
 };
