@@ -50,13 +50,13 @@ def test(c, t, argv, daemons):
                                          "frames": 2}, "scene": "paperlike", "seed": 11})
     c.status(r, 202, "submit a 5 x 5-pixel scan with a 7 x 7 sub-frame")
     scan, scan_job = r.json()["scan"]["id"], r.json()["job"]["id"]
-    c.ok(d.wait_job(scan_job, "done"), "the scan is done")
+    c.ok(d.wait_job(scan_job, "done", timeout=600), "the scan is done")
     c.error(d.get("/api/scans/999/scanfile"), 404, "", "unknown scan: 404")
 
     r = d.post("/api/scans/%d/fits" % scan, dict(OPTS, pixels="all"))
     c.status(r, 202, "fit every pixel on the server")
     job = r.json()["job"]["id"]
-    c.ok(d.wait_job(job, "done"), "the fit of every pixel is done")
+    c.ok(d.wait_job(job, "done", timeout=600), "the fit of every pixel is done")
 
     r = d.get("/api/scans/%d/scanfile" % scan)
     c.status(r, 200, "download the scan file with its sub-frame")
