@@ -156,6 +156,7 @@ void api_h_scan_get(api_req_t *q);
 void api_h_scan_cancel(api_req_t *q);
 void api_h_scan_resume(api_req_t *q);
 void api_h_scan_pixel(api_req_t *q);
+void api_h_scan_scanfile(api_req_t *q);
 void api_h_scan_point(api_req_t *q);
 void api_h_scan_fits_list(api_req_t *q);
 void api_h_scan_fit_create(api_req_t *q);

@@ -22,6 +22,7 @@ static const api_route_t routes[] = {
     {"POST", "/api/scans/{id}/cancel", api_h_scan_cancel, 0},
     {"POST", "/api/scans/{id}/resume", api_h_scan_resume, 0},
     {"GET", "/api/scans/{id}/pixels/{dcol}/{drow}", api_h_scan_pixel, 0},
+    {"GET", "/api/scans/{id}/scanfile", api_h_scan_scanfile, 0},
     {"GET", "/api/scans/{id}/points/{index}", api_h_scan_point, 0},
     {"GET", "/api/scans/{id}/fits", api_h_scan_fits_list, 0},
     {"POST", "/api/scans/{id}/fits", api_h_scan_fit_create, 1},

@@ -1,11 +1,13 @@
 /* api_scandata.c: the data of a scan: the response raster of any pixel of the sub-frame (in the
- * scan-file format, so it feeds `ips fit`), the frames of one point (mean and raw), and the fits
- * made of the scan. */
+ * scan-file format, so it feeds `ips fit`), the whole raster with every pixel's response (the
+ * scan file's subframe, for `ips fit --pixels all`), the frames of one point (mean and raw), and
+ * the fits made of the scan. */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "api_int.h"
+#include "server/srv_scanfile.h"
 #include "server/srv_setup.h"
 
 /* Reads scan arg 0 into *sc; -1 after replying 404. */
@@ -44,6 +46,31 @@ void api_h_scan_pixel(api_req_t *q)
     char *text = NULL;
     size_t len = 0;
     int ret = srv_pixel_scan_text(st, &sc, dcol, drow, (int)all, extra, &text, &len, &err);
+    json_decref(extra);
+    if (ret)
+        api_error_rc(q, ret, NULL, err.msg);
+    else
+        api_reply_text(q, 200, "application/json", text, len);
+    storage_scan_free(&sc);
+}
+
+void api_h_scan_scanfile(api_req_t *q)
+{
+    storage_t *st = api_db(q);
+    storage_scan_t sc;
+    err_t err = {{0}};
+    if (!st || load_scan(q, st, &sc)) return;
+    json_t *extra = json_pack(
+        "{s:s, s:I, s:I, s:i, s:i, s:{s:i, s:i}, s:s, s:i}", "description",
+        "a scan's raster with the whole sub-frame at each point (ipsd): the POI's response, every "
+        "pixel's in subframe",
+        "scan_id", (json_int_t)sc.id, "sensor_id", (json_int_t)sc.sensor_id, "dcol", 0, "drow", 0,
+        "pixel", "col", sc.poi_col, "row", sc.poi_row, "scan_state", storage_state_name(sc.state),
+        "inside_only", 0);
+    char *text = NULL;
+    size_t len = 0;
+    int ret = extra ? srv_scan_file_text(st, &sc, extra, &text, &len, &err)
+                    : err_set(&err, -ENOMEM, "out of memory");
     json_decref(extra);
     if (ret)
         api_error_rc(q, ret, NULL, err.msg);

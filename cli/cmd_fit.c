@@ -2,7 +2,9 @@
  * the paper with the fit pipeline (fit/pipeline.h, the one ipsd's fit workers run): the sweep
  * over r with AIC/BIC model selection, optionally the F-test of the edge model, the Wiener
  * baseline and an interpolated map, printed as one JSON document (the docs/contracts.md
- * contract). Bad input: one line on stderr, exit 2; so is a part asked for that fails. */
+ * contract). Bad input: one line on stderr, exit 2; so is a part asked for that fails.
+ * --pixels all fits every pixel of the file's sub-frame its raster covers, each as this command
+ * fits one file (fit_pixels.h). */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,6 +16,7 @@
 #include "cliutil.h"
 #include "commands.h"
 #include "fit/pipeline.h"
+#include "fit_pixels.h"
 #include "fit_table.h"
 #include "instrument/scanfile.h"
 #include "json/fitjson.h"
@@ -47,6 +50,9 @@ static const char usage[] =
     "                      and fit the maps with them\n"
     "  --geometry-r N      r of the geometry fit (1..32, default " GEOMETRY_R_TEXT ")\n"
     "  --table             print a report for people instead of JSON\n"
+    "  --pixels all        fit every pixel of the file's subframe that its raster covers,\n"
+    "                      each with these options (ips simulate --write-subframe,\n"
+    "                      GET /api/scans/{id}/scanfile); prints sub_px, covered, pixels[]\n"
     "Prints one JSON document: N, sigma, fits[], best_r, ftest, wiener, interp, geometry,\n"
     "timing_ms.\n";
 
@@ -59,6 +65,7 @@ struct fit_args {
     int ftest_r, wiener, interp_n;
     int have_full_scale, table;
     int fit_geometry, geometry_r;
+    int all_pixels; /* --pixels all */
     double full_scale;
     fit_region_t region;
     fit_wiener_nsr_t wiener_method;
@@ -67,7 +74,7 @@ struct fit_args {
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
        OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
-       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_HELP };
+       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -87,6 +94,7 @@ static const struct option long_opts[] = {
     {"wiener-nsr", required_argument, NULL, OPT_WIENER_NSR},
     {"fit-geometry", no_argument, NULL, OPT_FIT_GEOMETRY},
     {"geometry-r", required_argument, NULL, OPT_GEOMETRY_R},
+    {"pixels", required_argument, NULL, OPT_PIXELS},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -170,6 +178,11 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
     case OPT_TABLE: a->table = 1; return 0;
     case OPT_FIT_GEOMETRY: a->fit_geometry = 1; return 0;
     case OPT_GEOMETRY_R: return opts_int32("geometry-r", arg, 1, R_LIMIT, &a->geometry_r, err);
+    case OPT_PIXELS:
+        if (strcmp(arg, "all") != 0)
+            return err_set(err, -EINVAL, "--pixels must be all (got '%s')", arg);
+        a->all_pixels = 1;
+        return 0;
     case OPT_FULL_SCALE:
         a->have_full_scale = 1;
         if (parse_double(arg, &a->full_scale) < 0)
@@ -203,6 +216,8 @@ static int check_args(int argc, char **argv, int first, struct fit_args *a, cons
         return err_set(err, -EINVAL, "--wiener-nsr needs --wiener");
     if (seen[OPT_GEOMETRY_R - OPT_R] && !a->fit_geometry)
         return err_set(err, -EINVAL, "--geometry-r needs --fit-geometry");
+    if (a->all_pixels && a->table)
+        return err_set(err, -EINVAL, "--table prints one pixel's report: not with --pixels all");
     if (first >= argc) return err_set(err, -EINVAL, "missing FILE (usage: ips fit FILE [options])");
     if (first + 1 < argc)
         return err_set(err, -EINVAL, "unexpected argument '%s' after FILE", argv[first + 1]);
@@ -242,9 +257,8 @@ static void run_free(struct fit_run *run)
     scanfile_free(&run->sf);
 }
 
-/* Reads the scan and runs the pipeline as asked. A part asked for that failed fails the command
- * (the first in the order geometry, F-test, Wiener, interpolation). 0 or a negative errno with err. */
-static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
+/* Reads the scan (--full-scale applied). 0 or a negative errno with err. */
+static int read_scan(const struct fit_args *a, struct fit_run *run, err_t *err)
 {
     double t = clock_mono_ms();
     int rc = scanfile_read(a->path, &run->sf, NULL, err);
@@ -252,14 +266,24 @@ static int run_all(const struct fit_args *a, struct fit_run *run, err_t *err)
     if (run->sf.scan.n == 0) return err_set(err, -EINVAL, "%s: scan has no points", a->path);
     if (a->have_full_scale) run->sf.scan.full_scale_dn = a->full_scale;
     run->ms_read = clock_mono_ms() - t;
+    return 0;
+}
+
+/* Runs the pipeline on scan as asked. A part asked for that failed fails the fit (the first in
+ * the order geometry, F-test, Wiener, interpolation). 0 or a negative errno with err. */
+static int run_pipeline(const struct fit_args *a, const fit_scan_t *scan, fit_pipeline_t *pl,
+                        err_t *err)
+{
+    int rc;
     fit_pipeline_opts_t po = {.r_min = a->r_min, .r_max = a->r_max, .fit = a->opts,
                               .ftest_edges = a->edges_text ? a->edges : 0, .ftest_r = a->ftest_r,
                               .wiener = a->wiener, .interp_n = a->interp_n,
                               .region = a->region, .wiener_method = a->wiener_method,
                               .wiener_nsr = a->wiener_nsr, .fit_geometry = a->fit_geometry,
                               .geometry_r = a->geometry_r};
-    if ((rc = fit_pipeline_run(&run->sf.scan, &po, NULL, &run->pl, err))) return rc;
-    const fit_part_t *parts[] = {&run->pl.geometry_part, &run->pl.ftest_part, &run->pl.wiener_part, &run->pl.interp_part};
+    if ((rc = fit_pipeline_run(scan, &po, NULL, pl, err))) return rc;
+    const fit_part_t *parts[] = {&pl->geometry_part, &pl->ftest_part, &pl->wiener_part,
+                                 &pl->interp_part};
     for (size_t i = 0; i < sizeof parts / sizeof parts[0]; i++)
         if (parts[i]->asked && parts[i]->rc)
             return err_set(err, parts[i]->rc, "%s", parts[i]->err.msg);
@@ -274,12 +298,13 @@ static json_t *interp_json(const fit_pipeline_t *pl)
                      fitjson_array(pl->interp, (size_t)pl->interp_n * pl->interp_n));
 }
 
-static json_t *result_json(const struct fit_args *a, const struct fit_run *run, double t0)
+/* The document of one fit: pipeline pl of scan, ms_read spent reading, t0 the start. */
+static json_t *result_json(const struct fit_args *a, const fit_pipeline_t *pl,
+                           const fit_scan_t *scan, double ms_read, double t0)
 {
-    const fit_pipeline_t *pl = &run->pl;
-    json_t *root = fitjson_sweep(&pl->sweep, pl->n_region, &a->opts, run->sf.scan.full_scale_dn);
+    json_t *root = fitjson_sweep(&pl->sweep, pl->n_region, &a->opts, scan->full_scale_dn);
     if (!root) return NULL;
-    if (fitjson_add_region(root, &pl->region, run->sf.scan.n)) {
+    if (fitjson_add_region(root, &pl->region, scan->n)) {
         json_decref(root);
         return NULL;
     }
@@ -290,7 +315,7 @@ static json_t *result_json(const struct fit_args *a, const struct fit_run *run, 
         json_object_set_new(root, "geometry", fitjson_geometry(&pl->geometry));
     json_object_set_new(root, "timing_ms",
                         json_pack("{s:o, s:o, s:o, s:o, s:o, s:o}", "read",
-                                  fitjson_num(run->ms_read), "sweep", fitjson_num(pl->sweep_ms),
+                                  fitjson_num(ms_read), "sweep", fitjson_num(pl->sweep_ms),
                                   "ftest", fitjson_num(pl->ftest_part.ms), "wiener",
                                   fitjson_num(pl->wiener_part.ms), "interp",
                                   fitjson_num(pl->interp_part.ms), "total",
@@ -301,15 +326,55 @@ static json_t *result_json(const struct fit_args *a, const struct fit_run *run, 
     return root;
 }
 
+/* One pixel of --pixels all (fit_pixels_fn): its document, as this command prints it for that
+ * pixel's own scan file (timing_ms.read 0: the file was read once). */
+static int fit_one(const fit_scan_t *scan, void *user, json_t **doc, err_t *err)
+{
+    const struct fit_args *a = user;
+    double t0 = clock_mono_ms();
+    fit_pipeline_t pl = {0};
+    int rc = run_pipeline(a, scan, &pl, err);
+    *doc = NULL;
+    if (rc == 0 && !(*doc = result_json(a, &pl, scan, 0, t0)))
+        rc = err_set(err, -ENOMEM, "out of memory building the output");
+    fit_pipeline_free(&pl);
+    return rc;
+}
+
+/* --pixels all: read, fit every covered pixel, print. */
+static int cmd_fit_pixels(const struct fit_args *a, double t0)
+{
+    struct fit_run run = {0};
+    err_t err;
+    json_t *root = NULL;
+    int rc = read_scan(a, &run, &err);
+    if (rc == 0 && !run.sf.sub_px)
+        rc = err_set(&err, -EINVAL,
+                     "%s: --pixels all needs a scan file with a subframe (ips simulate "
+                     "--write-subframe, GET /api/scans/{id}/scanfile)",
+                     a->path);
+    if (rc == 0) rc = fit_pixels_run(&run.sf, fit_one, (void *)a, &root, &err);
+    run_free(&run);
+    if (rc) return cli_fail(cli_exit_code(rc), "fit", "%s", err.msg);
+    json_t *t = json_object_get(root, "timing_ms");
+    json_object_set_new(t, "read", fitjson_num(run.ms_read));
+    json_object_set_new(t, "total", fitjson_num(clock_mono_ms() - t0));
+    rc = fitjson_print(root, stdout);
+    json_decref(root);
+    return rc ? cli_fail(CLI_EXIT_FAILURE, "fit", "writing the output failed") : 0;
+}
+
 int cmd_fit(int argc, char **argv)
 {
     double t0 = clock_mono_ms();
     struct fit_args a;
     int rc = parse_args(argc, argv, &a);
     if (rc) return rc < 0 ? 0 : rc;
+    if (a.all_pixels) return cmd_fit_pixels(&a, t0);
     struct fit_run run = {0};
     err_t err;
-    if ((rc = run_all(&a, &run, &err))) {
+    if ((rc = read_scan(&a, &run, &err)) == 0) rc = run_pipeline(&a, &run.sf.scan, &run.pl, &err);
+    if (rc) {
         run_free(&run);
         return cli_fail(cli_exit_code(rc), "fit", "%s", err.msg);
     }
@@ -321,7 +386,7 @@ int cmd_fit(int argc, char **argv)
         run_free(&run);
         return 0;
     }
-    json_t *root = result_json(&a, &run, t0);
+    json_t *root = result_json(&a, &run.pl, &run.sf.scan, run.ms_read, t0);
     run_free(&run);
     if (!root) return cli_fail(CLI_EXIT_FAILURE, "fit", "out of memory building the output");
     rc = fitjson_print(root, stdout);

@@ -3,7 +3,9 @@
  * centring from a random start, focus, the 51 x 51 raster of 5 x 5 pixels with 9 x 9 sub-frames)
  * and the response of the pixel of interest at the positions inside it is written; --grid N
  * instead rasters N x N points directly inside the POI from its true centre (the paper's 9 x 9
- * of fig. 9). Prints a JSON summary (setup errors against the truth, work, timing). The scan's
+ * of fig. 9); --write-subframe writes every raster point with the whole sub-frame read at each
+ * (the scan file's `subframe`, for `ips fit --pixels all`). Prints a JSON summary (setup errors
+ * against the truth, work, timing). The scan's
  * options take their defaults and ranges from instrument/scan_limits.h, as the HTTP API does;
  * --dry-run checks them against the simulated bench and prints the configuration, simulating
  * nothing. */
@@ -73,6 +75,9 @@ static void print_usage(void)
         "  --all-points        write every point of the raster, not only those inside the\n"
         "                      pixel (positions still relative to its corner; for --region\n"
         "                      and the whole-raster Wiener baseline of ips fit)\n"
+        "  --write-subframe    write every point of the raster with the whole sub-frame read at\n"
+        "                      each (the scan file's subframe; positions relative to the POI's\n"
+        "                      corner), for ips fit --pixels all; implies --all-points\n"
         "  --leave-out TOL     simulator leave-out tolerance, fraction of the spot's flux (1e-4)\n"
         "  --truth FILE        write the scene's true sub-pixel means for r = 1..10\n"
         "  --dry-run           check the options against the bench, print the configuration\n"
@@ -87,6 +92,7 @@ struct sim_args {
     const char *out, *truth;
     int grid, dcol, drow, have_wavelength, have_na, have_radius, dry_run;
     int all_points; /* --all-points: every raster point, not only those inside the pixel */
+    int write_subframe; /* --write-subframe: and every pixel of the sub-frame at each point */
     double offset_x, offset_y;
     double written_radius; /* --written-radius, 0: the bench's true radius */
 };
@@ -111,6 +117,7 @@ enum {
     OPT_DRY_RUN,
     OPT_ALL_POINTS,
     OPT_WRITTEN_RADIUS,
+    OPT_WRITE_SUBFRAME,
     OPT_HELP
 };
 
@@ -134,6 +141,7 @@ static const struct option long_opts[] = {
     {"dry-run", no_argument, NULL, OPT_DRY_RUN},
     {"all-points", no_argument, NULL, OPT_ALL_POINTS},
     {"written-radius", required_argument, NULL, OPT_WRITTEN_RADIUS},
+    {"write-subframe", no_argument, NULL, OPT_WRITE_SUBFRAME},
     {"output", required_argument, NULL, 'o'},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
@@ -236,6 +244,7 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
         a->truth = arg;
         break;
     case OPT_ALL_POINTS: a->all_points = 1; return 0;
+    case OPT_WRITE_SUBFRAME: a->write_subframe = a->all_points = 1; return 0;
     case OPT_DRY_RUN:
         a->dry_run = 1;
         break;
@@ -270,6 +279,14 @@ static int parse_args(int argc, char **argv, struct sim_args *a)
         return cli_fail(CLI_EXIT_USAGE, "simulate", "give --radius or --wavelength/--na, not both");
     if (a->grid && (a->dcol || a->drow))
         return cli_fail(CLI_EXIT_USAGE, "simulate", "--pixel needs the full procedure, not --grid");
+    if (a->write_subframe && a->grid)
+        return cli_fail(CLI_EXIT_USAGE, "simulate",
+                        "--write-subframe needs the full procedure, not --grid (the grid reads "
+                        "the POI alone)");
+    if (a->write_subframe && (a->dcol || a->drow))
+        return cli_fail(CLI_EXIT_USAGE, "simulate",
+                        "--write-subframe writes the POI's file (the sub-frame is centred on it): "
+                        "not with --pixel");
     if (a->grid && a->all_points)
         return cli_fail(CLI_EXIT_USAGE, "simulate",
                         "--all-points needs the full procedure, not --grid (its points are all "
@@ -360,6 +377,7 @@ static int write_truth(const sim_t *sim, const char *path, err_t *err)
 
 struct outcome {
     scanfile_t sf;
+    double *sub_dn; /* --write-subframe: sf.scan.n * m*m means, point after point */
     scan_setup_t su;
     stage_pos_t found; /* centre the setup found, before --offset */
     double setup_ms, raster_ms;
@@ -382,6 +400,18 @@ static int run_grid(sim_t *sim, const struct sim_args *a, struct outcome *o, err
                              err);
     o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
     return rc;
+}
+
+/* --write-subframe: every captured point's m x m means, in the order scan_extract_pixel_region
+ * wrote the points (raster order, captured points only). */
+static int keep_subframe(const scan_raster_t *r, struct outcome *o, err_t *err)
+{
+    size_t mm = (size_t)r->m * r->m, k = 0;
+    if (!(o->sub_dn = malloc((o->sf.scan.n ? o->sf.scan.n : 1) * mm * sizeof *o->sub_dn)))
+        return err_set(err, -ENOMEM, "out of memory for the sub-frame");
+    for (size_t i = 0; i < r->count; i++)
+        if (r->have[i]) memcpy(o->sub_dn + k++ * mm, r->mean_dn + i * mm, mm * sizeof(double));
+    return k == o->sf.scan.n ? 0 : err_set(err, -EIO, "the raster changed under the sub-frame");
 }
 
 /* The paper's procedure from a random start (seeded): up to 1.5 um off in x and y, 8 um in z. */
@@ -409,6 +439,7 @@ static int run_procedure(sim_t *sim, const struct sim_args *a, struct outcome *o
     if (rc == 0)
         rc = scan_raster_run(sim_camera(sim), sim_stage(sim), &c, &o->su, 0, NULL, &r, err);
     if (rc == 0) rc = scan_extract_pixel_region(&r, a->dcol, a->drow, a->all_points, &o->sf, err);
+    if (rc == 0 && a->write_subframe) rc = keep_subframe(&r, o, err);
     o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
     scan_raster_free(&r);
     return rc;
@@ -486,7 +517,12 @@ int cmd_simulate(int argc, char **argv)
         extra = json_pack(
             "{s:s}", "description",
             "ips simulate: a scan of one pixel by the simulated bench (instrument/sim.h)");
-        rc = scanfile_write(a.out, &o.sf.scan, extra, &err);
+        if (extra && o.sub_dn &&
+            json_object_set_new(extra, "subframe",
+                                scanfile_subframe_json(a.scan.subframe_px, a.scan.step_um,
+                                                       o.sub_dn, o.sf.scan.n)))
+            rc = err_set(&err, -ENOMEM, "out of memory writing the sub-frame");
+        if (rc == 0) rc = scanfile_write(a.out, &o.sf.scan, extra, &err);
     }
     if (rc == 0 && a.truth) rc = write_truth(sim, a.truth, &err);
     int code = 0;
@@ -499,6 +535,7 @@ int cmd_simulate(int argc, char **argv)
         json_decref(root);
     }
     json_decref(extra);
+    free(o.sub_dn);
     scanfile_free(&o.sf);
     sim_close(sim);
     return code;

@@ -38,9 +38,14 @@ int scan_file_new(const scan_setup_t *su, int frames, size_t n, scanfile_t *out,
 int scan_pixel_coords(const scan_setup_t *su, int dcol, int drow, double sx, double sy, double *x,
                       double *y)
 {
-    double p = su->pitch_um, eps = 1e-6 * p; /* the pixel spans [o, o + p] in stage coordinates */
-    *x = sx - (su->centre.x_um - p / 2 + dcol * p);
-    *y = sy - (su->centre.y_um - p / 2 + drow * p);
+    /* the pixel spans [o, o + p] in stage coordinates, o = the POI's corner + (dcol, drow) p.
+     * Computed as (position relative to the POI's corner) - dcol p, in that order: a scan file
+     * keeps positions relative to the POI's corner (GET /api/scans/{id}/scanfile, ips simulate
+     * --write-subframe), and `ips fit --pixels all` gets every other pixel's positions from them
+     * with this same function (centre p/2, so the corner is 0), bit for bit the server's. */
+    double p = su->pitch_um, eps = 1e-6 * p;
+    *x = (sx - (su->centre.x_um - p / 2)) - dcol * p;
+    *y = (sy - (su->centre.y_um - p / 2)) - drow * p;
     return *x > eps && *x < p - eps && *y > eps && *y < p - eps;
 }
 

@@ -10,6 +10,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "instrument/scan_limits.h"
+
 /* ---- pre-pass for NaN / Infinity / -Infinity ----
  *
  * Why: JSON (RFC 8259) has no non-finite numbers and jansson rejects them, but Python's json
@@ -148,11 +150,13 @@ static const char *num_text(double v, char buf[32])
     return buf;
 }
 
-/* Reads a required number; sign: 1 must be > 0, 0 any, -1 must be >= 0. */
-static int read_number(const json_t *root, const char *key, int sign, double *v,
-                       const char **field, err_t *err)
+/* Reads a required number, root's member key, called name in messages and *field; sign: 1
+ * must be > 0, 0 any, -1 must be >= 0. */
+static int read_number_as(const json_t *root, const char *key, const char *name, int sign,
+                          double *v, const char **field, err_t *err)
 {
     const json_t *j = json_object_get(root, key);
+    key = name;
     if (!j) return err_set(err, bad(field, key), "missing field %s", key);
     if (json_is_string(j) && element_value(j, v) == 0) /* a quoted or bare NaN, Infinity */
         return err_set(err, bad(field, key), "%s must be a finite number (got %s)", key,
@@ -167,6 +171,12 @@ static int read_number(const json_t *root, const char *key, int sign, double *v,
         return err_set(err, bad(field, key), "%s must not be negative (got %s)", key,
                        num_text(*v, t));
     return 0;
+}
+
+static int read_number(const json_t *root, const char *key, int sign, double *v,
+                       const char **field, err_t *err)
+{
+    return read_number_as(root, key, key, sign, v, field, err);
 }
 
 /* Reads "frames": a positive integer (an integral real such as 12.0 is accepted). */
@@ -254,6 +264,90 @@ static int read_arrays(const json_t *root, scanfile_t *out, const char **field, 
     return 0;
 }
 
+/* ---- the optional sub-frame (scanfile.h) ---- */
+
+#define SUB "subframe"
+#define SUB_DN "subframe.signal_dn"
+
+/* Point k's m*m sub-frame means into dn (m*m); e is the point's array. */
+static int read_sub_point(const json_t *e, size_t k, int m, double *dn, const char **field,
+                          err_t *err)
+{
+    size_t mm = (size_t)m * m;
+    if (!json_is_array(e))
+        return err_set(err, bad(field, SUB_DN),
+                       SUB_DN " must hold one array of sub_px^2 = %zu numbers per point (element "
+                              "%zu is %s)",
+                       mm, k, type_name(e));
+    if (json_array_size(e) != mm)
+        return err_set(err, bad(field, SUB_DN),
+                       SUB_DN "[%zu] has %zu values, not sub_px^2 = %zu (sub_px %d)", k,
+                       json_array_size(e), mm, m);
+    for (size_t j = 0; j < mm; j++)
+        if (element_value(json_array_get(e, j), &dn[j]) < 0)
+            return err_set(err, bad(field, SUB_DN),
+                           SUB_DN "[%zu] must be an array of numbers (element %zu is %s)", k, j,
+                           type_name(json_array_get(e, j)));
+    return 0;
+}
+
+/* The POI's value of each point's sub-frame is the point's signal_dn (the same number, or both
+ * non-finite): a file whose two copies disagree is refused rather than fitted two ways. */
+static int check_sub_centre(const scanfile_t *out, int m, const char **field, err_t *err)
+{
+    size_t mm = (size_t)m * m, c = (size_t)(m / 2) * m + (size_t)(m / 2);
+    for (size_t k = 0; k < out->scan.n; k++) {
+        double a = out->sub_dn[k * mm + c], b = out->signal_dn[k];
+        if (a == b || (!isfinite(a) && !isfinite(b) && (isnan(a) || a == b))) continue;
+        char ta[32], tb[32];
+        return err_set(err, bad(field, SUB_DN),
+                       SUB_DN "[%zu][%zu] (the POI, the centre of the sub-frame) is %s but "
+                              "signal_dn[%zu] is %s",
+                       k, c, num_text(a, ta), k, num_text(b, tb));
+    }
+    return 0;
+}
+
+/* The optional "subframe" into out (its arrays owned by out); absent or null: none. */
+static int read_subframe(const json_t *root, scanfile_t *out, const char **field, err_t *err)
+{
+    const json_t *sub = json_object_get(root, SUB);
+    if (!sub || json_is_null(sub)) return 0;
+    if (!json_is_object(sub))
+        return err_set(err, bad(field, SUB), SUB " must be an object (got %s)", type_name(sub));
+    const json_t *jm = json_object_get(sub, "sub_px");
+    if (!jm) return err_set(err, bad(field, SUB ".sub_px"), "missing field " SUB ".sub_px");
+    if (!json_is_number(jm))
+        return err_set(err, bad(field, SUB ".sub_px"), SUB ".sub_px must be a number (got %s)",
+                       type_name(jm));
+    int rc = scan_field_check(&scan_fields[SCAN_F_SUB_PX], json_number_value(jm),
+                              SUB ".sub_px", err);
+    if (rc) return bad(field, SUB ".sub_px");
+    int m = (int)json_number_value(jm);
+    double step;
+    if ((rc = read_number_as(sub, "step_um", SUB ".step_um", 1, &step, field, err))) return rc;
+    if (!isfinite(step))
+        return err_set(err, bad(field, SUB ".step_um"), SUB ".step_um must be finite");
+    const json_t *a = json_object_get(sub, "signal_dn");
+    if (!a) return err_set(err, bad(field, SUB_DN), "missing field " SUB_DN);
+    if (!json_is_array(a))
+        return err_set(err, bad(field, SUB_DN),
+                       SUB_DN " must be an array of one array per point (got %s)", type_name(a));
+    size_t n = out->scan.n, mm = (size_t)m * m;
+    if (json_array_size(a) != n)
+        return err_set(err, bad(field, SUB_DN), "x_um has %zu values but " SUB_DN " has %zu", n,
+                       json_array_size(a));
+    if (n && !(out->sub_dn = malloc(n * mm * sizeof *out->sub_dn)))
+        return err_set(err, -ENOMEM, "out of memory reading " SUB_DN);
+    for (size_t k = 0; k < n; k++)
+        if ((rc = read_sub_point(json_array_get(a, k), k, m, out->sub_dn + k * mm, field, err)))
+            return rc;
+    if ((rc = check_sub_centre(out, m, field, err))) return rc;
+    out->sub_px = m;
+    out->sub_step_um = step;
+    return 0;
+}
+
 int scanfile_parse(const char *buf, size_t len, scanfile_t *out, const char **field, err_t *err)
 {
     memset(out, 0, sizeof *out);
@@ -279,6 +373,7 @@ int scanfile_parse(const char *buf, size_t len, scanfile_t *out, const char **fi
     }
     rc = read_scalars(root, &out->scan, field, err);
     if (!rc) rc = read_arrays(root, out, field, err);
+    if (!rc) rc = read_subframe(root, out, field, err);
 out:
     if (rc) scanfile_free(out);
     json_decref(root);
@@ -341,6 +436,7 @@ void scanfile_free(scanfile_t *sf)
     free(sf->x_um);
     free(sf->y_um);
     free(sf->signal_dn);
+    free(sf->sub_dn);
     memset(sf, 0, sizeof *sf);
 }
 
@@ -360,6 +456,19 @@ static json_t *number_array(const double *v, size_t n)
             a = NULL;
         }
     return a;
+}
+
+json_t *scanfile_subframe_json(int m, double step_um, const double *dn, size_t n)
+{
+    size_t mm = (size_t)m * m;
+    json_t *a = json_array();
+    for (size_t k = 0; a && k < n; k++)
+        if (json_array_append_new(a, number_array(dn + k * mm, mm))) {
+            json_decref(a);
+            a = NULL;
+        }
+    if (!a) return NULL;
+    return json_pack("{s:i, s:f, s:o}", "sub_px", m, "step_um", step_um, "signal_dn", a);
 }
 
 /* Adds the scalars and arrays of scan to root; -ENOMEM if jansson could not allocate. */

@@ -3,7 +3,8 @@
  * output). Required: pitch_um, spot_radius_um, bias_dn, gain_e_per_dn, read_noise_e, frames and
  * the equal-length arrays x_um, y_um, signal_dn; optional full_scale_dn; other keys are ignored.
  * Non-finite array values may be written as null, as Python's bare NaN / Infinity / -Infinity,
- * or as those words in quotes; they are read as NaN / +-inf (the fit leaves such points out). */
+ * or as those words in quotes; they are read as NaN / +-inf (the fit leaves such points out).
+ * The optional `subframe` (below) is read and checked when present. */
 #ifndef IPSD_INSTRUMENT_SCANFILE_H
 #define IPSD_INSTRUMENT_SCANFILE_H
 
@@ -15,11 +16,30 @@
 #include "base/err.h"
 #include "fit/scandata.h"
 
-/* A parsed scan file: scan's arrays point into the buffers owned by this struct. */
+/* A parsed scan file: scan's arrays point into the buffers owned by this struct.
+ *
+ * The optional `subframe` (an ipsd addition, docs/contracts.md): every pixel of the m x m
+ * sub-frame the camera read at each point, so that one file holds the response of every pixel a
+ * raster covers (`ips fit --pixels all`, instrument/scanfile_sub.h). Its object is
+ *   {"sub_px": m (odd, the scan's limits), "step_um": the raster step (> 0: the coverage rule's
+ *    half-step tolerance, instrument/scan_cover.h),
+ *    "signal_dn": one array per point (x_um's order) of m*m mean signals, row-major from the top
+ *    left, the POI (the file's pixel) at index (m/2) m + m/2, equal to that point's signal_dn}.
+ * Per point, because a point's sub-frame is what the camera reads at one stage position (as
+ * GET /api/scans/{id}/points/{index} `mean`): a writer appends point by point, and the
+ * positions, shared by every pixel, stay once at the top level, relative to the POI's corner. */
 typedef struct scanfile {
     fit_scan_t scan;
     double *x_um, *y_um, *signal_dn; /* owned (NULL when n = 0) */
+    int sub_px;                      /* m of `subframe`; 0: the file has none */
+    double sub_step_um;              /* its step_um */
+    double *sub_dn;                  /* owned: n * m*m means, point after point (NULL: none) */
 } scanfile_t;
+
+/* The `subframe` member for a scan file of n points (to put into scanfile_dump's extra): sub_px
+ * m, step_um and the n * m*m means dn, point after point (non-finite as null). NULL when out of
+ * memory. */
+json_t *scanfile_subframe_json(int m, double step_um, const double *dn, size_t n);
 
 /* Parses a scan file from len bytes of buf (need not be NUL-terminated) into *out, which the
  * caller releases with scanfile_free. On error *out is zeroed, err gets one line naming the

@@ -273,6 +273,20 @@ int storage_frame_raster(storage_t *st, int64_t scan_id, int dcol, int drow,
                          storage_raster_t *out, err_t *err);
 void storage_raster_free(storage_raster_t *r);
 
+/* Every stored point's whole mean frame (sub_px^2 means, row-major), in point order, in one read:
+ * every pixel's response at once (GET /api/scans/{id}/scanfile). Arrays owned
+ * (storage_means_free). */
+typedef struct storage_means {
+    size_t n;
+    int sub_px;
+    int *point_index;
+    double *stage_x_um, *stage_y_um;
+    double *mean_dn; /* n * sub_px^2: point k's frame at k * sub_px^2 */
+} storage_means_t;
+
+int storage_frame_means(storage_t *st, int64_t scan_id, storage_means_t *out, err_t *err);
+void storage_means_free(storage_means_t *m);
+
 /* ---- jobs --------------------------------------------------------------------------------- */
 
 /* ptc: a photon-transfer measurement of a sensor (schema 5), run by the instrument's worker */

@@ -1,6 +1,7 @@
 /* storage_frame.c: the frames of a scan, one row per raster point: storing a point together with
  * the scan's progress (one transaction, so a crash loses at most the point in flight), reading a
- * point back, where to resume, and the raster of one sub-frame pixel that the fit needs. */
+ * point back, where to resume, the raster of one sub-frame pixel that the fit needs, and every
+ * point's whole mean frame (a scan file with its sub-frame). */
 #include "storage_int.h"
 
 #include <errno.h>
@@ -275,6 +276,86 @@ out:
     if (ret) {
         stg_rollback(st);
         storage_raster_free(out);
+    }
+    return ret;
+}
+
+void storage_means_free(storage_means_t *m)
+{
+    if (!m) return;
+    free(m->point_index);
+    free(m->stage_x_um);
+    free(m->stage_y_um);
+    free(m->mean_dn);
+    memset(m, 0, sizeof *m);
+}
+
+/* Room for cap points of mm means each in *m. */
+static int means_alloc(storage_means_t *m, size_t cap, size_t mm)
+{
+    int *pi = realloc(m->point_index, cap * sizeof *pi);
+    if (pi) m->point_index = pi;
+    double *x = realloc(m->stage_x_um, cap * sizeof *x);
+    if (x) m->stage_x_um = x;
+    double *y = realloc(m->stage_y_um, cap * sizeof *y);
+    if (y) m->stage_y_um = y;
+    double *dn = realloc(m->mean_dn, cap * mm * sizeof *dn);
+    if (dn) m->mean_dn = dn;
+    return pi && x && y && dn ? 0 : -ENOMEM;
+}
+
+/* Reads the rows of STG_FRAME_MEANS (bound) into *out (frames of mm means) and resets q. */
+static int means_rows(storage_t *st, sqlite3_stmt *q, storage_means_t *out, size_t mm, err_t *err)
+{
+    size_t cap = 0;
+    int rc, ret = 0;
+    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+        if (out->n == cap && means_alloc(out, cap = cap ? 2 * cap : 256, mm)) {
+            ret = err_set(err, -ENOMEM, "means: out of memory");
+            break;
+        }
+        if ((size_t)sqlite3_column_bytes(q, 3) != mm * 8) {
+            ret = err_set(err, -EIO, "means: point %d has a mean frame of the wrong size",
+                          sqlite3_column_int(q, 0));
+            break;
+        }
+        const unsigned char *b = sqlite3_column_blob(q, 3);
+        out->point_index[out->n] = sqlite3_column_int(q, 0);
+        out->stage_x_um[out->n] = stg_col_double(q, 1);
+        out->stage_y_um[out->n] = stg_col_double(q, 2);
+        for (size_t i = 0; i < mm; i++)
+            out->mean_dn[out->n * mm + i] = le_get_f64(b + 8 * i);
+        out->n++;
+    }
+    if (ret == 0 && rc != SQLITE_DONE) ret = stg_error(st, rc, err, "reading the means");
+    stg_reset(q);
+    return ret;
+}
+
+int storage_frame_means(storage_t *st, int64_t scan_id, storage_means_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    storage_scan_t sc;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "means: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_begin_read(st, err))) return ret;
+    if ((ret = stg_scan_load(st, scan_id, &sc, err))) goto out;
+    out->sub_px = sc.sub_px;
+    storage_scan_free(&sc);
+    if ((ret = stg_stmt(st, STG_FRAME_MEANS, &q, err))) goto out;
+    stg_bind_int(q, 1, scan_id, &rc);
+    if (rc != SQLITE_OK) {
+        stg_reset(q);
+        ret = stg_error(st, rc, err, "reading the means");
+        goto out;
+    }
+    ret = means_rows(st, q, out, (size_t)out->sub_px * out->sub_px, err);
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        storage_means_free(out);
     }
     return ret;
 }

@@ -36,6 +36,7 @@ enum stg_id {
     STG_FRAME_GET,
     STG_FRAME_LAST,
     STG_FRAME_RASTER,
+    STG_FRAME_MEANS,
     STG_JOB_INSERT,
     STG_JOB_GET,
     STG_JOB_NEXT,

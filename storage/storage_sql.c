@@ -329,6 +329,8 @@ const char *const stg_sql[STG_N] = {
     [STG_FRAME_RASTER] =
         "SELECT point_index, stage_x_um, stage_y_um, exposure_us, substr(mean, ?2, 8) "
         "FROM frames WHERE scan_id = ?1 ORDER BY point_index",
+    [STG_FRAME_MEANS] = "SELECT point_index, stage_x_um, stage_y_um, mean "
+                        "FROM frames WHERE scan_id = ?1 ORDER BY point_index",
 
     [STG_JOB_INSERT] = "INSERT INTO jobs (kind, params, state, created_ms, scan_id) "
                        "VALUES (?1, ?2, 'queued', ?3, ?4)",

@@ -18,6 +18,18 @@ if(TARGET ips)
     set_tests_properties(test_fit_region PROPERTIES TIMEOUT 240)
 endif()
 
+# `ips fit --pixels all` on an `ips simulate --write-subframe` scan: every covered pixel against
+# the simulator's truth, the POI against ips fit, bad subframes (16 s optimised at load 11;
+# ASan at load 26 over 300 s)
+find_package(Python3 COMPONENTS Interpreter)
+if(TARGET ips AND Python3_Interpreter_FOUND)
+    add_test(NAME test_fit_pixels
+             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_fit_pixels.py
+                     $<TARGET_FILE:ips>
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+    set_tests_properties(test_fit_pixels PROPERTIES TIMEOUT 1200)
+endif()
+
 # `ips ptc --sim`: gain and read noise against the simulator's truth, bad input (~3 s optimised)
 if(TARGET ips)
     add_test(NAME test_cli_ptc

@@ -31,6 +31,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             storfault:240
             camfault:120
             allpixels:200
+            scanfile:900
             stage:300
             ptc:300
             zaber:300

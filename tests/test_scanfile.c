@@ -1,6 +1,7 @@
 /* test_scanfile.c: the scan-file reader and writer (instrument/scanfile.h) against the reference
  * scan read independently with jansson, every error case with its message, the non-finite
- * tokens, and a bit-identical write/read round trip. Runs in tests/data. */
+ * tokens, a bit-identical write/read round trip, and the optional subframe with its pixels'
+ * scans and coverage (scanfile_sub.h) on a raster worked out by hand. Runs in tests/data. */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,6 +11,7 @@
 
 #include "check.h"
 #include "instrument/scanfile.h"
+#include "instrument/scanfile_sub.h"
 
 #define REF "paperlike_scan.json"
 
@@ -266,6 +268,88 @@ static void test_round_trip(void)
     scanfile_free(&ref);
 }
 
+/* The optional subframe (scanfile.h, scanfile_sub.h): a synthetic raster of 1.5 um steps over
+ * x in [-6, 6], y in [-6, 12] um of the POI's frame (6 um pixels) with a 3 x 3 sub-frame whose
+ * pixel i reads 1000 i + k at point k (the POI, i = 4, is signal_dn). Written, read back bit for
+ * bit; pixel (+1, -1)'s scan is the positions minus (6, -6) um and its column (i = 2) of means;
+ * the coverage by the rule of scan_cover.h, worked out by hand: columns -1 and 0 are covered (the
+ * raster reaches both edges, 3 x 3 positions inside), column +1 is not (the raster ends at its
+ * left edge, x = 0 of that pixel), and errors name the member. */
+static void test_subframe(void)
+{
+    enum { NX = 9, NY = 13, N = NX * NY, M = 3 };
+    double x[N], y[N], sig[N], dn[N * M * M];
+    for (int k = 0; k < N; k++) {
+        x[k] = -6 + 1.5 * (k % NX);
+        y[k] = -6 + 1.5 * (k / NX);
+        for (int i = 0; i < M * M; i++)
+            dn[k * M * M + i] = 1000.0 * i + k;
+        sig[k] = dn[k * M * M + 4];
+    }
+    fit_scan_t sc = {.n = N, .x_um = x, .y_um = y, .signal_dn = sig, .pitch_um = 6,
+                     .spot_radius_um = 1.34, .bias_dn = 100, .gain_e_per_dn = 3.153,
+                     .read_noise_e = 5.67, .frames = 12, .full_scale_dn = 16383};
+    json_t *extra = json_object();
+    json_object_set_new(extra, "subframe", scanfile_subframe_json(M, 1.5, dn, N));
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    err_t err;
+    CHECK(scanfile_dump(f, &sc, extra, &err) == 0);
+    fclose(f);
+    json_decref(extra);
+    scanfile_t back, px;
+    CHECK(scanfile_parse(text, len, &back, NULL, &err) == 0);
+    free(text);
+    CHECK(back.sub_px == M && back.sub_step_um == 1.5 && back.scan.n == N);
+    CHECK(back.sub_dn && memcmp(back.sub_dn, dn, sizeof dn) == 0);
+    CHECK(scanfile_pixel(&back, 1, -1, &px, &err) == 0 && px.scan.n == N);
+    int same = 1;
+    for (int k = 0; k < N && px.scan.n == N; k++)
+        same &= px.x_um[k] == x[k] - 6 && px.y_um[k] == y[k] + 6 && px.signal_dn[k] == 2000.0 + k;
+    CHECK(same);
+    CHECK(px.sub_px == 0 && px.scan.pitch_um == 6 && px.scan.frames == 12);
+    scanfile_free(&px);
+    CHECK(scanfile_pixel(&back, 2, 0, &px, &err) == -EINVAL && strstr(err.msg, "outside"));
+    scan_cover_t c;
+    for (int dr = -1; dr <= 1; dr++) {
+        for (int dc = -1; dc <= 0; dc++) {
+            scanfile_pixel_cover(&back, dc, dr, &c);
+            CHECK(c.covered && c.n_inside == 9);
+        }
+        scanfile_pixel_cover(&back, 1, dr, &c);
+        CHECK(!c.covered && strstr(c.reason, "right edge") && c.n_inside == 0);
+    }
+    scanfile_free(&back);
+    /* a file without one has none; null is none; bad ones name the member */
+    const char *ok1 = "\"subframe\": {\"sub_px\": 3, \"step_um\": 1, "
+                      "\"signal_dn\": [[0, 0, 0, 0, 5, 0, 0, 0, null]]}";
+    text = scan_text("[1]", "[1]", "[5]", ok1);
+    CHECK(scanfile_parse(text, strlen(text), &back, NULL, &err) == 0 && back.sub_px == 3);
+    CHECK(back.sub_dn && isnan(back.sub_dn[8]) && back.sub_dn[4] == 5);
+    scanfile_free(&back);
+    text = scan_text("[1]", "[1]", "[5]", "\"subframe\": null");
+    CHECK(scanfile_parse(text, strlen(text), &back, NULL, &err) == 0 && back.sub_px == 0);
+    CHECK(scanfile_pixel(&back, 0, 0, &px, &err) == -EINVAL && strstr(err.msg, "no subframe"));
+    scanfile_free(&back);
+    expect_error(scan_text("[1]", "[1]", "[5]", "\"subframe\": 3"), -EINVAL, "subframe",
+                 "subframe must be an object (got a number)");
+    expect_error(scan_text("[1]", "[1]", "[5]",
+                           "\"subframe\": {\"sub_px\": 4, \"step_um\": 1, \"signal_dn\": []}"),
+                 -EINVAL, "subframe.sub_px", "subframe.sub_px must be odd (got 4)");
+    expect_error(scan_text("[1]", "[1]", "[5]",
+                           "\"subframe\": {\"sub_px\": 3, \"step_um\": 0, \"signal_dn\": []}"),
+                 -EINVAL, "subframe.step_um", "subframe.step_um must be positive");
+    expect_error(scan_text("[1]", "[1]", "[5]",
+                           "\"subframe\": {\"sub_px\": 3, \"step_um\": 1, "
+                           "\"signal_dn\": [[5, 5]]}"),
+                 -EINVAL, "subframe.signal_dn", "subframe.signal_dn[0] has 2 values, not sub_px^2 = 9");
+    expect_error(scan_text("[1]", "[1]", "[5]",
+                           "\"subframe\": {\"sub_px\": 3, \"step_um\": 1, "
+                           "\"signal_dn\": [[0, 0, 0, 0, 6, 0, 0, 0, 0]]}"),
+                 -EINVAL, "subframe.signal_dn", "is 6 but signal_dn[0] is 5");
+}
+
 int main(void)
 {
     test_reference();
@@ -274,5 +358,6 @@ int main(void)
     test_syntax_errors();
     test_nonfinite();
     test_round_trip();
+    test_subframe();
     CHECK_DONE();
 }
