@@ -165,7 +165,7 @@ int cmd_import_fits(int argc, char **argv)
     /* where the scan came from, as metadata the scan-file readers ignore */
     json_t *extra = json_pack("{s:s, s:s, s:[ii], s:[ii], s:I, s:b}", "description",
                               "imported from a FITS scan cube by ips import-fits", "fits_file",
-                              path, "pixel", a.dcol, a.drow, "subframe", fs.ncol, fs.nrow,
+                              path, "pixel", a.dcol, a.drow, "cube_size", fs.ncol, fs.nrow,
                               "cube_points", (json_int_t)fs.n, "all_points", a.all);
     if (extra && isfinite(fs.exptime_s))
         json_object_set_new(extra, "exptime_s", json_real(fs.exptime_s));

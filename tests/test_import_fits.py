@@ -307,7 +307,7 @@ def main():
         c.ok(p.returncode == 0 and p.stderr == "", "import the POI (%r)" % p.stderr)
         imp = load(out)
         same_scan(c, imp, poi, "POI")
-        c.eq((imp.get("pixel"), imp.get("subframe"), imp.get("cube_points")),
+        c.eq((imp.get("pixel"), imp.get("cube_size"), imp.get("cube_points")),
              ([0, 0], [3, 2], len(poi_all["x_um"])), "POI: provenance metadata")
         p = import_fits(ips, good, os.path.join(t, "imp_all.json"), "--all-points")
         c.ok(p.returncode == 0, "import the POI, all points (%r)" % p.stderr)
