@@ -82,6 +82,8 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
                     double *rcond)
 {
     struct qr_work q;
+    double wq[4] = {0, 0, 0, 0}, *work = NULL;
+    lapack_int *iwork = NULL;
     int rc = qr_work_alloc(&q, n, mc);
     if (rc) goto out;
     lapack_int N = (lapack_int)n, M = (lapack_int)mc;
@@ -104,13 +106,34 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
         double inv = 1 / q.d[j];
         for (size_t k = 0; k < n; k++) a[k] *= inv;
     }
-    if (LAPACKE_dgeqrf(LAPACK_COL_MAJOR, N, M, q.A, N, q.tau)) {
+    /* LAPACKE's _work calls: the plain ones scan every input for NaN first (2 % of a 41 x 41
+     * sweep's instructions) and allocate their workspace on each call; one workspace here */
+    iwork = malloc(sizeof(lapack_int) * 8 * mc);
+    if (!iwork ||
+        LAPACKE_dgeqrf_work(LAPACK_COL_MAJOR, N, M, q.A, N, q.tau, &wq[0], -1) ||
+        LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', M, M, q.Rs, M, q.s, NULL, 1, NULL, 1, &wq[1],
+                            -1, iwork) ||
+        LAPACKE_dormqr_work(LAPACK_COL_MAJOR, 'L', 'T', N, 1, M, q.A, N, q.tau, q.b, N, &wq[2],
+                            -1) ||
+        (hat && LAPACKE_dorgqr_work(LAPACK_COL_MAJOR, N, M, M, q.A, N, q.tau, &wq[3], -1))) {
+        rc = iwork ? -EDOM : -ENOMEM;
+        goto out;
+    }
+    lapack_int lwork = 1;
+    for (int i = 0; i < 4; i++)
+        if (wq[i] > lwork) lwork = (lapack_int)wq[i];
+    if (!(work = malloc(sizeof(double) * (size_t)lwork))) {
+        rc = -ENOMEM;
+        goto out;
+    }
+    if (LAPACKE_dgeqrf_work(LAPACK_COL_MAJOR, N, M, q.A, N, q.tau, work, lwork)) {
         rc = -EDOM;
         goto out;
     }
     for (size_t j = 0; j < mc; j++) /* R (upper triangle) and a copy for its singular values */
         for (size_t i = 0; i < mc; i++) q.R[i + j * mc] = q.Rs[i + j * mc] = i <= j ? q.A[i + j * n] : 0;
-    if (LAPACKE_dgesdd(LAPACK_COL_MAJOR, 'N', M, M, q.Rs, M, q.s, NULL, 1, NULL, 1)) {
+    if (LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', M, M, q.Rs, M, q.s, NULL, 1, NULL, 1, work,
+                            lwork, iwork)) {
         rc = -EDOM;
         goto out;
     }
@@ -120,15 +143,16 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
     }
     *rcond = q.s[mc - 1] / q.s[0];
     /* x = R^-1 (Q^T b), c = D^-1 x */
-    if (LAPACKE_dormqr(LAPACK_COL_MAJOR, 'L', 'T', N, 1, M, q.A, N, q.tau, q.b, N) ||
-        LAPACKE_dtrtrs(LAPACK_COL_MAJOR, 'U', 'N', 'N', M, 1, q.R, M, q.b, N)) {
+    if (LAPACKE_dormqr_work(LAPACK_COL_MAJOR, 'L', 'T', N, 1, M, q.A, N, q.tau, q.b, N, work,
+                            lwork) ||
+        LAPACKE_dtrtrs_work(LAPACK_COL_MAJOR, 'U', 'N', 'N', M, 1, q.R, M, q.b, N)) {
         rc = -EDOM;
         goto out;
     }
     for (size_t j = 0; j < mc; j++) c[j] = q.b[j] / q.d[j];
     if (cov) { /* (X^T W X)^-1 = D^-1 R^-1 R^-T D^-1: dtrtri, then dlauum forms U U^T */
-        if (LAPACKE_dtrtri(LAPACK_COL_MAJOR, 'U', 'N', M, q.R, M) ||
-            LAPACKE_dlauum(LAPACK_COL_MAJOR, 'U', M, q.R, M)) {
+        if (LAPACKE_dtrtri_work(LAPACK_COL_MAJOR, 'U', 'N', M, q.R, M) ||
+            LAPACKE_dlauum_work(LAPACK_COL_MAJOR, 'U', M, q.R, M)) {
             rc = -EDOM;
             goto out;
         }
@@ -137,7 +161,7 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
                 cov[i * mc + j] = cov[j * mc + i] = q.R[i + j * mc] / (q.d[i] * q.d[j]);
     }
     if (hat) { /* h_kk = ||Q_k||^2 on the thin Q (dorgqr forms it in place) */
-        if (LAPACKE_dorgqr(LAPACK_COL_MAJOR, N, M, M, q.A, N, q.tau)) {
+        if (LAPACKE_dorgqr_work(LAPACK_COL_MAJOR, N, M, M, q.A, N, q.tau, work, lwork)) {
             rc = -EDOM;
             goto out;
         }
@@ -148,6 +172,8 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
         }
     }
 out:
+    free(work);
+    free(iwork);
     qr_work_free(&q);
     return rc;
 }

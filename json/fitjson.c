@@ -1,6 +1,8 @@
 /* fitjson.c: JSON encoding of fit results, the `ips fit` output schema (see fitjson.h). */
 #include "json/fitjson.h"
 
+#include "json/jdump.h"
+
 #include <errno.h>
 #include <math.h>
 
@@ -179,7 +181,8 @@ json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_
 
 int fitjson_print(const json_t *root, FILE *f)
 {
-    if (json_dumpf(root, f, JSON_INDENT(2) | JSON_REAL_PRECISION(17)) || fputc('\n', f) == EOF ||
+    /* json_dumpf(root, f, JSON_INDENT(2) | JSON_REAL_PRECISION(17))'s text, faster (jdump.h) */
+    if (jdump_file(root, f, 2) || fputc('\n', f) == EOF ||
         fflush(f) == EOF)
         return -EIO;
     return 0;

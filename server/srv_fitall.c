@@ -29,6 +29,7 @@
 #include <string.h>
 
 #include "base/clock.h"
+#include "json/jdump.h"
 #include "server/srv_cover.h"
 #include "server/srv_fit.h"
 #include "server/srv_setup.h"
@@ -118,7 +119,7 @@ static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const stor
         ret = err_set(err, -ENOMEM, "out of memory");
         goto out;
     }
-    if (!(result = json_dumps(out.result, JSON_COMPACT | JSON_REAL_PRECISION(17)))) {
+    if (!(result = jdump_string(out.result, JDUMP_COMPACT))) { /* json_dumps's text, faster */
         ret = err_set(err, -ENOMEM, "out of memory");
         goto out;
     }

@@ -20,6 +20,7 @@
 #include "base/clock.h"
 #include "base/thread_sched.h"
 #include "instrument/scanfile.h"
+#include "json/jdump.h"
 #include "server/srv_fit.h"
 #include "server/srv_ptc.h"
 #include "server/srv_setup.h"
@@ -94,7 +95,7 @@ static void provenance(const srv_fit_params_t *p, storage_calib_t *c)
 static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struct fit_input *in,
                  srv_fit_out_t *out, err_t *err)
 {
-    char *result = json_dumps(out->result, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    char *result = jdump_string(out->result, JDUMP_COMPACT); /* json_dumps's text, faster */
     if (!result) return err_set(err, -ENOMEM, "out of memory");
     storage_fit_t f = {.scan_id = p->scan_id,
                        .dcol = p->dcol,
