@@ -306,11 +306,18 @@ static enum MHD_Result on_request(void *cls, struct MHD_Connection *conn, const 
     (void)version;
     api_http_t *h = cls;
     api_req_t *q = *con_cls;
-    static _Thread_local int sched_set; /* this pool thread's slice (--http-slice-us), once */
+    static _Thread_local int sched_set; /* this pool thread's nice and slice, once */
     if (!sched_set) {
         sched_set = 1;
-        int slice_us = srv_config(h->srv)->http_slice_us;
-        if (slice_us && thread_sched_set(0, slice_us, 0))
+        const srv_config_t *cfg = srv_config(h->srv);
+        int slice_us = cfg->http_slice_us, nice = cfg->http_nice, ret = 0;
+        if ((slice_us || nice) &&
+            (ret = thread_sched_set(nice, slice_us, THREAD_SCHED_NORMAL)) == -EPERM && nice < 0) {
+            fprintf(stderr, "ipsd: HTTP thread: nice %d refused (needs CAP_SYS_NICE or "
+                    "RLIMIT_NICE >= %d); at nice 0\n", nice, 20 - nice);
+            ret = slice_us ? thread_sched_set(0, slice_us, THREAD_SCHED_NORMAL) : 0;
+        }
+        if (ret && ret != -EPERM)
             fprintf(stderr, "ipsd: HTTP thread: the kernel refused a %d us slice\n", slice_us);
     }
     if (!q) {

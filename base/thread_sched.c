@@ -24,13 +24,15 @@ struct sched_attr_v0 {
     uint64_t sched_runtime, sched_deadline, sched_period;
 };
 
-int thread_sched_set(int nice, int slice_us, int batch)
+int thread_sched_set(int nice, int slice_us, int policy)
 {
 #if defined(__linux__) && defined(SYS_sched_setattr)
     struct sched_attr_v0 a;
     memset(&a, 0, sizeof a);
     a.size = sizeof a;
-    a.sched_policy = batch ? SCHED_BATCH : SCHED_OTHER;
+    a.sched_policy = policy == THREAD_SCHED_IDLE    ? SCHED_IDLE
+                     : policy == THREAD_SCHED_BATCH ? SCHED_BATCH
+                                                    : SCHED_OTHER;
     a.sched_nice = nice;
     a.sched_runtime = slice_us > 0 ? (uint64_t)slice_us * 1000u : 0;
     if (syscall(SYS_sched_setattr, 0, &a, 0) == 0) return 0;
@@ -41,7 +43,7 @@ int thread_sched_set(int nice, int slice_us, int batch)
     return -e;
 #else
     (void)slice_us;
-    (void)batch;
+    (void)policy;
     return setpriority(PRIO_PROCESS, 0, nice) ? -errno : 0;
 #endif
 }

@@ -5,7 +5,9 @@
 # all of them alike; then prints per variant the min and median of p99, reads/s and fits done
 # in the window (the fits' throughput is the price of a gentler tail), and the load averages.
 # Environment: VARIANTS (';'-separated ipsd option sets, "" the defaults; a set starting with
-# @DIR runs the ipsd and ips of build DIR instead, to compare builds; default compares
+# @DIR runs the ipsd and ips of build DIR instead, to compare builds; a set starting with FITS=N
+# queues N fits instead of FITS, e.g. "FITS=0" for the reads' floor on the machine as it is
+# loaded, with no fits running; default compares
 # --fit-nice 0/10/19, --fit-batch and --workers 1), REPS (3), and load.sh's FITS, DURATION, CONNS.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -20,12 +22,18 @@ for rep in $(seq "$REPS"); do
         v=${variants[$i]}
         label=$v
         b=$build
+        fits=${FITS:-300}
+        if [[ $v == FITS=* ]]; then
+            fits=${v%% *}
+            fits=${fits#FITS=}
+            [[ $v == *" "* ]] && v=${v#* } || v=
+        fi
         if [[ $v == @* ]]; then
             b=${v%% *}
             b=${b#@}
             [[ $v == *" "* ]] && v=${v#* } || v=
         fi
-        line=$(STEPS=3 IPSD_ARGS="$v" bash "$root/bench/load.sh" "$b" | grep '^summary:')
+        line=$(FITS=$fits STEPS=3 IPSD_ARGS="$v" bash "$root/bench/load.sh" "$b" | grep '^summary:')
         echo "round $rep [$label] $line"
         printf '%d\t%s\n' "$i" "$line" >>"$out"
     done

@@ -92,7 +92,10 @@ static int chi2_h0(const fit_scan_t *scan, const fit_result_t *h1, int r, unsign
     for (size_t k = 0; k < n; k++)
         for (size_t j = 0; j < m; j++) X[k * m0 + (size_t)col[j]] += A[k * m + j];
     wls_result_t res;
-    if ((rc = wls_solve(X, w, y, n, m0, o->nonneg, c, NULL, &res)) == 0) *chi2 = res.chi2;
+    if ((rc = wls_solve(X, w, y, n, m0, o->nonneg, c, NULL, &o->stop, &res)) == 0)
+        *chi2 = res.chi2;
+    else if (rc == -ECANCELED)
+        err_set(err, rc, "fit stopped in the F-test's solve");
 out:
     free(col);
     free(A);

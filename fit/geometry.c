@@ -99,6 +99,13 @@ static int geo_init(const fit_scan_t *scan, int r, const fit_options_t *o, struc
     return 0;
 }
 
+/* The stop poll of the geometry fit's own loops (stop.h's site "geometry"; the design matrix
+ * polls inside its batches, the solve after itself). */
+static int geo_stop(struct geo *g)
+{
+    return fit_stop_at(&g->dopt.stop, FIT_STOP_SITE_GEOMETRY);
+}
+
 /* The design matrix at geometry p = (R, dx, dy) into g->A. */
 static int geo_design(struct geo *g, const double p[3])
 {
@@ -121,8 +128,10 @@ static int geo_residual(struct geo *g, const double p[3], double *f, double *chi
     if (!w) return err_set(&g->err, -ENOMEM, "geometry fit: out of memory");
     for (size_t k = 0; k < g->n; k++) w[k] = g->sw[k] * g->sw[k];
     wls_result_t res;
-    rc = wls_solve(g->A, w, g->d, g->n, g->m, 0, g->T, NULL, &res);
+    rc = wls_solve(g->A, w, g->d, g->n, g->m, 0, g->T, NULL, &g->dopt.stop, &res);
     free(w);
+    if (rc == -ECANCELED || (rc == 0 && geo_stop(g)))
+        return err_set(&g->err, -ECANCELED, "geometry fit: stopped");
     if (rc) return err_set(&g->err, rc, "geometry fit: the linear solve failed at R %g um", p[0]);
     double sum = 0;
     for (size_t k = 0; k < g->n; k++) {
@@ -175,6 +184,32 @@ static int geo_df(const gsl_vector *u, void *vg, gsl_matrix *J)
     return rc ? GSL_EDOM : GSL_SUCCESS;
 }
 
+/* gsl_multifit_nlinear_driver(MAX_ITER, 1e-9, 1e-12, 0, ...)'s loop (GSL 2.x,
+ * multifit_nlinear/fdf.c), which also ends when the stop answered: GSL's driver ignores an
+ * iteration's error, so a stop seen inside a residual (g->rc) would not end it; this loop polls
+ * before each iteration and ends on g->rc. The same statuses as the driver otherwise. */
+static int geo_drive(struct geo *g, gsl_multifit_nlinear_workspace *ws, int *info)
+{
+    int st = GSL_CONTINUE;
+    for (size_t iter = 0; st == GSL_CONTINUE && iter < MAX_ITER;) {
+        if (geo_stop(g) && !g->rc) g->rc = err_set(&g->err, -ECANCELED, "geometry fit: stopped");
+        if (g->rc) return GSL_EBADFUNC; /* the caller reports g->rc */
+        st = gsl_multifit_nlinear_iterate(ws);
+        if (st == GSL_ENOPROG && iter == 0) {
+            *info = st;
+            return GSL_EMAXITER;
+        }
+        ++iter;
+        st = gsl_multifit_nlinear_test(1e-9, 1e-12, 0, info, ws);
+        if (st == GSL_ETOLF || st == GSL_ETOLX || st == GSL_ETOLG) {
+            *info = st;
+            st = GSL_SUCCESS;
+        }
+        if (iter >= MAX_ITER && st != GSL_SUCCESS) st = GSL_EMAXITER;
+    }
+    return st;
+}
+
 /* LM in u from the written geometry; p gets the optimum. */
 static int geo_minimise(struct geo *g, const fit_scan_t *scan, double p[3], fit_geometry_t *out)
 {
@@ -193,8 +228,7 @@ static int geo_minimise(struct geo *g, const fit_scan_t *scan, double p[3], fit_
     for (int i = 0; i < 3; i++) gsl_vector_set(u0, i, atanh((start[i] - g->c[i]) / g->h[i]));
     gsl_multifit_nlinear_fdf fdf = {.f = geo_f, .df = geo_df, .n = g->n, .p = 3, .params = g};
     int st = gsl_multifit_nlinear_init(u0, &fdf, ws);
-    if (st == GSL_SUCCESS)
-        st = gsl_multifit_nlinear_driver(MAX_ITER, 1e-9, 1e-12, 0, NULL, NULL, &info, ws);
+    if (st == GSL_SUCCESS) st = geo_drive(g, ws, &info);
     if (g->rc) { /* a design matrix or solve failed inside: its message is in g->err */
         rc = g->rc;
         goto out;
@@ -235,6 +269,10 @@ static int geo_covariance(struct geo *g, const double p[3], fit_geometry_t *out)
     for (size_t k = 0; k < n; k++)
         for (size_t j = 0; j < m; j++) gsl_matrix_set(J, k, j, g->sw[k] * g->A[k * m + j]);
     for (int i = 0; i < 3; i++) {
+        if (geo_stop(g)) {
+            rc = err_set(&g->err, -ECANCELED, "geometry fit: stopped");
+            goto out;
+        }
         for (int sgn = 0; sgn < 2; sgn++) {
             double q[3] = {p[0], p[1], p[2]};
             q[i] += sgn ? -g->step[i] : g->step[i];

@@ -206,11 +206,9 @@ static int solve(const double *A, const struct points *p, int r, const fit_optio
     int rc = -ENOMEM;
     if (!T || !cov || !hat) goto out;
     wls_result_t w;
-    if ((rc = wls_solve_hat(A, p->w, p->d, n, m, opts->nonneg, T, cov, hat, &w))) goto out;
-    if (fit_stop_now(&opts->stop)) { /* the solve is one LAPACK call: polled after it */
-        rc = -ECANCELED;
+    /* polled inside the non-negative solve's loops and after the solve (wls.h) */
+    if ((rc = wls_solve_hat(A, p->w, p->d, n, m, opts->nonneg, T, cov, hat, &opts->stop, &w)))
         goto out;
-    }
     res->chi2 = w.chi2;
     res->cond = w.rcond > 0 ? 1 / w.rcond : INFINITY;
     res->cv_chi2 = loo_chi2(A, p, m, T, hat);

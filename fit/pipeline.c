@@ -140,7 +140,7 @@ static void wiener_step(struct run *rn)
     fit_part_t *p = &rn->out->wiener_part;
     fit_wiener_opts_t wo = {.method = rn->o->wiener_nsr > 0 ? FIT_WIENER_NSR_FIXED
                                                             : rn->o->wiener_method,
-                            .nsr = rn->o->wiener_nsr, .crop = 1};
+                            .nsr = rn->o->wiener_nsr, .crop = 1, .stop = rn->o->fit.stop};
     p->rc = fit_wiener_run_opts(rn->whole, &wo, &rn->out->wiener, &p->err);
 }
 

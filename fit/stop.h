@@ -1,5 +1,6 @@
 /* stop.h: a caller's stop poll for fit/'s long loops (the design matrix's batches, the solves of
- * each r, the LM iterations of the paper's fit and of the geometry fit). The caller gives a
+ * each r, the non-negative solve's active-set steps, the LM iterations of the paper's fit and of
+ * the geometry fit, the Wiener baseline's kernel and FFT passes). The caller gives a
  * function and its argument (say, one that reads its own atomic flag); the loops call it at their
  * heads and, when it answers nonzero, unwind with -ECANCELED, freeing what they hold. fit/ keeps
  * no state of its own: no globals, the poll runs on the caller's thread. A zeroed fit_stop_t
@@ -13,6 +14,12 @@
 
 /* The named places (fit_stop_at's site). */
 #define FIT_STOP_SITE_LM "lm" /* inside the LM (lm.c): each residual, Jacobian and iteration */
+#define FIT_STOP_SITE_NNLS "nnls"         /* inside the non-negative solve (wls.c): each active-set
+                                             step, outer and inner, before its solve */
+#define FIT_STOP_SITE_WIENER "wiener"     /* inside the Wiener baseline (wiener.c): each row of
+                                             the kernel, each pass of the FFTs and the filter */
+#define FIT_STOP_SITE_GEOMETRY "geometry" /* inside the geometry fit (geometry.c): each
+                                             iteration, residual and covariance column */
 
 typedef struct fit_stop {
     int (*poll)(void *arg); /* nonzero: stop now; NULL: never stop */

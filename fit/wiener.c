@@ -222,6 +222,12 @@ static int check_scan(const fit_scan_t *sc, double nsr, err_t *err)
 
 /* ---- the kernel ---- */
 
+/* The stop poll of the run's loops (stop.h's site "wiener"); stop may be NULL. */
+static int wstop(const fit_stop_t *stop)
+{
+    return stop && fit_stop_at(stop, FIT_STOP_SITE_WIENER);
+}
+
 /* Kernel half-width along an axis of n points: n - 1 (the longest lag between two raster
  * points; at most KERNEL_MAX_HALF), or less where the rigorous bound of a cell's integral (its
  * area times the Airy envelope at its nearest point, airy.h) is below KERNEL_REL_CUT of the
@@ -239,7 +245,8 @@ static int kernel_half_width(double a, double step, double area, double peak, in
  * in both lags). Square cells: one call of the fast design matrix with the spot at the centre of
  * the corner cell of a "pixel" of (h+1) x (h+1) cells. Otherwise one accurate box integral per
  * cell (box.h): correct for any aspect, but some tens of microseconds per cell. */
-static int kernel_quadrant(double R, double sx, double sy, int hx, int hy, double *q, err_t *err)
+static int kernel_quadrant(double R, double sx, double sy, int hx, int hy, double *q,
+                           const fit_stop_t *stop, err_t *err)
 {
     int w = hx + 1, rc = 0;
     if (fabs(sx - sy) <= 1e-9 * sx) {
@@ -248,13 +255,15 @@ static int kernel_quadrant(double R, double sx, double sy, int hx, int hy, doubl
         if (!A) return err_set(err, -ENOMEM, "wiener: out of memory for the kernel");
         fit_design_opts_t o = fit_design_opts_for_tol(KERNEL_ACCURACY);
         o.skip_tol = 0; /* every cell integrated: the tails are what the FFT must see */
+        if (stop) o.stop = *stop; /* polled in its batches */
         rc = fit_design_build(R, r * sx, r, &c, &c, 1, &o, A, NULL, err);
         for (int j = 0; rc == 0 && j <= hy; j++)
             memcpy(q + (size_t)j * w, A + (size_t)j * r, sizeof(double) * (size_t)w);
         free(A);
         return rc;
     }
-    for (int j = 0; j <= hy; j++)
+    for (int j = 0; j <= hy; j++) {
+        if (wstop(stop)) return err_set(err, -ECANCELED, "wiener: stopped");
         for (int i = 0; i <= hx; i++) {
             fit_rect_t cell = {(i - 0.5) * sx, (i + 0.5) * sx, (j - 0.5) * sy, (j + 0.5) * sy};
             /* relative to the cell itself, so far finer than KERNEL_ACCURACY of the peak */
@@ -262,6 +271,7 @@ static int kernel_quadrant(double R, double sx, double sy, int hx, int hy, doubl
             if (rc == -ERANGE) rc = 0; /* the honest value is still far inside our needs */
             if (rc) return rc;
         }
+    }
     return 0;
 }
 
@@ -293,15 +303,18 @@ static int fft2_alloc(struct fft2 *f, int px, int py)
 }
 
 /* In-place 2-D transform of z (py rows of px complex numbers, interleaved re/im): rows, then
- * columns (stride px). inverse != 0: the inverse transform, including the 1/(px py). */
-static int fft2_run(const struct fft2 *f, double *z, int inverse)
+ * columns (stride px). inverse != 0: the inverse transform, including the 1/(px py). Returns 0,
+ * -ECANCELED (stop answered, before a pass) or GSL's nonzero status. */
+static int fft2_run(const struct fft2 *f, double *z, int inverse, const fit_stop_t *stop)
 {
     int st = 0;
+    if (wstop(stop)) return -ECANCELED;
     for (int j = 0; j < f->py; j++) {
         double *row = z + 2 * (size_t)j * f->px;
         st |= inverse ? gsl_fft_complex_inverse(row, 1, f->px, f->wx, f->sx)
                       : gsl_fft_complex_forward(row, 1, f->px, f->wx, f->sx);
     }
+    if (wstop(stop)) return -ECANCELED;
     for (int i = 0; i < f->px; i++) {
         double *col = z + 2 * (size_t)i;
         st |= inverse ? gsl_fft_complex_inverse(col, f->px, f->py, f->wy, f->sy)
@@ -352,8 +365,10 @@ static double box_mean(const double *v, int px, int py, int i, int j, int h)
 
 /* The spectral choice (see top) on z = FFT(d + i k) of the 2nx x 2ny mirrored array; sig2 is
  * the mean noise variance of a point. Writes the estimate's spectrum into z, the summary nsr and
- * the fraction of bins passed. */
-static int spectral_filter(double *z, int nx, int ny, double sig2, double *nsr, double *frac)
+ * the fraction of bins passed. -ENOMEM, or -ECANCELED when stop answered (at each row of the
+ * signal power's box means, its costly part). */
+static int spectral_filter(double *z, int nx, int ny, double sig2, double *nsr, double *frac,
+                           const fit_stop_t *stop)
 {
     int px = 2 * nx, py = 2 * ny;
     size_t P = (size_t)px * py;
@@ -391,7 +406,11 @@ static int spectral_filter(double *z, int nx, int ny, double sig2, double *nsr, 
         free(kr), free(ki), free(pd), free(pn), free(E), free(N);
         return -ENOMEM;
     }
-    for (int l = 0; l <= ny; l++)
+    for (int l = 0; l <= ny; l++) {
+        if (wstop(stop)) {
+            free(kr), free(ki), free(pd), free(pn), free(E), free(N);
+            return -ECANCELED;
+        }
         for (int k = 0; k <= nx; k++) {
             size_t a = (size_t)l * px + k, q = (size_t)l * wq + k;
             double PD = box_mean(pd, px, py, k, l, SPECTRAL_HALF);
@@ -402,6 +421,7 @@ static int spectral_filter(double *z, int nx, int ny, double sig2, double *nsr, 
             E[q] = fmin(Ps, cap);
             N[q] = PN;
         }
+    }
     double sum_n = 0, sum_q = 0;
     size_t passed = 0;
     for (int j = 0; j < py; j++)
@@ -479,13 +499,14 @@ static int mirror(int i, int n)
 /* Fills z (2nx x 2ny complex) with d + i k: the raster data d mirrored at the raster edges
  * (see top), and the kernel normalised to unit sum with lag (l, m) at (l mod 2nx, m mod 2ny). */
 static int fill_input(const fit_scan_t *sc, const struct axis *gx, const struct axis *gy,
-                      const double *d, int hx, int hy, double *z, err_t *err)
+                      const double *d, int hx, int hy, double *z, const fit_stop_t *stop,
+                      err_t *err)
 {
     int nx = gx->n, ny = gy->n, px = 2 * nx, py = 2 * ny;
     size_t w = (size_t)hx + 1;
     double *q = malloc(sizeof(double) * w * ((size_t)hy + 1));
     if (!q) return err_set(err, -ENOMEM, "wiener: out of memory for the kernel");
-    int rc = kernel_quadrant(sc->spot_radius_um, gx->step, gy->step, hx, hy, q, err);
+    int rc = kernel_quadrant(sc->spot_radius_um, gx->step, gy->step, hx, hy, q, stop, err);
     if (rc) goto out;
     double sum = 0;
     for (int j = -hy; j <= hy; j++)
@@ -507,8 +528,10 @@ out:
 /* Replaces the raster data d (nx*ny, row-major) by the Wiener estimate normalised to mean 1.
  * spectral: the per-frequency choice, *nsr and *frac get its summary; else the constant *nsr. */
 static int deconvolve(const fit_scan_t *sc, const struct axis *gx, const struct axis *gy,
-                      int spectral, double *nsr, double *frac, double *d, err_t *err)
+                      int spectral, double *nsr, double *frac, double *d, const fit_stop_t *stop,
+                      err_t *err)
 {
+    if (wstop(stop)) return err_set(err, -ECANCELED, "wiener: stopped"); /* the first poll */
     int hx, hy, rc = kernel_extent(sc, gx, gy, &hx, &hy, err);
     if (rc) return rc;
     int px = 2 * gx->n, py = 2 * gy->n; /* one period of the mirrored data */
@@ -518,19 +541,23 @@ static int deconvolve(const fit_scan_t *sc, const struct axis *gx, const struct 
         rc = err_set(err, -ENOMEM, "wiener: out of memory for a %d x %d FFT", px, py);
         goto out;
     }
-    if ((rc = fill_input(sc, gx, gy, d, hx, hy, z, err))) goto out;
-    if (fft2_run(&f, z, 0)) {
-        rc = err_set(err, -EDOM, "wiener: GSL FFT failed");
+    if ((rc = fill_input(sc, gx, gy, d, hx, hy, z, stop, err))) goto out;
+    int st = fft2_run(&f, z, 0, stop);
+    if (st) {
+        rc = st == -ECANCELED ? err_set(err, st, "wiener: stopped")
+                              : err_set(err, -EDOM, "wiener: GSL FFT failed");
         goto out;
     }
     if (!spectral)
         wiener_filter(z, px, py, *nsr);
-    else if (spectral_filter(z, gx->n, gy->n, mean_sigma2(sc), nsr, frac)) {
-        rc = err_set(err, -ENOMEM, "wiener: out of memory for the spectra");
+    else if ((st = spectral_filter(z, gx->n, gy->n, mean_sigma2(sc), nsr, frac, stop))) {
+        rc = st == -ECANCELED ? err_set(err, st, "wiener: stopped")
+                              : err_set(err, -ENOMEM, "wiener: out of memory for the spectra");
         goto out;
     }
-    if (fft2_run(&f, z, 1)) {
-        rc = err_set(err, -EDOM, "wiener: GSL FFT failed");
+    if ((st = fft2_run(&f, z, 1, stop))) {
+        rc = st == -ECANCELED ? err_set(err, st, "wiener: stopped")
+                              : err_set(err, -EDOM, "wiener: GSL FFT failed");
         goto out;
     }
     double mean = 0;
@@ -643,7 +670,7 @@ int fit_wiener_run_opts(const fit_scan_t *scan, const fit_wiener_opts_t *opts, f
     if ((rc = grid_map(scan, &gx, &gy, d, slot, err))) goto out;
     int spectral = o.method == FIT_WIENER_NSR_SPECTRAL;
     if (o.method == FIT_WIENER_NSR_WHITE && (rc = auto_nsr(scan, d, cells, &nsr, err))) goto out;
-    if ((rc = deconvolve(scan, &gx, &gy, spectral, &nsr, &frac, d, err))) goto out;
+    if ((rc = deconvolve(scan, &gx, &gy, spectral, &nsr, &frac, d, &o.stop, err))) goto out;
     *out = (fit_wiener_t){.nx = gx.n, .ny = gy.n, .step_x_um = gx.step, .step_y_um = gy.step,
                           .x0_um = gx.start, .y0_um = gy.start, .nsr = nsr, .S = d,
                           .nsr_method = o.method, .signal_fraction = frac, .raster_nx = gx.n,

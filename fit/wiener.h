@@ -12,6 +12,7 @@
 
 #include "base/err.h"
 #include "fit/scandata.h"
+#include "fit/stop.h"
 
 /* How the noise-to-signal ratio is chosen (wiener.c explains each; docs/numerics.md measures). */
 typedef enum fit_wiener_nsr {
@@ -26,6 +27,8 @@ typedef struct fit_wiener_opts {
     double nsr; /* FIT_WIENER_NSR_FIXED: the ratio, > 0 */
     int crop;   /* keep only the grid nodes inside the pixel (0, pitch)^2 (mean 1 again):
                    the whole raster is deconvolved, the map is the pixel's */
+    fit_stop_t stop; /* polled inside the run's loops (stop.h's site "wiener": each row of the
+                        kernel, of the FFT passes and of the spectral filter); zeroed: never */
 } fit_wiener_opts_t;
 
 /* Spectral nsr, cropped to the pixel. */
@@ -55,8 +58,8 @@ int fit_wiener_run(const fit_scan_t *scan, double nsr, fit_wiener_t *out, err_t 
 
 /* The same with options (NULL: fit_wiener_opts_default()): every point of scan is deconvolved,
  * inside the pixel or not; with crop the map is cut to the grid nodes inside the pixel (region.h's
- * "inside" test; -EINVAL when none is). fit_wiener_run is method white (nsr <= 0) or fixed, no
- * crop. */
+ * "inside" test; -EINVAL when none is). -ECANCELED when opts' stop answered. fit_wiener_run is
+ * method white (nsr <= 0) or fixed, no crop. */
 int fit_wiener_run_opts(const fit_scan_t *scan, const fit_wiener_opts_t *opts, fit_wiener_t *out,
                         err_t *err);
 

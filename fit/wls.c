@@ -277,6 +277,12 @@ struct nnls_work {
     double *g, *z, *zc, *cv;
 };
 
+/* The stop poll of the active-set loops (stop.h's site "nnls"); stop may be NULL. */
+static int stopped(const fit_stop_t *stop)
+{
+    return stop && fit_stop_at(stop, FIT_STOP_SITE_NNLS);
+}
+
 /* Lists the passive set into cols; returns its size. */
 static size_t passive_cols(const struct nnls_work *nw, size_t m)
 {
@@ -289,9 +295,10 @@ static size_t passive_cols(const struct nnls_work *nw, size_t m)
 /* Lawson-Hanson inner loop: solve on the passive set; while some free parameter would turn
  * negative, step back to the boundary and release the parameters that reach it. */
 static int nnls_inner(const double *X, const double *w, const double *y, size_t n, size_t m,
-                      double *c, struct nnls_work *nw, wls_result_t *res)
+                      double *c, struct nnls_work *nw, const fit_stop_t *stop, wls_result_t *res)
 {
     for (int inner = 0; inner < 3 * (int)m + 10; inner++) {
+        if (stopped(stop)) return -ECANCELED; /* each step is a QR of n x np */
         size_t np = passive_cols(nw, m);
         int rc = solve_cols(X, w, y, n, m, nw->cols, np, nw->zc, NULL, NULL, res);
         if (rc) return rc;
@@ -341,7 +348,7 @@ static int nnls_finish(const double *X, const double *w, const double *y, size_t
 /* Lawson-Hanson NNLS: add the parameter with the largest positive gradient to the free set
  * until the KKT conditions hold (no held parameter wants to grow). */
 static int nnls(const double *X, const double *w, const double *y, size_t n, size_t m, double *c,
-                double *cov, double *hat, wls_result_t *res)
+                double *cov, double *hat, const fit_stop_t *stop, wls_result_t *res)
 {
     int rc = -ENOMEM;
     struct nnls_work nw = {.passive = calloc(m, 1), .cols = malloc(sizeof(size_t) * m),
@@ -352,6 +359,10 @@ static int nnls(const double *X, const double *w, const double *y, size_t n, siz
     double gtol = 0;
     rc = 0;
     for (int outer = 0; outer < 3 * (int)m + 10 && !rc; outer++) {
+        if (stopped(stop)) {
+            rc = -ECANCELED;
+            break;
+        }
         neg_gradient(X, w, y, n, m, c, nw.g);
         double gmax = 0, gscale = 0;
         size_t jmax = m;
@@ -361,7 +372,7 @@ static int nnls(const double *X, const double *w, const double *y, size_t n, siz
             if (!nw.passive[j] && nw.g[j] > gmax) gmax = nw.g[j], jmax = j;
         if (jmax == m || gmax <= gtol) break; /* KKT conditions hold */
         nw.passive[jmax] = 1;
-        rc = nnls_inner(X, w, y, n, m, c, &nw, res);
+        rc = nnls_inner(X, w, y, n, m, c, &nw, stop, res);
     }
     if (!rc) rc = nnls_finish(X, w, y, n, m, c, cov, hat, &nw, res);
 out:
@@ -375,15 +386,18 @@ out:
 }
 
 int wls_solve_hat(const double *X, const double *w, const double *y, size_t n, size_t m,
-                  int nonneg, double *c, double *cov, double *hat, wls_result_t *res)
+                  int nonneg, double *c, double *cov, double *hat, const fit_stop_t *stop,
+                  wls_result_t *res)
 {
     memset(res, 0, sizeof *res);
-    if (nonneg) return nnls(X, w, y, n, m, c, cov, hat, res);
-    return solve_cols(X, w, y, n, m, NULL, m, c, cov, hat, res);
+    if (nonneg) return nnls(X, w, y, n, m, c, cov, hat, stop, res);
+    int rc = solve_cols(X, w, y, n, m, NULL, m, c, cov, hat, res);
+    /* one LAPACK call, which cannot be interrupted: polled after it */
+    return rc == 0 && stop && fit_stop_now(stop) ? -ECANCELED : rc;
 }
 
 int wls_solve(const double *X, const double *w, const double *y, size_t n, size_t m, int nonneg,
-              double *c, double *cov, wls_result_t *res)
+              double *c, double *cov, const fit_stop_t *stop, wls_result_t *res)
 {
-    return wls_solve_hat(X, w, y, n, m, nonneg, c, cov, NULL, res);
+    return wls_solve_hat(X, w, y, n, m, nonneg, c, cov, NULL, stop, res);
 }

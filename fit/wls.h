@@ -6,6 +6,8 @@
 
 #include <stddef.h>
 
+#include "fit/stop.h"
+
 typedef struct wls_result {
     double chi2;    /* sum of squared weighted residuals at the minimum */
     double rcond;   /* reciprocal 2-norm condition number of the (column-balanced) weighted matrix */
@@ -18,14 +20,18 @@ typedef struct wls_result {
  * n x m. c (m) and cov (m x m, row-major, (X^T W X)^-1, unscaled) are caller-allocated; cov may
  * be NULL. nonneg: c_j >= 0 by Lawson-Hanson active sets (LAPACK has no NNLS); the covariance is
  * then that of the free parameters, with zero rows/columns for those held at 0.
- * Returns 0, -ENOMEM, or -EDOM when the linear algebra fails. */
+ * stop (may be NULL): polled at each active-set step of the non-negative solve (stop.h's site
+ * "nnls": up to 3m + 10 outer steps of up to 3m + 10 solves each, minutes at r = 32), and
+ * after the solve. Returns 0, -ENOMEM, -ECANCELED (stopped), or -EDOM when the linear algebra
+ * fails. */
 int wls_solve(const double *X, const double *w, const double *y, size_t n, size_t m, int nonneg,
-              double *c, double *cov, wls_result_t *res);
+              double *c, double *cov, const fit_stop_t *stop, wls_result_t *res);
 
 /* The same, and hat (n, may be NULL) gets the diagonal of the weighted hat matrix
  * H = W^1/2 X (X^T W X)^-1 X^T W^1/2 (of the free parameters' columns under nonneg): the
  * leverages h_kk = ||Q_k||^2, the squared norms of the rows of the thin Q of W^1/2 X. */
 int wls_solve_hat(const double *X, const double *w, const double *y, size_t n, size_t m,
-                  int nonneg, double *c, double *cov, double *hat, wls_result_t *res);
+                  int nonneg, double *c, double *cov, double *hat, const fit_stop_t *stop,
+                  wls_result_t *res);
 
 #endif

@@ -11,6 +11,7 @@
 
 #include "base/opts.h"
 #include "base/parse.h"
+#include "base/thread_sched.h"
 #include "instrument/stage.h"
 #include "server/srv_token.h"
 
@@ -34,7 +35,13 @@ static const char usage[] =
     "  --http-threads N     HTTP thread pool size (default 2)\n"
     "  --fit-nice N         the fit workers' nice value 0..19 (default 10): fits yield the CPU\n"
     "                       to the HTTP threads (see docs/operations.md)\n"
-    "  --fit-batch          the fit workers also run as SCHED_BATCH (default: SCHED_OTHER)\n"
+    "  --fit-sched POLICY   the fit workers' scheduling policy: normal (SCHED_OTHER at\n"
+    "                       --fit-nice), batch (SCHED_BATCH) or idle (SCHED_IDLE: they run only\n"
+    "                       when no other thread wants the CPU); default normal\n"
+    "  --fit-batch          the same as --fit-sched batch\n"
+    "  --http-nice N        the HTTP threads' nice value -20..19 (default 0); below 0 they\n"
+    "                       preempt other processes' work, which needs CAP_SYS_NICE or an\n"
+    "                       RLIMIT_NICE of 20 - N (systemd: LimitNICE=); refused: logged, 0\n"
     "  --http-slice-us N    the HTTP threads' time slice in microseconds, 100..100000, or 0 for\n"
     "                       the kernel's (Linux 6.12+; a short slice preempts busy threads on\n"
     "                       wakeup; default 0)\n"
@@ -170,7 +177,9 @@ enum {
     O_HTTP,
     O_FITNICE,
     O_FITBATCH,
+    O_FITSCHED,
     O_HTTPSLICE,
+    O_HTTPNICE,
     O_TOKEN,
     O_READTOKEN,
     O_HASHTOKEN,
@@ -203,7 +212,9 @@ static const struct option opts[] = {
     {"http-threads", required_argument, NULL, O_HTTP},
     {"fit-nice", required_argument, NULL, O_FITNICE},
     {"fit-batch", no_argument, NULL, O_FITBATCH},
+    {"fit-sched", required_argument, NULL, O_FITSCHED},
     {"http-slice-us", required_argument, NULL, O_HTTPSLICE},
+    {"http-nice", required_argument, NULL, O_HTTPNICE},
     {"token", required_argument, NULL, O_TOKEN},
     {"read-token", required_argument, NULL, O_READTOKEN},
     {"hash-token", no_argument, NULL, O_HASHTOKEN},
@@ -285,7 +296,23 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
         cfg->fit_nice = (int)v;
         return 0;
     case O_FITBATCH:
-        cfg->fit_batch = 1;
+        cfg->fit_sched = THREAD_SCHED_BATCH;
+        return 0;
+    case O_FITSCHED: {
+        static const char *const names[] = {[THREAD_SCHED_NORMAL] = "normal",
+                                            [THREAD_SCHED_BATCH] = "batch",
+                                            [THREAD_SCHED_IDLE] = "idle"};
+        for (int i = 0; i < 3; i++)
+            if (strcmp(arg, names[i]) == 0) {
+                cfg->fit_sched = i;
+                return 0;
+            }
+        return err_set(err, -EINVAL, "--fit-sched must be normal, batch or idle (got '%s')", arg);
+    }
+    case O_HTTPNICE:
+        if (parse_long(arg, -20, 19, &v))
+            return err_set(err, -EINVAL, "--http-nice must be -20..19 (got '%s')", arg);
+        cfg->http_nice = (int)v;
         return 0;
     case O_HTTPSLICE:
         if (parse_long(arg, 0, 100000, &v) || (v > 0 && v < 100))

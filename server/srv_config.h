@@ -30,8 +30,9 @@ typedef struct srv_config {
     int workers;                  /* fit worker threads (2) */
     int http_threads;             /* HTTP thread pool size (2) */
     int fit_nice;                 /* --fit-nice: the fit workers' nice value, 0..19 (10) */
-    int fit_batch;                /* --fit-batch: the fit workers run SCHED_BATCH (0) */
+    int fit_sched;                /* --fit-sched: the fit workers' policy, a THREAD_SCHED_* */
     int http_slice_us;            /* --http-slice-us: the HTTP threads' time slice, 0 kernel's */
+    int http_nice;                /* --http-nice: the HTTP threads' nice value, -20..19 (0) */
     srv_token_t tokens[SRV_TOKENS_MAX]; /* --token (write) and --read-token (read) digests */
     int n_tokens;                 /* 0: writes open */
     int reads_closed;             /* --read-token given: reads under /api need a token too */

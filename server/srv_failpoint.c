@@ -41,8 +41,9 @@ struct srv_failpoints {
 /* The points the workers have (a misspelt name must not arm nothing silently). */
 static const char *const POINTS[] = {
     "scan.setup",       "scan.point",      "scan.finish", "fit.step",     "fit.before_store",
-    "fit.after_store",  "fit.poll",        "fit.poll.lm", "camera.frame", "fit.pixel",
-    "ptc.level",        "ptc.before_store", "ptc.after_store"};
+    "fit.after_store",  "fit.poll",        "fit.poll.lm", "fit.poll.nnls", "fit.poll.wiener",
+    "fit.poll.geometry", "camera.frame",   "fit.pixel",   "ptc.level",    "ptc.before_store",
+    "ptc.after_store"};
 
 static int parse_term(char *text, struct fp_term *t, err_t *err)
 {
@@ -57,6 +58,7 @@ static int parse_term(char *text, struct fp_term *t, err_t *err)
         return err_set(err, -EINVAL,
                        "IPSD_FAILPOINTS: unknown point '%s' (scan.setup, scan.point, fit.step, "
                        "fit.before_store, fit.after_store, fit.poll, fit.poll.lm, "
+                       "fit.poll.nnls, fit.poll.wiener, fit.poll.geometry, "
                        "camera.frame, fit.pixel, ptc.level, ptc.before_store, "
                        "ptc.after_store)",
                        text);

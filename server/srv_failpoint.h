@@ -14,7 +14,10 @@
  * stores it), fit.after_store (after that transaction committed, before the job's end is
  * published), fit.poll (inside a fit's long loops, where it polls its stop: each batch of
  * design-matrix rows, after each solve, each LM iteration), fit.poll.lm (the polls of fit.poll
- * inside the LM only: each iteration, Jacobian and residual; hit after fit.poll), camera.frame (the simulated camera,
+ * inside the LM only: each iteration, Jacobian and residual; hit after fit.poll), fit.poll.nnls,
+ * fit.poll.wiener, fit.poll.geometry (the same for the polls inside the non-negative solve's
+ * active-set steps, the Wiener baseline's kernel, FFT and filter passes, and the geometry fit's
+ * iterations, residuals and covariance columns: fit/stop.h's sites), camera.frame (the simulated camera,
  * before each frame it captures: hold makes the camera stop answering until its frame timeout,
  * error makes the capture fail; no held file), fit.pixel (a fit of every pixel a scan covers,
  * after each pixel's fit and the job's count are committed, before the next pixel), ptc.level

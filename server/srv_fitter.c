@@ -227,14 +227,15 @@ end:
     srv_fit_params_free(&p);
 }
 
-/* Fits are background work: on Linux the nice value is per thread, so a fit worker at nice
- * --fit-nice (10: weight 110 against the HTTP threads' 1024) yields the CPU to the HTTP threads
- * (reads stay fast while fits run) without starving (the scheduler's weights still give it its
- * share; not SCHED_IDLE, see docs/server.md). --fit-batch adds SCHED_BATCH: no wakeup
- * preemption of the HTTP threads by a fit worker. Measured: docs/operations.md. */
+/* Fits are background work: on Linux the nice value and the policy are per thread, so a fit
+ * worker at nice --fit-nice (10: weight 110 against the HTTP threads' 1024) yields the CPU to the
+ * HTTP threads (reads stay fast while fits run) without starving (the scheduler's weights still
+ * give it its share). --fit-sched batch adds SCHED_BATCH: no wakeup preemption of the HTTP
+ * threads by a fit worker; --fit-sched idle, SCHED_IDLE: a fit runs only on a CPU nothing else
+ * wants (docs/server.md weighs its lock-holder risk). Measured: docs/operations.md. */
 static void lower_priority(const srv_config_t *cfg)
 {
-    int ret = thread_sched_set(cfg->fit_nice, 0, cfg->fit_batch);
+    int ret = thread_sched_set(cfg->fit_nice, 0, cfg->fit_sched);
     if (ret) fprintf(stderr, "ipsd: fit worker: cannot lower its priority: %s\n", strerror(-ret));
 }
 

@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "base/thread_sched.h"
 #include "srv_int.h"
 
 /* Writes the bound port to cfg->port_file (written to FILE.tmp, then renamed: a reader never
@@ -34,12 +35,24 @@ static int write_port_file(const srv_config_t *cfg, int port, err_t *err)
  * from the main thread, which only waits for signals. bench/soak.py prints RSS over a run. */
 #define MEM_TRIM_S 10
 #define MEM_ARENAS 4
+/* With --fit-sched idle, one arena per thread instead: a thread's first malloc takes a new arena
+ * while there are fewer than the cap, so no HTTP thread shares an arena (and its lock) with a
+ * SCHED_IDLE fit worker, which, preempted while holding it, would get the CPU back only when
+ * nothing else wants it (docs/server.md, "Threads"). The threads: main, the scan worker, the
+ * fit workers, the event ticker, the connection reaper, the HTTP pool; two spare. */
+#define MEM_OTHER_THREADS 6
 
-static void mem_setup(void)
+static void mem_setup(const srv_config_t *cfg)
 {
 #ifdef __GLIBC__
-    mallopt(M_ARENA_MAX, MEM_ARENAS);
+    int arenas = MEM_ARENAS;
+    if (cfg->fit_sched == THREAD_SCHED_IDLE)
+        arenas = MEM_OTHER_THREADS + cfg->workers + cfg->http_threads;
+    mallopt(M_ARENA_MAX, arenas);
+#else
+    (void)cfg;
 #endif
+    storage_process_setup();
 }
 
 static void mem_trim(void)
@@ -121,7 +134,7 @@ int srv_main(int argc, char **argv, const srv_frontend_t *fe)
     sigaddset(&sigs, SIGHUP);
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
     signal(SIGPIPE, SIG_IGN);
-    mem_setup();
+    mem_setup(&cfg);
     srv_t *srv = NULL;
     if (srv_open(&cfg, &srv, &err)) {
         fprintf(stderr, "ipsd: %s\n", err.msg);

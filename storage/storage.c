@@ -499,6 +499,11 @@ static int fk_check(storage_t *st, err_t *err)
     return ret;
 }
 
+int storage_process_setup(void)
+{
+    return sqlite3_config(SQLITE_CONFIG_MEMSTATUS, 0) == SQLITE_OK ? 0 : -EBUSY;
+}
+
 int storage_open(const char *path, storage_t **out, err_t *err)
 {
     if (!out) return err_set(err, -EINVAL, "storage_open: out is NULL");

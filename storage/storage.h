@@ -36,6 +36,12 @@
 
 typedef struct storage storage_t;
 
+/* Process-wide SQLite settings, called once before any handle is opened (later it does
+ * nothing): SQLite's memory statistics off, so its allocations take no global mutex that every
+ * connection shares (a fit worker at a low priority holding it would stall the HTTP threads'
+ * reads: docs/server.md, "Threads"). Returns 0 or -EBUSY (SQLite already initialised). */
+int storage_process_setup(void);
+
 /* A write gate: handles of one process that share it take the write lock first come, first
  * served (SQLite's busy handler is not fair: a handle committing a scan point every millisecond
  * starved a waiting fit worker and a cancel past the busy timeout). One per database, shared by

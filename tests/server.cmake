@@ -16,7 +16,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
     # restart 93, input 20, promote ~25 (optimised: 11, 26, 9, 6.5; hostile 3, flood 8; region: 4
     # fits of a 225-point upload; storfault ~40 s optimised: three daemons, four 961-point scans each;
     # camfault ~10 s; security 4 / ASan 11, backup 12-21 / ASan 71; crash: 8 starts
-    # and 4 small fits, 10 s optimised; fitstop 3 starts, 3 small fits). One test per line below,
+    # and 4 small fits, 10 s optimised; fitstop 21 starts, 6 small fits, 77 s optimised on a busy machine). One test per line below,
     # so branches that add tests merge without conflicts.
     foreach(t flow:130 restart:380 input:80 promote:120 region:120 hostile:60 flood:200
             calib_cache:90
@@ -26,7 +26,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             static:60
             backup:240
             crash:150
-            fitstop:120
+            fitstop:300
             sched:60
             storfault:240
             camfault:120

@@ -9,9 +9,16 @@ that the stop set by the cancel (or by SIGTERM) unwinds the fit from inside its 
 cancelled with nothing stored and the worker takes the next job; at SIGTERM ipsd exits 0 and the
 job goes back to the queue, then runs to done at the next start. The latency is measured in
 bench (the report), not asserted here. The same inside the LM (the point fit.poll.lm, hit only by
-the LM's own polls): a cancel and a SIGTERM there end the fit from inside its iterations. Then the fit request's limits: --max-fit-points (413
+the LM's own polls): a cancel and a SIGTERM there end the fit from inside its iterations. The same
+inside the other long loops, each held at the first hit of its own point (issue 10: "between r and
+inside the long loops"): the non-negative solve's active-set steps (fit.poll.nnls, "nonneg": true),
+the Wiener baseline's kernel and FFT passes (fit.poll.wiener, "wiener": true on the reference
+raster, after the sweep's steps) and the geometry fit's iterations (fit.poll.geometry, "fit_geometry":
+true). Then the fit request's limits: --max-fit-points (413
 naming scan.x_um) and --max-fit-r (422 naming r_max, ftest_r or geometry_r)."""
+import json
 import math
+import os
 import subprocess
 import sys
 
@@ -26,6 +33,57 @@ def upload_body(n, r_max):
     return {"scan": {"pitch_um": 6, "spot_radius_um": 1.342, "bias_dn": 100,
                      "gain_e_per_dn": 3.153, "read_noise_e": 5.67, "frames": 12,
                      "x_um": x, "y_um": y, "signal_dn": s}, "r_max": r_max}
+
+
+def paperlike_body(r_max):
+    """The reference scan (tests/data: a 9 x 9 raster of the simulated bench, which the Wiener
+    baseline needs and on which the geometry fit converges in a few iterations)."""
+    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "data",
+                           "paperlike_scan.json")) as f:
+        return {"scan": json.load(f), "r_max": r_max}
+
+
+def site_stops(c, d, db, fits):
+    """A cancel, then a SIGTERM, while a fit is held at the first poll inside each loop; fits is
+    the count of fits stored so far. Returns the count after."""
+    for site, body, why in (
+            ("nnls", dict(upload_body(400, 6), nonneg=True), "the non-negative solve"),
+            ("wiener", dict(paperlike_body(2), wiener=True), "the Wiener baseline"),
+            ("geometry", dict(paperlike_body(2), fit_geometry=True, geometry_r=3),
+             "the geometry fit")):
+        point = "fit.poll." + site
+        d.start("--workers", "1", failpoints=point + "=hold@1")
+        r = d.post("/api/fits", body)
+        c.status(r, 202, "a fit that runs %s" % why)
+        job = r.json()["job"]["id"]
+        c.ok(d.wait_held(point, job), "held at the first poll inside %s" % why)
+        c.ok("failpoint %s: holding job %d at hit 1" % (point, job) in d.log_text(),
+             "the log names %s's poll" % point)
+        c.eq(d.job_state(job), "running", "the fit is running, inside %s" % why)
+        c.status(d.post("/api/jobs/%d/cancel" % job), 200, "cancel it there")
+        c.ok(d.wait_hold_ended(point, job), "the cancel's stop flag ended the hold in %s" % why)
+        c.ok(d.wait_job(job, "cancelled"), "the job is cancelled")
+        c.eq(db.one("SELECT state, fit_id IS NULL FROM jobs WHERE id = ?", job), ("cancelled", 1),
+             "the fit cancelled inside %s stored nothing" % why)
+        c.eq(db.val("SELECT count(*) FROM fits"), fits, "no fit was added")
+        c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+        # SIGTERM while held there: ipsd exits, the job goes back to the queue, runs again
+        d.start("--workers", "1", failpoints=point + "=hold@1")
+        job = d.post("/api/fits", body).json()["job"]["id"]
+        c.ok(d.wait_held(point, job), "a second fit held inside %s" % why)
+        c.eq(d.stop_term(), 0, "SIGTERM inside %s: exit status 0" % why)
+        c.eq(db.one("SELECT state, attempts, fit_id IS NULL FROM jobs WHERE id = ?", job),
+             ("queued", 0, 1), "the fit stopped inside %s given back: queued, nothing stored" % why)
+        d.start("--workers", "1")
+        c.ok(d.wait_job(job, "done"), "it runs again to done")
+        fits += 1
+        c.eq(db.val("SELECT count(*) FROM fits"), fits, "and stores its one fit")
+        if site != "nnls":  # the part's own result, not {"error": ...}
+            part = json.loads(db.val("SELECT result FROM fits ORDER BY id DESC LIMIT 1")).get(site)
+            c.ok(isinstance(part, dict) and "error" not in part,
+                 "%s ran to its end in the rerun: %.200r" % (why, part))
+        c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+    return fits
 
 
 def test(c, t, argv, daemons):
@@ -96,6 +154,8 @@ def test(c, t, argv, daemons):
     c.ok(d.wait_job(job, "done"), "it runs again to done")
     c.eq(db.val("SELECT count(*) FROM fits"), 3, "and stores its one fit")
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+
+    site_stops(c, d, db, 3)
 
     # the limits of a fit request (--max-fit-points, --max-fit-r): 413 / 422 naming the field
     d.start("--workers", "1", "--max-fit-points", "100", "--max-fit-r", "4")

@@ -15,7 +15,8 @@ each tested to the same end state:
 
 Every case checks: the job and scan end failed with a message naming the fault and the database
 file, a log line says so, no job is left running, the instrument is free (the next scan runs),
-the GET endpoints answer 200, and once space is back a resumed scan (POST /api/scans/ID/resume)
+the GET endpoints answer 200, /api/health's status says "degraded" with the reasons while the
+storage refuses writes ("ok" once it takes them again), and once space is back a resumed scan (POST /api/scans/ID/resume)
 completes with its earlier points kept, every point stored exactly once, and PRAGMA
 integrity_check ok, all read by Python's sqlite3 module. No sleeps: states are waited for."""
 import os
@@ -107,6 +108,9 @@ def test(c, t, argv, daemons):
     c.ok("full" in (h.get("storage_error") or "") and d.db in h["storage_error"] and
          h.get("storage_faults", 0) > 0, "health tells the fault and the database: %r" % h)
     c.eq(h.get("storage"), "full", "health: still full after a write in place succeeded")
+    c.eq(h.get("status"), "degraded", "health's status: degraded while the storage is full")
+    c.ok(any("storage full" in x and d.db in x for x in h.get("degraded_reasons", [])),
+         "degraded_reasons names the full storage and the database: %r" % h.get("degraded_reasons"))
     c.ok(h.get("storage_fault_since_ms"), "and since when")
     check_reads(d, s1, "disk full")
     kept = means(db, s1)
@@ -121,7 +125,9 @@ def test(c, t, argv, daemons):
     r = d.post("/api/scans", scan_body(sensor, 32, SMALL))
     c.status(r, 202, "a new scan after space came back")
     c.ok(d.wait_job(r.json()["job"]["id"], "done"), "the new scan completes")
-    c.eq(d.get("/api/health").json().get("storage"), "ok", "health: storage ok again")
+    h = d.get("/api/health").json()
+    c.eq((h.get("storage"), h.get("status"), h.get("degraded_reasons")), ("ok", "ok", []),
+         "health: storage ok again, status ok, no reasons")
     db.all("DROP TABLE filler")  # room for the rest of scan 1
     resume_to_done(d, db, s1, kept, "max_page_count")
     c.eq(d.stop_term(), 0, "SIGTERM: exit 0")
@@ -159,6 +165,10 @@ def test(c, t, argv, daemons):
                  "%s: health's storage" % what)
             c.ok(d.db in h["unrecorded_job"]["error"], "%s: its error names the database: %r"
                  % (what, h["unrecorded_job"]["error"]))
+            c.eq(h.get("status"), "degraded", "%s: health's status degraded" % what)
+            rs = h.get("degraded_reasons", [])
+            c.ok(len(rs) == 2 and rs[0].startswith("storage ") and ("job %d " % job) in rs[1],
+                 "%s: the reasons name the storage fault and the unrecorded job: %r" % (what, rs))
         check_reads(d, scan, what)
         c.eq(db.val("SELECT state FROM jobs WHERE id = ?", job), "running",
              "%s: the row cannot be written (still running)" % what)
@@ -176,7 +186,8 @@ def test(c, t, argv, daemons):
         c.eq(db.val("SELECT count(*) FROM frames WHERE scan_id = ?", scan), hit,
              "%s: no point lost" % what)
         resume_to_done(d, db, scan, kept, what)
-    c.eq(d.get("/api/health").json().get("storage"), "ok", "gate: storage ok at the end")
+    h = d.get("/api/health").json()
+    c.eq((h.get("storage"), h.get("status")), ("ok", "ok"), "gate: storage and status ok at the end")
     r = d.post("/api/scans/1/resume")
     c.error(r, 409, "", "resuming a done scan is refused")
     c.eq(d.stop_term(), 0, "SIGTERM: exit 0")
