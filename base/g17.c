@@ -60,8 +60,9 @@ static int scaled(uint64_t m, int e, int p, uint64_t *t, int *up)
         *up = rem > half || (rem == half && (q & 1)); /* ties to even */
         return 0;
     }
+    if (p < -27 || e > 74) return -1; /* 10^-p and m 2^e < 2^128 (checked before negating p:
+                                         * gcc's -Warray-bounds under ASan saw -INT_MIN) */
     int q10 = -p;
-    if (q10 > 27 || e > 74) return -1; /* m 2^e < 2^128 */
     u128 x = (u128)m << e, d = (u128)pow5[q10] << q10; /* 10^q10 */
     u128 q = x / d, rem = x - q * d;
     *t = q >> 64 ? UINT64_MAX : (uint64_t)q;
