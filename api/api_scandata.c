@@ -21,6 +21,26 @@ static int load_scan(api_req_t *q, storage_t *st, storage_scan_t *sc)
     return ret ? -1 : 0;
 }
 
+/* The metadata both scan-file answers carry beside the scan file's keys (docs/api.md). */
+static json_t *scan_file_meta(const storage_scan_t *sc, const char *description, int dcol,
+                              int drow, int inside_only)
+{
+    return json_pack("{s:s, s:I, s:I, s:i, s:i, s:{s:i, s:i}, s:s, s:i}", "description",
+                     description, "scan_id", (json_int_t)sc->id, "sensor_id",
+                     (json_int_t)sc->sensor_id, "dcol", dcol, "drow", drow, "pixel", "col",
+                     sc->poi_col + dcol, "row", sc->poi_row + drow, "scan_state",
+                     storage_state_name(sc->state), "inside_only", inside_only);
+}
+
+/* Answers a scan file's text, or the error that made it (the metadata's allocation included). */
+static void reply_scan_text(api_req_t *q, int ret, char *text, size_t len, const err_t *err)
+{
+    if (ret)
+        api_error_rc(q, ret, NULL, err->msg);
+    else
+        api_reply_text(q, 200, "application/json", text, len);
+}
+
 void api_h_scan_pixel(api_req_t *q)
 {
     storage_t *st = api_db(q);
@@ -37,20 +57,14 @@ void api_h_scan_pixel(api_req_t *q)
         storage_scan_free(&sc);
         return;
     }
-    json_t *extra =
-        json_pack("{s:s, s:I, s:I, s:i, s:i, s:{s:i, s:i}, s:s, s:i}", "description",
-                  "response of one pixel over a scan's raster (ipsd)", "scan_id", (json_int_t)sc.id,
-                  "sensor_id", (json_int_t)sc.sensor_id, "dcol", dcol, "drow", drow, "pixel", "col",
-                  sc.poi_col + dcol, "row", sc.poi_row + drow, "scan_state",
-                  storage_state_name(sc.state), "inside_only", all ? 0 : 1);
+    json_t *extra = scan_file_meta(&sc, "response of one pixel over a scan's raster (ipsd)", dcol,
+                                   drow, all ? 0 : 1);
     char *text = NULL;
     size_t len = 0;
-    int ret = srv_pixel_scan_text(st, &sc, dcol, drow, (int)all, extra, &text, &len, &err);
+    int ret = extra ? srv_pixel_scan_text(st, &sc, dcol, drow, (int)all, extra, &text, &len, &err)
+                    : err_set(&err, -ENOMEM, "out of memory");
     json_decref(extra);
-    if (ret)
-        api_error_rc(q, ret, NULL, err.msg);
-    else
-        api_reply_text(q, 200, "application/json", text, len);
+    reply_scan_text(q, ret, text, len, &err);
     storage_scan_free(&sc);
 }
 
@@ -60,22 +74,16 @@ void api_h_scan_scanfile(api_req_t *q)
     storage_scan_t sc;
     err_t err = {{0}};
     if (!st || load_scan(q, st, &sc)) return;
-    json_t *extra = json_pack(
-        "{s:s, s:I, s:I, s:i, s:i, s:{s:i, s:i}, s:s, s:i}", "description",
-        "a scan's raster with the whole sub-frame at each point (ipsd): the POI's response, every "
-        "pixel's in subframe",
-        "scan_id", (json_int_t)sc.id, "sensor_id", (json_int_t)sc.sensor_id, "dcol", 0, "drow", 0,
-        "pixel", "col", sc.poi_col, "row", sc.poi_row, "scan_state", storage_state_name(sc.state),
-        "inside_only", 0);
+    json_t *extra = scan_file_meta(&sc,
+                                   "a scan's raster with the whole sub-frame at each point (ipsd): "
+                                   "the POI's response, every pixel's in subframe",
+                                   0, 0, 0);
     char *text = NULL;
     size_t len = 0;
     int ret = extra ? srv_scan_file_text(st, &sc, extra, &text, &len, &err)
                     : err_set(&err, -ENOMEM, "out of memory");
     json_decref(extra);
-    if (ret)
-        api_error_rc(q, ret, NULL, err.msg);
-    else
-        api_reply_text(q, 200, "application/json", text, len);
+    reply_scan_text(q, ret, text, len, &err);
     storage_scan_free(&sc);
 }
 
