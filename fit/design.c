@@ -361,7 +361,16 @@ static const struct sweep *sweep_get(fit_design_cache_t *c, const struct cheb *c
         sw = scratch;
     }
     if (ev == (size_t)-1) return NULL;
-    *evals += ev;
+    /* the cost counted is the segments up to emax, those with a start below it (a fresh sweep
+     * builds exactly these), whether built now or found in the cache: a fit reports the same
+     * count whatever ran before it on its cache (the sweep's r on threads, pipeline.h) */
+    size_t lo = 0, hi = (size_t)sw->nseg, stride = SEG_STRIDE(ch->m);
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (sw->seg[mid * stride] < emax) lo = mid + 1;
+        else hi = mid;
+    }
+    *evals += lo * (size_t)ch->m;
     return sw;
 }
 

@@ -50,7 +50,9 @@ typedef struct fit_design_stats {
     size_t entries;            /* n * r * r */
     size_t skipped;            /* entries left out by the envelope bound */
     double max_skipped_bound;  /* largest bound of an entry left out (um^2), 0 if none */
-    size_t radial_evals;       /* evaluations of the radial function: the cost */
+    size_t radial_evals;       /* evaluations of the radial function the matrix's sweeps take:
+                                  the cost without a cache (a cache may have held them; the
+                                  count does not depend on what it held) */
 } fit_design_stats_t;
 
 /* Options for a target accuracy: tol is the largest error of an entry relative to the largest

@@ -1,4 +1,5 @@
-/* gslerr.h: fit/'s policy for GSL's error handler, which is process-global.
+/* gslerr.h: fit/'s policy for GSL's error handler, which is process-global, and for OpenBLAS's
+ * threads (one per call: the parallelism is the callers', docs/numerics.md "Threads").
  *
  * GSL reports every failure twice: through the return code (or a NaN) of the call, and by
  * calling the error handler, whose default prints the reason and calls abort(). fit/ checks every

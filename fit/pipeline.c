@@ -17,6 +17,7 @@
 #include "fit/interp.h"
 #include "fit/gslerr.h"
 #include "fit/recommend.h"
+#include "parfor.h"
 
 fit_pipeline_opts_t fit_pipeline_opts_default(void)
 {
@@ -64,6 +65,9 @@ static int check_opts(const fit_scan_t *scan, const fit_pipeline_opts_t *o, err_
          !(o->region.margin_um >= 0 && o->region.margin_um <= FIT_REGION_MARGIN_MAX)))
         return err_set(err, -EINVAL, "region must be inside, all or margin 0..%g um",
                        FIT_REGION_MARGIN_MAX);
+    if (o->threads < 0 || o->threads > FIT_THREADS_MAX)
+        return err_set(err, -EINVAL, "threads must be between 0 and %d (got %d)",
+                       FIT_THREADS_MAX, o->threads);
     if ((unsigned)o->wiener_method > FIT_WIENER_NSR_FIXED)
         return err_set(err, -EINVAL, "unknown Wiener nsr method %d", (int)o->wiener_method);
     return fit_scan_check(scan, err);
@@ -120,6 +124,58 @@ static int sweep_step(struct run *rn, int r, err_t *err)
     if (f->aic < rn->best_aic) rn->best_aic = f->aic, sw->best_aic = r;
     if (f->bic < rn->best_bic) rn->best_bic = f->bic, sw->best_bic = r;
     return 0;
+}
+
+/* The sweep on several threads (opts.threads, no watch): the r run from the largest down, so
+ * that the longest fits start first and the threads finish together. */
+struct par_sweep {
+    struct run *rn;
+    fit_design_cache_t *cache[FIT_THREADS_MAX]; /* per thread; 0 is the run's own */
+    int rc[FIT_R_MAX + 1];                       /* per r: fit_map's return, 1 when not run */
+    err_t err[FIT_R_MAX + 1];
+};
+
+static int par_sweep_body(int i, int thread, void *ctx)
+{
+    struct par_sweep *ps = ctx;
+    const fit_pipeline_opts_t *o = ps->rn->o;
+    fit_sweep_t *sw = &ps->rn->out->sweep;
+    int r = o->r_max - i;
+    fit_options_t fo = o->fit;
+    if (thread > 0 && !ps->cache[thread]) ps->cache[thread] = fit_design_cache_new();
+    if (thread > 0) fo.design_cache = ps->cache[thread]; /* NULL: the fit builds its own */
+    ps->rc[r] = fit_map(ps->rn->scan, r, &fo, &sw->fits[r - sw->r_min], &ps->err[r]);
+    return ps->rc[r];
+}
+
+/* Runs the sweep's fits on opts.threads threads, then picks the best r in increasing r as the
+ * one-thread loop does. A failure is reported for the smallest r that failed. */
+static int sweep_threads(struct run *rn, err_t *err)
+{
+    const fit_pipeline_opts_t *o = rn->o;
+    fit_sweep_t *sw = &rn->out->sweep;
+    struct par_sweep *ps = calloc(1, sizeof *ps);
+    if (!ps) return err_set(err, -ENOMEM, "out of memory");
+    ps->rn = rn;
+    for (int r = 0; r <= FIT_R_MAX; r++) ps->rc[r] = 1;
+    int nr = o->r_max - o->r_min + 1, rc = 0;
+    double t = clock_mono_ms();
+    fit_parfor(nr, o->threads, par_sweep_body, ps);
+    rn->out->sweep_ms += clock_mono_ms() - t;
+    for (int r = o->r_min; r <= o->r_max && !rc; r++) {
+        fit_result_t *f = &sw->fits[r - sw->r_min];
+        if (ps->rc[r] < 0) {
+            rc = ps->rc[r];
+            if (err) *err = ps->err[r];
+        } else if (ps->rc[r] == 0 && f->S) {
+            if (f->aic < rn->best_aic) rn->best_aic = f->aic, sw->best_aic = r;
+            if (f->bic < rn->best_bic) rn->best_bic = f->bic, sw->best_bic = r;
+        }
+    }
+    for (int t2 = 1; t2 < FIT_THREADS_MAX; t2++) fit_design_cache_free(ps->cache[t2]);
+    free(ps);
+    rn->done += nr;
+    return rc;
 }
 
 static void ftest_step(struct run *rn)
@@ -229,7 +285,14 @@ static int run_steps(struct run *rn, err_t *err)
                            &out->geometry_part, geometry_step, err);
         if (rc) return rc;
     }
-    for (int r = o->r_min; r <= o->r_max; r++) {
+    const fit_watch_t *w = rn->watch;
+    int watched = w && (w->progress || w->stop || w->poll || w->poll_at);
+    int parallel = o->threads > 1 && o->r_max > o->r_min && !watched;
+    if (parallel) {
+        int rc = sweep_threads(rn, err);
+        if (rc) return rc;
+    }
+    for (int r = parallel ? o->r_max + 1 : o->r_min; r <= o->r_max; r++) {
         fit_step_t step;
         int rc = step_begin(rn, FIT_STEP_SWEEP, r, &step, err);
         if (rc) return rc;

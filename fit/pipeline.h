@@ -50,6 +50,12 @@ typedef struct fit_pipeline_opts {
     int fit_geometry;      /* fit R, dx, dy first (geometry.h) and run every later step on the
                               scan as the fitted geometry says it was (0) */
     int geometry_r;        /* r of the geometry fit, 1..FIT_R_MAX; 0: FIT_GEOMETRY_R_DEFAULT */
+    int threads;           /* fit the sweep's r on up to this many threads, the caller's
+                              included, when the run has no watch (a watch's functions run on
+                              the caller's thread, so a watched sweep runs there); 0 or 1: the
+                              caller's only (0). The results are the same bit for bit: each r is
+                              its own fit, and every thread's design cache gives the values a
+                              fresh build would (design.h) */
 } fit_pipeline_opts_t;
 
 /* The r the geometry is fitted at unless asked (docs/numerics.md, "Geometry fit": measured). */

@@ -21,6 +21,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fit/gslerr.h"
+
 /* A column's scale: the power of two that brings its 1-norm into [0.5, 1], so balancing is exact
  * (no rounding) and the same as gsl_linalg_balance_columns' (the condition numbers agree with
  * the former SVD path's). */
@@ -390,6 +392,7 @@ int wls_solve_hat(const double *X, const double *w, const double *y, size_t n, s
                   wls_result_t *res)
 {
     memset(res, 0, sizeof *res);
+    fit_gsl_policy(); /* GSL's handler off (the SVD fallback), OpenBLAS on this thread */
     if (nonneg) return nnls(X, w, y, n, m, c, cov, hat, stop, res);
     int rc = solve_cols(X, w, y, n, m, NULL, m, c, cov, hat, res);
     /* one LAPACK call, which cannot be interrupted: polled after it */

@@ -6,9 +6,11 @@ set -euo pipefail
 IPSD_PACKAGES=(
     build-essential cmake pkg-config        # the build
     libgsl-dev libjansson-dev               # fit/ and JSON
-    liblapacke-dev libopenblas0-serial      # fit/'s least squares: LAPACK's C interface, and
-                                            # single-threaded OpenBLAS as the system BLAS/LAPACK
-    libopenblas-serial-dev libgfortran-12-dev  # their archives: ips links LAPACK statically
+    liblapacke-dev libopenblas0-pthread     # fit/'s least squares: LAPACK's C interface, and
+                                            # OpenBLAS's thread-safe build (fit/ runs it on one
+                                            # thread per call; the serial build is not safe to
+                                            # call from two threads: CMakeLists.txt)
+    libopenblas-pthread-dev libgfortran-12-dev  # their archives: ips links LAPACK statically
     libsqlite3-dev sqlite3                  # storage/ (and the sqlite3 shell, tests/docs use it)
     libmicrohttpd-dev                       # api/
     nettle-dev                              # server/: SHA-256 of the bearer tokens

@@ -11,3 +11,7 @@ set_tests_properties(test_recommend PROPERTIES TIMEOUT 120) # 162 refits with bo
 ipsd_add_test(test_geometry ipsfit)
 set_tests_properties(test_geometry PROPERTIES TIMEOUT 60) # busy, optimised: 3.5 s; ASan ~4x
 ipsd_add_test(test_ptc ipsfit) # photon transfer (EMVA 1288) against analytic cases
+# fits on threads (ipsd's workers, the sweep's r) equal one thread's, bit for bit: 25 sweeps of a
+# 1681-point raster to r = 12
+ipsd_add_test(test_fit_threads ipsfit Threads::Threads)
+set_tests_properties(test_fit_threads PROPERTIES TIMEOUT 240)
