@@ -5,7 +5,9 @@
  * contract). Bad input: one line on stderr, exit 2; so is a part asked for that fails.
  * --pixels all fits every pixel of the file's sub-frame its raster covers, each as this command
  * fits one file (fit_pixels.h). */
+#define _GNU_SOURCE /* sched_getaffinity, CPU_COUNT */
 #include <errno.h>
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +28,8 @@
 #define STR_(x) #x
 #define STR(x) STR_(x)
 #define GEOMETRY_R_TEXT STR(FIT_GEOMETRY_R_DEFAULT)
+#define THREADS_LIMIT 64      /* FIT_THREADS_MAX (fit/parfor.h, internal to fit/) */
+#define THREADS_DEFAULT_MAX 8 /* most threads by default: the sweep's r are only tens */
 
 static const char usage[] =
     "usage: ips fit FILE [options]   (FILE - reads standard input)\n"
@@ -49,6 +53,8 @@ static const char usage[] =
     "  --fit-geometry      fit the spot radius and the scan-grid offset first (at --geometry-r)\n"
     "                      and fit the maps with them\n"
     "  --geometry-r N      r of the geometry fit (1..32, default " GEOMETRY_R_TEXT ")\n"
+    "  --threads N         fit the r of the sweep on N threads (1..64; default: the CPUs this\n"
+    "                      process may run on, at most " STR(THREADS_DEFAULT_MAX) "); the results do not depend on N\n"
     "  --table             print a report for people instead of JSON\n"
     "  --pixels all        fit every pixel of the file's subframe that its raster covers,\n"
     "                      each with these options (ips simulate --write-subframe,\n"
@@ -70,11 +76,12 @@ struct fit_args {
     fit_region_t region;
     fit_wiener_nsr_t wiener_method;
     double wiener_nsr; /* --wiener-nsr X */
+    int threads;       /* --threads N */
 };
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
        OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
-       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_HELP };
+       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_THREADS, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -95,6 +102,7 @@ static const struct option long_opts[] = {
     {"fit-geometry", no_argument, NULL, OPT_FIT_GEOMETRY},
     {"geometry-r", required_argument, NULL, OPT_GEOMETRY_R},
     {"pixels", required_argument, NULL, OPT_PIXELS},
+    {"threads", required_argument, NULL, OPT_THREADS},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -178,6 +186,7 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
     case OPT_TABLE: a->table = 1; return 0;
     case OPT_FIT_GEOMETRY: a->fit_geometry = 1; return 0;
     case OPT_GEOMETRY_R: return opts_int32("geometry-r", arg, 1, R_LIMIT, &a->geometry_r, err);
+    case OPT_THREADS: return opts_int32("threads", arg, 1, THREADS_LIMIT, &a->threads, err);
     case OPT_PIXELS:
         if (strcmp(arg, "all") != 0)
             return err_set(err, -EINVAL, "--pixels must be all (got '%s')", arg);
@@ -225,10 +234,19 @@ static int check_args(int argc, char **argv, int first, struct fit_args *a, cons
     return 0;
 }
 
+/* The CPUs this process may run on (its affinity mask), at most THREADS_DEFAULT_MAX. */
+static int default_threads(void)
+{
+    cpu_set_t set;
+    int n = sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : 1;
+    return n < 1 ? 1 : n > THREADS_DEFAULT_MAX ? THREADS_DEFAULT_MAX : n;
+}
+
 /* Parses argv into a; returns 0, -1 after printing the help, or the exit code of bad input. */
 static int parse_args(int argc, char **argv, struct fit_args *a)
 {
-    *a = (struct fit_args){.r_min = 1, .r_max = 8, .opts = fit_options_default(), .ftest_r = 7};
+    *a = (struct fit_args){.r_min = 1, .r_max = 8, .opts = fit_options_default(), .ftest_r = 7,
+                           .threads = default_threads()};
     struct parse_state ps = {.a = a, .argc = argc, .argv = argv};
     err_t err;
     int first, rc = opts_parse(argc, argv, "", long_opts, OPT_HELP, "ips fit --help", one_opt, &ps,
@@ -280,7 +298,7 @@ static int run_pipeline(const struct fit_args *a, const fit_scan_t *scan, fit_pi
                               .wiener = a->wiener, .interp_n = a->interp_n,
                               .region = a->region, .wiener_method = a->wiener_method,
                               .wiener_nsr = a->wiener_nsr, .fit_geometry = a->fit_geometry,
-                              .geometry_r = a->geometry_r};
+                              .geometry_r = a->geometry_r, .threads = a->threads};
     if ((rc = fit_pipeline_run(scan, &po, NULL, pl, err))) return rc;
     const fit_part_t *parts[] = {&pl->geometry_part, &pl->ftest_part, &pl->wiener_part,
                                  &pl->interp_part};
@@ -323,6 +341,8 @@ static json_t *result_json(const struct fit_args *a, const fit_pipeline_t *pl,
     if (pl->geometry_part.asked)
         json_object_set_new(json_object_get(root, "timing_ms"), "geometry",
                             fitjson_num(pl->geometry_part.ms));
+    /* the threads the sweep could use (--threads): the context of the times above */
+    json_object_set_new(json_object_get(root, "timing_ms"), "threads", json_integer(a->threads));
     return root;
 }
 
