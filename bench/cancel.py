@@ -55,13 +55,19 @@ class Server:
             if os.path.exists(port_file) and open(port_file).read().strip():
                 break
             time.sleep(0.025)
-        self.c = http.client.HTTPConnection("127.0.0.1", int(open(port_file).read()), timeout=60)
+        self.port = int(open(port_file).read())
 
     def call(self, method, path, data=None):
+        """One request on a connection of its own: the waits between calls can outlast ipsd's
+        idle timeout for a kept-alive connection (a fit at r = 16 by LM takes minutes)."""
         hdr = {"Content-Type": "application/json"} if data is not None else {}
-        self.c.request(method, path, json.dumps(data) if data is not None else None, hdr)
-        r = self.c.getresponse()
-        return r.status, json.loads(r.read() or b"null")
+        c = http.client.HTTPConnection("127.0.0.1", self.port, timeout=60)
+        try:
+            c.request(method, path, json.dumps(data) if data is not None else None, hdr)
+            r = c.getresponse()
+            return r.status, json.loads(r.read() or b"null")
+        finally:
+            c.close()
 
     def state(self, job):
         return self.call("GET", "/api/jobs/%d" % job)[1]["state"]
