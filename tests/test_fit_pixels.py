@@ -23,13 +23,14 @@ import subprocess
 import sys
 import tempfile
 
+from fitdoc import untimed
+
 IPS = sys.argv[1]
 SUB, AREA, STEP, PITCH = 7, 5, 0.6, 6.0
 INSIDE = (round(PITCH / STEP) - 1) ** 2
 COVERED = {(dc, dr) for dc in range(-2, 3) for dr in range(-2, 3)}
 SIM = ["--scene", "paperlike", "--seed", "3", "--subframe", str(SUB), "--area", str(AREA),
        "--step", str(STEP)]
-TIMES = {"timing_ms", "design_ms", "solve_ms"}  # wall times: the only numbers that may differ
 
 fails = 0
 
@@ -50,14 +51,6 @@ def run(*args, code=0):
 def load(path):
     with open(path) as f:
         return json.load(f)
-
-
-def untimed(d):
-    if isinstance(d, dict):
-        return {k: untimed(v) for k, v in d.items() if k not in TIMES}
-    if isinstance(d, list):
-        return [untimed(x) for x in d]
-    return d
 
 
 def edges(S, r=7):

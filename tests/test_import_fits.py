@@ -32,6 +32,7 @@ import subprocess
 import sys
 import tempfile
 
+from fitdoc import untimed
 from ipsd_http import Checks, Ipsd
 
 try:
@@ -126,12 +127,7 @@ def load(path):
 def fit_doc(ips, path):
     p = run([ips, "fit", path])
     doc = json.loads(p.stdout) if p.returncode == 0 else None
-    if doc:  # timings vary from run to run
-        doc.pop("timing_ms", None)
-        for f in doc.get("fits", []):
-            for k in ("timing_ms", "design_ms", "solve_ms"):
-                f.pop(k, None)
-    return p.returncode, doc
+    return p.returncode, untimed(doc)  # timings vary from run to run
 
 
 def bad_inputs(c, ips, t, scans, poi, good):
@@ -247,12 +243,7 @@ def api_fit_result(c, d, body, what):
     c.ok(job and job.get("fit_id"), what + ": the job is done with a fit")
     if not job or not job.get("fit_id"):
         return None
-    doc = d.get("/api/fits/%d" % job["fit_id"]).json().get("result") or {}
-    doc.pop("timing_ms", None)
-    for f in doc.get("fits", []):
-        for k in ("timing_ms", "design_ms", "solve_ms"):
-            f.pop(k, None)
-    return doc
+    return untimed(d.get("/api/fits/%d" % job["fit_id"]).json().get("result") or {})
 
 
 def api_checks(c, ipsd, t, good, poi, pixel_file, daemons):

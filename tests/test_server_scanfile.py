@@ -21,20 +21,12 @@ import subprocess
 import sys
 
 import ipsd_http
+from fitdoc import untimed
 from ipsd_http import Ipsd
 
 SUB, AREA, STEP, PITCH = 7, 5, 0.6, 6.0
-TIMES = {"timing_ms", "design_ms", "solve_ms"}
 OPTS = {"r_max": 7, "wiener": True, "ftest": "top,left,bottom", "ftest_r": 7}
 IPS_OPTS = ["--r-max", "7", "--wiener", "--ftest", "top,left,bottom", "--ftest-r", "7"]
-
-
-def untimed(d):
-    if isinstance(d, dict):
-        return {k: untimed(v) for k, v in d.items() if k not in TIMES}
-    if isinstance(d, list):
-        return [untimed(x) for x in d]
-    return d
 
 
 def test(c, t, argv, daemons):
