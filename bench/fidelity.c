@@ -46,6 +46,13 @@ static double ratio(const fid_result_t *f, int r)
     return r > 0 && f->r_best > 0 ? f->rms[r] / fmax(f->rms[f->r_best], 1e-3) : INFINITY;
 }
 
+/* The shrunk map's ratio (fit/shrink.h): the recommended map's where there is none. */
+static double ratio_shrunk(const fid_result_t *f)
+{
+    if (!isfinite(f->rms_shrunk)) return ratio(f, f->r_rec[0]);
+    return f->r_best > 0 ? f->rms_shrunk / fmax(f->rms[f->r_best], 1e-3) : INFINITY;
+}
+
 /* How one rule did over a set of cases. */
 struct score {
     int ok;
@@ -58,7 +65,7 @@ static void score_add(struct score *s, double ratio)
     s->worst = fmax(s->worst, ratio);
 }
 
-enum { RULE_AIC, RULE_BIC, RULE_CV, RULE_REC, N_FIXED };
+enum { RULE_AIC, RULE_BIC, RULE_CV, RULE_REC, RULE_SHRUNK, N_FIXED };
 enum { SIM_DOWN, SIM_UP, SIM_BOTH, N_SIM }; /* --simcheck's variants (simcheck below) */
 
 struct tally {
@@ -300,11 +307,12 @@ static void on_sweep(const fit_scan_t *scan, const fit_options_t *opts, const fi
 
 static void print_case(const fid_case_t *c, const char *raster, const fid_result_t *f, int r_max)
 {
-    printf("%-11s %-12s %5.2f %4lu %6zu | %3d %3d %3d %3d %3d | %7.4f %7.4f %7.4f %7.4f | %7.4f |",
+    printf("%-11s %-12s %5.2f %4lu %6zu | %3d %3d %3d %3d %3d | %7.4f %7.4f %7.4f %7.4f %7.4f "
+           "%5.2f | %7.4f |",
            c->scene, raster, c->flux_scale, c->seed, f->n_points, f->r_aic, f->r_bic, f->r_cv,
            f->r_rec[0], f->r_best, f->r_aic ? f->rms[f->r_aic] : NAN,
            f->r_bic ? f->rms[f->r_bic] : NAN, f->r_rec[0] ? f->rms[f->r_rec[0]] : NAN,
-           f->r_best ? f->rms[f->r_best] : NAN, f->rms_wiener);
+           f->r_best ? f->rms[f->r_best] : NAN, f->rms_shrunk, f->shrunk_factor, f->rms_wiener);
     for (int r = 1; r <= r_max; r++) printf(" %.3f", f->rms[r]);
     printf("\n");
     fflush(stdout);
@@ -317,6 +325,7 @@ static void tally_case(struct tally *k, const fid_result_t *f, int n_rules)
     score_add(&k->s[RULE_BIC], ratio(f, f->r_bic));
     score_add(&k->s[RULE_CV], ratio(f, f->r_cv));
     score_add(&k->s[RULE_REC], ratio(f, f->r_rec[0]));
+    score_add(&k->s[RULE_SHRUNK], ratio_shrunk(f));
     for (int i = 0; i < n_rules; i++) score_add(&k->s[N_FIXED + i], ratio(f, f->r_rec[i]));
     for (int r = 1; r <= f->r_max; r++)
         score_add(&k->fixed[r], isfinite(f->rms[r]) ? ratio(f, r) : INFINITY);
@@ -358,8 +367,8 @@ static void print_row(const char *name, const struct tally *k, int r_max)
 
 static void print_header(const char *what)
 {
-    printf("%-12s %5s | %14s | %14s | %14s | %14s | %19s | %8s %8s\n", what, "cases", "AIC",
-           "BIC", "LOO-CV", "recommended", "best fixed r", "best", "Wiener");
+    printf("%-12s %5s | %14s | %14s | %14s | %14s | %14s | %19s | %8s %8s\n", what, "cases",
+           "AIC", "BIC", "LOO-CV", "recommended", "shrunk", "best fixed r", "best", "Wiener");
 }
 
 static void print_summary(const struct tally *t, const struct tally *ts, const struct run *u)
@@ -399,9 +408,9 @@ int main(int argc, char **argv)
     struct tally sim_all = {0};
     double t0 = clock_mono_s();
     printf("map rms error against the simulator's truth (mean-1 maps, 240 x 240 samples)\n");
-    printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s %3s | %7s %7s %7s %7s | %7s | rms by r = "
-           "1..%d\n", "scene", "raster", "flux", "seed", "N", "AIC", "BIC", "CV", "rec", "bst",
-           "rmsAIC", "rmsBIC", "rmsRec", "rmsBest", "Wiener", u.r_max);
+    printf("%-11s %-12s %5s %4s %6s | %3s %3s %3s %3s %3s | %7s %7s %7s %7s %7s %5s | %7s | rms "
+           "by r = 1..%d\n", "scene", "raster", "flux", "seed", "N", "AIC", "BIC", "CV", "rec",
+           "bst", "rmsAIC", "rmsBIC", "rmsRec", "rmsBest", "rmsShr", "c", "Wiener", u.r_max);
     for (size_t ri = 0; ri < N_RASTERS; ri++)
         for (size_t si = 0; si < N_SCENES; si++)
             for (size_t fi = 0; fi < (u.quick ? 1 : N_FLUXES); fi++)

@@ -3,6 +3,8 @@
 
 #include <math.h>
 
+#include "fit/shrink.h"
+
 /* A map as rows of numbers (S +- S_err) next to a shaded picture (darker = less sensitive). */
 static void print_map(FILE *f, const double *S, const double *err, int r)
 {
@@ -61,6 +63,13 @@ void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fi
         print_map(f, b->S, b->S_err, best);
     } else {
         fprintf(f, "\nNo fit produced a map.\n");
+    }
+    const fit_shrunk_t *sh = sw->shrunk;
+    if (sh) {
+        fprintf(f, "\nShrunk map, r = %d pulled toward r = %d by the James-Stein factor %.3f "
+                   "(detail rms %.3g against noise %.3g), mean 1\n", sh->r, sh->toward_r,
+                sh->factor, sh->detail, sh->noise);
+        print_map(f, sh->S, sh->S_err, sh->r);
     }
     if (ftest) {
         fprintf(f, "\nF-test at r = %d: H0 (edge sub-pixels free, the rest one S0) p0 = %d, "

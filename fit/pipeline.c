@@ -17,6 +17,7 @@
 #include "fit/interp.h"
 #include "fit/gslerr.h"
 #include "fit/recommend.h"
+#include "fit/shrink.h"
 #include "parfor.h"
 
 fit_pipeline_opts_t fit_pipeline_opts_default(void)
@@ -272,6 +273,20 @@ static int part_step(struct run *rn, fit_step_kind_t kind, int r, fit_part_t *p,
     return 0;
 }
 
+/* The recommended map shrunk toward r - 1 (shrink.h) into sw->shrunk, when there is one. */
+static int keep_shrunk(fit_sweep_t *sw, double noise_scale, err_t *err)
+{
+    fit_shrunk_t s;
+    int rc = fit_shrink_recommended(sw, noise_scale, &s, err);
+    if (rc || s.r == 0) return rc;
+    if (!(sw->shrunk = malloc(sizeof *sw->shrunk))) {
+        fit_shrunk_free(&s);
+        return err_set(err, -ENOMEM, "out of memory");
+    }
+    *sw->shrunk = s;
+    return 0;
+}
+
 static int run_steps(struct run *rn, err_t *err)
 {
     const fit_pipeline_opts_t *o = rn->o;
@@ -306,7 +321,8 @@ static int run_steps(struct run *rn, err_t *err)
     sw->recommended_r = rec.r;
     sw->range_edge = rec.range_edge;
     memcpy(sw->recommended_reason, rec.reason, sizeof sw->recommended_reason);
-    int rc = 0;
+    int rc = keep_shrunk(sw, rec.noise_scale, err);
+    if (rc) return rc;
     if (o->ftest_edges)
         rc = part_step(rn, FIT_STEP_FTEST, o->ftest_r, &out->ftest_part, ftest_step, err);
     if (rc == 0 && o->wiener)

@@ -5,6 +5,7 @@
 
 #include "fit/model.h"
 #include "fit/pipeline.h"
+#include "fit/shrink.h"
 
 int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_options_t *opts,
                   fit_sweep_t *out, err_t *err)
@@ -23,7 +24,11 @@ int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_option
 
 void fit_sweep_free(fit_sweep_t *sw)
 {
-    if (!sw || !sw->fits) return;
+    if (!sw) return;
+    fit_shrunk_free(sw->shrunk);
+    free(sw->shrunk);
+    sw->shrunk = NULL;
+    if (!sw->fits) return;
     for (int r = sw->r_min; r <= sw->r_max; r++) fit_result_free(&sw->fits[r - sw->r_min]);
     free(sw->fits);
     sw->fits = NULL;

@@ -8,6 +8,7 @@
 
 #include "base/clock.h"
 #include "fit/model.h"
+#include "fit/shrink.h"
 #include "fit/wiener.h"
 #include "instrument/scan.h"
 #include "instrument/scanfile.h"
@@ -99,7 +100,7 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     out->r_max = r_max;
     for (int r = 0; r <= FID_R_MAX; r++)
         out->rms[r] = out->chi2_red[r] = out->cv_chi2[r] = out->serr_rms[r] = NAN;
-    out->rms_wiener = out->rms_wiener_whole = NAN;
+    out->rms_wiener = out->rms_wiener_whole = out->rms_shrunk = out->shrunk_factor = NAN;
     for (int r = 0; r <= FID_R_MAX; r++) out->serr_edge[r] = out->serr_inner[r] = NAN;
     sim_config_t sc = sim_config_default();
     sc.scene = c->scene;
@@ -149,6 +150,10 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
         if (out->rms[r] < best) best = out->rms[r], out->r_best = r;
     }
     if (c->on_sweep) c->on_sweep(&fitted.scan, &o, &sw, c->on_sweep_ctx);
+    if (sw.shrunk) {
+        out->rms_shrunk = fid_map_rms(sw.shrunk->S, sw.shrunk->r, T, m, SAMPLES);
+        out->shrunk_factor = sw.shrunk->factor;
+    }
     out->r_aic = sw.best_aic;
     out->r_bic = sw.best_bic;
     int n_rules = c->rules && c->n_rules > 0 ? c->n_rules : 1;

@@ -162,6 +162,16 @@ json_t *fitjson_geometry(const fit_geometry_t *g)
     return o;
 }
 
+json_t *fitjson_shrunk(const fit_shrunk_t *s)
+{
+    if (!s || s->r < 1) return json_null();
+    size_t m = (size_t)s->r * s->r;
+    return json_pack("{s:i, s:i, s:o, s:o, s:o, s:o, s:o}", "r", s->r, "toward_r", s->toward_r,
+                     "factor", fitjson_num(s->factor), "detail_rms", fitjson_num(s->detail),
+                     "noise_rms", fitjson_num(s->noise), "S", fitjson_array(s->S, m), "S_err",
+                     fitjson_array(s->S_err, m));
+}
+
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,
                       double full_scale_dn)
 {
@@ -169,7 +179,7 @@ json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_
     json_t *fits = json_array();
     for (int r = sw->r_min; fits && r <= sw->r_max; r++)
         json_array_append_new(fits, fitjson_fit(&sw->fits[r - sw->r_min], opts->method));
-    return json_pack("{s:I, s:I, s:s, s:s, s:b, s:o, s:o, s:o, s:{s:o, s:o}, s:o, s:s, s:b}",
+    json_t *root = json_pack("{s:I, s:I, s:s, s:s, s:b, s:o, s:o, s:o, s:{s:o, s:o}, s:o, s:s, s:b}",
                      "N", (json_int_t)sw->fits[0].n_used, "n_points", (json_int_t)n_points,
                      "sigma", fit_noise_name(opts->noise), "method", methods[opts->method],
                      "nonneg", opts->nonneg, "design_tol", fitjson_num(opts->design_tol),
@@ -177,6 +187,8 @@ json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_
                      fitjson_int_or_null(sw->best_aic), "bic", fitjson_int_or_null(sw->best_bic),
                      "recommended_r", fitjson_int_or_null(sw->recommended_r),
                      "recommended_reason", sw->recommended_reason, "range_edge", sw->range_edge);
+    if (root) json_object_set_new(root, "shrunk_map", fitjson_shrunk(sw->shrunk));
+    return root;
 }
 
 int fitjson_print(const json_t *root, FILE *f)

@@ -14,6 +14,7 @@
 #include "fit/geometry.h"
 #include "fit/model.h"
 #include "fit/region.h"
+#include "fit/shrink.h"
 #include "fit/wiener.h"
 
 /* A JSON real, or null when v is not finite. */
@@ -53,8 +54,12 @@ json_t *fitjson_wiener(const fit_wiener_t *w);
  * correlation {R_dx, R_dy, dx_dy}, iterations, evaluations. */
 json_t *fitjson_geometry(const fit_geometry_t *g);
 
+/* The shrunk map (fit/shrink.h): r, toward_r, factor, detail_rms, noise_rms, S, S_err; null
+ * without one. */
+json_t *fitjson_shrunk(const fit_shrunk_t *s);
+
 /* The root document of a sweep: N, n_points, sigma, method, nonneg, design_tol, full_scale_dn,
- * fits[], best_r {aic, bic}, recommended_r, recommended_reason, range_edge. The caller adds
+ * fits[], best_r {aic, bic}, recommended_r, recommended_reason, range_edge, shrunk_map. The caller adds
  * "ftest", "wiener", "interp" and "timing_ms". */
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,
                       double full_scale_dn);

@@ -30,6 +30,14 @@ if(TARGET ips AND Python3_Interpreter_FOUND)
     set_tests_properties(test_fit_pixels PROPERTIES TIMEOUT 1200)
 endif()
 
+# the fit document's shrunk_map against the formula by hand and the simulator's truth (~1 s)
+if(TARGET ips AND Python3_Interpreter_FOUND)
+    add_test(NAME test_fit_shrunk
+             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_fit_shrunk.py
+                     $<TARGET_FILE:ips>
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+endif()
+
 # `ips ptc --sim`: gain and read noise against the simulator's truth, bad input (~3 s optimised)
 if(TARGET ips)
     add_test(NAME test_cli_ptc

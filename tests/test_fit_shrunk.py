@@ -1,0 +1,118 @@
+#!/usr/bin/env python3
+"""test_fit_shrunk.py IPS: the `shrunk_map` of the `ips fit` document (fit/shrink.h;
+docs/contracts.md), end to end through the ips binary, recomputed here from the document's own
+fits with an independent implementation of the formula (area overlaps by interval arithmetic):
+S = P S_{r-1} + c (S_r - P S_{r-1}), c = max(0, 1 - (d - 2) sigma^2 / |D|^2), d = r^2, sigma^2
+the mean S_err^2 of S_r times the data's scatter^2 (the smallest reduced chi2 among the maps with
+at least a quarter of the points as degrees of freedom, recommend.h); and against the simulator's
+truth (`ips simulate --truth`): on these scans the shrunk map is closer to it than the
+recommended map. A flat pixel (recommended r = 1) has none; `--table` prints it."""
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+IPS = sys.argv[1]
+# graded pixels (10 x 10 cells, so the truth file's r = 10 maps are the scenes themselves) at the
+# bench's light and a tenth of it
+CASES = [(scene, seed, peak) for scene in ("softedge:10", "gradient:10", "dip:10")
+         for seed, peak in ((5, 2150), (3, 21500))]
+fails = 0
+
+
+def check(cond, msg):
+    global fails
+    print(("ok   " if cond else "FAIL ") + msg)
+    fails += 0 if cond else 1
+
+
+def overlap_1d(r, q):
+    """w[a][b]: the fraction of fine cell a (of r) that coarse cell b (of q) covers."""
+    return [[max(0.0, min((a + 1) / r, (b + 1) / q) - max(a / r, b / q)) * r for b in range(q)]
+            for a in range(r)]
+
+
+def project(S, q, r):
+    w = overlap_1d(r, q)
+    return [sum(w[j][l] * w[i][k] * S[l * q + k] for l in range(q) for k in range(q))
+            for j in range(r) for i in range(r)]
+
+
+def scatter2(doc):
+    v = [f["chi2_red"] for f in doc["fits"]
+         if f["S"] is not None and f["n_used"] - f["params"] >= 0.25 * f["n_used"]]
+    return min(v) if v else 1.0
+
+
+def rms_vs_truth(S, r, T, m, g=240):
+    """rms over the pixel of two mean-1 piecewise-constant maps sampled on a g x g grid."""
+    ms, mt = sum(S) / len(S), sum(T) / len(T)
+    acc = 0.0
+    for j in range(g):
+        for i in range(g):
+            u, v = (i + 0.5) / g, (j + 0.5) / g
+            d = S[int(v * r) * r + int(u * r)] / ms - T[int(v * m) * m + int(u * m)] / mt
+            acc += d * d
+    return math.sqrt(acc / (g * g))
+
+
+def fit(path, *opts):
+    out = subprocess.run([IPS, "fit", path, *opts], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    err_rec = err_sh = 0.0
+    for scene, seed, peak in CASES:
+        scan, truth = os.path.join(tmp, "scan.json"), os.path.join(tmp, "truth.json")
+        subprocess.run([IPS, "simulate", "--scene", scene, "--seed", str(seed), "--grid", "9",
+                        "--step", "0.6", "--peak-e", str(peak), "--truth", truth, "-o", scan],
+                       check=True, capture_output=True)
+        doc = fit(scan, "--r-max", "10")
+        sh, r = doc.get("shrunk_map"), doc["recommended_r"]
+        name = "%s seed %d, %d e-" % (scene, seed, peak)
+        check(sh is not None and sh["r"] == r and sh["toward_r"] == r - 1,
+              "%s: shrunk_map at the recommended r = %d toward r - 1" % (name, r))
+        if sh is None:
+            continue
+        fine = [f for f in doc["fits"] if f["r"] == r][0]
+        coarse = [f for f in doc["fits"] if f["r"] == r - 1][0]
+        P = project(coarse["S"], r - 1, r)
+        D = [a - b for a, b in zip(fine["S"], P)]
+        d = r * r
+        sigma2 = sum(e * e for e in fine["S_err"]) / d * scatter2(doc)
+        dd = sum(x * x for x in D)
+        c = max(0.0, 1 - (d - 2) * sigma2 / dd) if dd > 0 else 0.0
+        check(abs(sh["factor"] - c) <= 1e-9, "%s: factor %.6f = %.6f by hand" % (name, sh["factor"], c))
+        want = [p + c * x for p, x in zip(P, D)]
+        check(max(abs(a - b) for a, b in zip(sh["S"], want)) <= 1e-9, "%s: S by hand" % name)
+        check(abs(sum(sh["S"]) / d - 1) <= 1e-9, "%s: mean 1" % name)
+        Pe = project(coarse["S_err"], r - 1, r)
+        want_e = [c * a + (1 - c) * b for a, b in zip(fine["S_err"], Pe)]
+        check(max(abs(a - b) for a, b in zip(sh["S_err"], want_e)) <= 1e-9,
+              "%s: S_err bound by hand" % name)
+        with open(truth) as f:
+            t = [x for x in json.load(f)["maps"] if x["r"] == 10][0]  # the scene's own cells
+        e_rec, e_sh = rms_vs_truth(fine["S"], r, t["S"], 10), rms_vs_truth(sh["S"], r, t["S"], 10)
+        print("     rms against the truth: recommended %.4f, shrunk %.4f (factor %.3f)"
+              % (e_rec, e_sh, c))
+        err_rec += e_rec * e_rec
+        err_sh += e_sh * e_sh
+    check(err_sh < err_rec, "the shrunk maps are closer to the truth than the recommended ones "
+          "(sum of squares %.3g < %.3g)" % (err_sh, err_rec))
+    # a flat pixel: r = 1 is recommended and there is no coarser map
+    scan = os.path.join(tmp, "flat.json")
+    subprocess.run([IPS, "simulate", "--scene", "uniform", "--grid", "9", "--step", "0.6",
+                    "-o", scan], check=True, capture_output=True)
+    doc = fit(scan, "--r-max", "8")
+    check(doc["recommended_r"] == 1 and doc["shrunk_map"] is None,
+          "flat pixel: recommended r = 1, shrunk_map null")
+    scan = os.path.join(tmp, "scan.json")
+    table = subprocess.run([IPS, "fit", scan, "--r-max", "10", "--table"], capture_output=True,
+                           text=True, check=True).stdout
+    check("Shrunk map, r = " in table, "--table prints the shrunk map")
+
+print("%d failed" % fails)
+sys.exit(1 if fails else 0)
