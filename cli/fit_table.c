@@ -66,9 +66,9 @@ void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fi
     }
     const fit_shrunk_t *sh = sw->shrunk;
     if (sh) {
-        fprintf(f, "\nShrunk map, r = %d pulled toward r = %d by the James-Stein factor %.3f "
-                   "(detail rms %.3g against noise %.3g), mean 1\n", sh->r, sh->toward_r,
-                sh->factor, sh->detail, sh->noise);
+        fprintf(f, "\nShrunk map, r = %d: the detail over r = %d kept where it stands above the "
+                   "noise (%.0f %% kept; detail rms %.3g, its noise %.3g), mean 1\n", sh->r,
+                sh->toward_r, 100 * sh->factor, sh->detail, sh->noise);
         print_map(f, sh->S, sh->S_err, sh->r);
     }
     if (ftest) {

@@ -13,6 +13,7 @@
 
 #include "base/clock.h"
 #include "fit/gslerr.h"
+#include "gemm.h"
 #include "lm.h"
 #include "wls.h"
 
@@ -321,6 +322,100 @@ out:
     if (rc) fit_result_free(out);
     points_free(&p);
     free(A);
+    return rc;
+}
+
+/* One fit's pieces for fit_map_joint_cov: its design on the selected points, T and (A^T W A)^-1. */
+struct joint_part {
+    double *A, *T, *cov;
+};
+
+static int joint_part(const fit_scan_t *scan, const struct points *p, int r, const fit_options_t *o,
+                      struct joint_part *j, err_t *err)
+{
+    size_t m = (size_t)r * r;
+    j->A = malloc(sizeof(double) * p->n * m);
+    j->T = malloc(sizeof(double) * m);
+    j->cov = malloc(sizeof(double) * m * m);
+    if (!j->A || !j->T || !j->cov) return err_set(err, -ENOMEM, "out of memory");
+    fit_design_opts_t d = fit_design_opts_for_tol(o->design_tol > 0 ? o->design_tol : 1e-12);
+    d.cache = o->design_cache;
+    int rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, r, p->x, p->y, p->n, &d, j->A,
+                              NULL, err);
+    if (rc) return rc;
+    wls_result_t w;
+    if ((rc = wls_solve(j->A, p->w, p->d, p->n, m, 0, j->T, j->cov, NULL, &w)))
+        return err_set(err, rc, "the linear algebra failed for r = %d", r);
+    return 0;
+}
+
+/* J = (I - S 1^T / m) / mean(T): the Jacobian of S = T / mean(T) (normalise above) */
+static double *norm_jacobian(const double *T, size_t m)
+{
+    double *J = malloc(sizeof(double) * m * m), mean = 0;
+    if (!J) return NULL;
+    for (size_t i = 0; i < m; i++) mean += T[i];
+    mean /= (double)m;
+    for (size_t i = 0; i < m; i++)
+        for (size_t k = 0; k < m; k++)
+            J[i * m + k] = ((i == k) - T[i] / mean / (double)m) / mean;
+    return J;
+}
+
+int fit_map_joint_cov(const fit_scan_t *scan, int r1, int r2, const fit_options_t *opts,
+                      double *C11, double *C22, double *C12, err_t *err)
+{
+    fit_gsl_policy();
+    fit_options_t o = opts ? *opts : fit_options_default();
+    if (r1 < 1 || r1 > 32 || r2 < 1 || r2 > 32)
+        return err_set(err, -EINVAL, "r must be between 1 and 32 (got %d, %d)", r1, r2);
+    int rc = fit_scan_check(scan, err);
+    if (rc) return rc;
+    size_t m1 = (size_t)r1 * r1, m2 = (size_t)r2 * r2;
+    struct points p;
+    fit_result_t dummy;
+    memset(&dummy, 0, sizeof dummy);
+    struct joint_part a = {0}, b = {0};
+    double *G = NULL, *J1 = NULL, *J2 = NULL, *X = NULL, *Y = NULL;
+    if ((rc = points_select(scan, o.noise, &p, &dummy))) {
+        rc = err_set(err, rc, "out of memory");
+        goto out;
+    }
+    if (p.n < m1 + 1 || p.n < m2 + 1) {
+        rc = err_set(err, -EINVAL, "too few points (%zu) for r = %d and %d", p.n, r1, r2);
+        goto out;
+    }
+    if ((rc = joint_part(scan, &p, r1, &o, &a, err)) || (rc = joint_part(scan, &p, r2, &o, &b, err)))
+        goto out;
+    /* Cov(T1, T2) = C1 (A1^T W A2) C2, since T = C A^T W d and Cov(d) = W^-1 */
+    G = malloc(sizeof(double) * m1 * m2);
+    J1 = norm_jacobian(a.T, m1);
+    J2 = norm_jacobian(b.T, m2);
+    size_t big = (m1 > m2 ? m1 : m2);
+    X = malloc(sizeof(double) * big * big);
+    Y = malloc(sizeof(double) * big * big);
+    if (!G || !J1 || !J2 || !X || !Y) {
+        rc = err_set(err, -ENOMEM, "out of memory");
+        goto out;
+    }
+    for (size_t i = 0; i < m1; i++)
+        for (size_t k = 0; k < m2; k++) {
+            double s = 0;
+            for (size_t q = 0; q < p.n; q++) s += a.A[q * m1 + i] * p.w[q] * b.A[q * m2 + k];
+            G[i * m2 + k] = s;
+        }
+    fit_gemm(a.cov, 0, G, 0, m1, m1, m2, 1, 0, X);  /* C1 G */
+    fit_gemm(X, 0, b.cov, 0, m1, m2, m2, 1, 0, Y);  /* C1 G C2 = Cov(T1, T2) */
+    fit_gemm(J1, 0, Y, 0, m1, m1, m2, 1, 0, X);     /* J1 Cov(T1, T2) */
+    fit_gemm(X, 0, J2, 1, m1, m2, m2, 1, 0, C12);   /* ... J2^T */
+    fit_gemm(J1, 0, a.cov, 0, m1, m1, m1, 1, 0, X);
+    fit_gemm(X, 0, J1, 1, m1, m1, m1, 1, 0, C11);
+    fit_gemm(J2, 0, b.cov, 0, m2, m2, m2, 1, 0, X);
+    fit_gemm(X, 0, J2, 1, m2, m2, m2, 1, 0, C22);
+out:
+    free(a.A), free(a.T), free(a.cov), free(b.A), free(b.T), free(b.cov);
+    free(G), free(J1), free(J2), free(X), free(Y);
+    points_free(&p);
     return rc;
 }
 

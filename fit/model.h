@@ -99,6 +99,14 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
 
 void fit_result_free(fit_result_t *res);
 
+/* The joint covariance of the mean-1 maps S of the r1 x r1 and r2 x r2 linear fits of scan's
+ * points (fit_map's points and weights; the unconstrained linear solution, whatever opts->method
+ * and nonneg say): C11 (r1^2 x r1^2), C22 (r2^2 x r2^2) and C12 = Cov(S1, S2) (r1^2 x r2^2),
+ * row-major, caller-allocated, in the noise model's units (as S_err^2). Both fits are solved
+ * again. 0, -EINVAL (r outside 1..32, fewer points than either needs), -ENOMEM, -EDOM. */
+int fit_map_joint_cov(const fit_scan_t *scan, int r1, int r2, const fit_options_t *opts,
+                      double *C11, double *C22, double *C12, err_t *err);
+
 typedef struct fit_sweep {
     int r_min, r_max;
     fit_result_t *fits;        /* r_max - r_min + 1 results */

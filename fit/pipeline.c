@@ -274,10 +274,10 @@ static int part_step(struct run *rn, fit_step_kind_t kind, int r, fit_part_t *p,
 }
 
 /* The recommended map shrunk toward r - 1 (shrink.h) into sw->shrunk, when there is one. */
-static int keep_shrunk(fit_sweep_t *sw, double noise_scale, err_t *err)
+static int keep_shrunk(struct run *rn, fit_sweep_t *sw, double noise_scale, err_t *err)
 {
     fit_shrunk_t s;
-    int rc = fit_shrink_recommended(sw, noise_scale, &s, err);
+    int rc = fit_shrink_recommended(rn->scan, &rn->o->fit, sw, noise_scale, &s, err);
     if (rc || s.r == 0) return rc;
     if (!(sw->shrunk = malloc(sizeof *sw->shrunk))) {
         fit_shrunk_free(&s);
@@ -321,7 +321,7 @@ static int run_steps(struct run *rn, err_t *err)
     sw->recommended_r = rec.r;
     sw->range_edge = rec.range_edge;
     memcpy(sw->recommended_reason, rec.reason, sizeof sw->recommended_reason);
-    int rc = keep_shrunk(sw, rec.noise_scale, err);
+    int rc = keep_shrunk(rn, sw, rec.noise_scale, err);
     if (rc) return rc;
     if (o->ftest_edges)
         rc = part_step(rn, FIT_STEP_FTEST, o->ftest_r, &out->ftest_part, ftest_step, err);

@@ -59,7 +59,7 @@ typedef struct fid_result {
     double serr_inner[FID_R_MAX + 1]; /* and over the sub-pixels inside it (NaN for r <= 2) */
     double rms_shrunk;         /* the shrunk map's error (fit/shrink.h; NaN: none, then the
                                   recommended map stands as it is) */
-    double shrunk_factor;      /* its James-Stein factor (NaN: none) */
+    double shrunk_factor;      /* the fraction of its detail kept (NaN: none) */
     size_t n_raster;           /* the points of the whole raster */
     double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */
 } fid_result_t;

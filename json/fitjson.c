@@ -166,9 +166,10 @@ json_t *fitjson_shrunk(const fit_shrunk_t *s)
 {
     if (!s || s->r < 1) return json_null();
     size_t m = (size_t)s->r * s->r;
-    return json_pack("{s:i, s:i, s:o, s:o, s:o, s:o, s:o}", "r", s->r, "toward_r", s->toward_r,
-                     "factor", fitjson_num(s->factor), "detail_rms", fitjson_num(s->detail),
-                     "noise_rms", fitjson_num(s->noise), "S", fitjson_array(s->S, m), "S_err",
+    return json_pack("{s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:o}", "r", s->r, "toward_r",
+                     s->toward_r, "factor", fitjson_num(s->factor), "detail_rms",
+                     fitjson_num(s->detail), "noise_rms", fitjson_num(s->noise), "tau",
+                     fitjson_num(s->tau), "S", fitjson_array(s->S, m), "S_err",
                      fitjson_array(s->S_err, m));
 }
 

@@ -54,7 +54,7 @@ json_t *fitjson_wiener(const fit_wiener_t *w);
  * correlation {R_dx, R_dy, dx_dy}, iterations, evaluations. */
 json_t *fitjson_geometry(const fit_geometry_t *g);
 
-/* The shrunk map (fit/shrink.h): r, toward_r, factor, detail_rms, noise_rms, S, S_err; null
+/* The shrunk map (fit/shrink.h): r, toward_r, factor, detail_rms, noise_rms, tau, S, S_err; null
  * without one. */
 json_t *fitjson_shrunk(const fit_shrunk_t *s);
 

@@ -1,0 +1,22 @@
+/* gemm.c: row-major products through the Fortran BLAS (see gemm.h). */
+#include "gemm.h"
+
+#include "fit/gslerr.h"
+
+/* BLAS level 3 (reference interface; OpenBLAS provides it) */
+extern void dgemm_(const char *ta, const char *tb, const int *m, const int *n, const int *k,
+                   const double *alpha, const double *a, const int *lda, const double *b,
+                   const int *ldb, const double *beta, double *c, const int *ldc);
+
+void fit_gemm(const double *X, int tx, const double *Y, int ty, size_t a, size_t b, size_t c,
+              double alpha, double beta, double *out)
+{
+    if (a == 0 || c == 0) return;
+    fit_gsl_policy(); /* one BLAS thread (gslerr.h) */
+    /* row-major out = op(X) op(Y) is column-major out^T = op(Y)^T op(X)^T: the column-major
+     * views of Y and X are their transposes, so pass Y first with the same flags */
+    int m = (int)c, n = (int)a, k = (int)b;
+    int ldy = ty ? (int)b : (int)c, ldx = tx ? (int)a : (int)b, ldo = (int)c;
+    dgemm_(ty ? "T" : "N", tx ? "T" : "N", &m, &n, &k, &alpha, Y, &ldy, X, &ldx, &beta, out,
+           &ldo);
+}

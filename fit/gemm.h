@@ -1,0 +1,16 @@
+/* gemm.h (internal to fit/): a row-major matrix product through the Fortran BLAS dgemm that the
+ * fit library links (OpenBLAS, with LAPACK). Not gsl_blas_dgemm: that calls cblas_dgemm, which
+ * resolves to GSL's own CBLAS in one binary and to OpenBLAS's in another (ipsd links libgsl
+ * shared, `ips` statically), and the two round differently; the fit documents of `ips` and ipsd
+ * are equal number for number (docs/contracts.md). */
+#ifndef IPSD_FIT_GEMM_H
+#define IPSD_FIT_GEMM_H
+
+#include <stddef.h>
+
+/* out (a x c) = alpha op(X) op(Y) + beta out, row-major; op(X) = X (a x b) or, when tx, X^T
+ * (X stored b x a); op(Y) = Y (b x c) or, when ty, Y^T (Y stored c x b). */
+void fit_gemm(const double *X, int tx, const double *Y, int ty, size_t a, size_t b, size_t c,
+              double alpha, double beta, double *out);
+
+#endif
