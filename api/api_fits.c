@@ -13,7 +13,7 @@
 
 #define FIT_OPTION_KEYS                                                                            \
     "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg", "region",       \
-        "margin_um", "fit_geometry", "geometry_r", "gain_e_per_dn", "read_noise_e"
+        "margin_um", "fit_geometry", "geometry_r", "gain_e_per_dn", "read_noise_e", "map"
 
 #define FIT_PROMOTE_KEYS "promote", "by", "reason"
 
@@ -62,7 +62,7 @@ static int read_region(api_req_t *q, json_t *o, srv_fit_params_t *p)
 static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
 {
     long long r_min = p->r_min, r_max = p->r_max, ftest_r = p->ftest_r, geometry_r = 0;
-    const char *sigma = NULL, *method = NULL;
+    const char *sigma = NULL, *method = NULL, *map = NULL;
     json_t *ftest = json_object_get(o, "ftest");
     if (api_get_int(q, o, "r_min", "r_min", 0, 1, 32, &r_min) ||
         api_get_int(q, o, "r_max", "r_max", 0, 1, 32, &r_max) ||
@@ -75,8 +75,15 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         api_get_int(q, o, "geometry_r", "geometry_r", 0, 1, 32, &geometry_r) ||
         /* sigma's constants (eq. 5), overriding the sensor's photon transfer and the scan's */
         api_get_num(q, o, "gain_e_per_dn", "gain_e_per_dn", 0, 0, 1e6, 1, &p->gain_e_per_dn) ||
-        api_get_num(q, o, "read_noise_e", "read_noise_e", 0, 0, 1e6, 0, &p->read_noise_e))
+        api_get_num(q, o, "read_noise_e", "read_noise_e", 0, 0, 1e6, 0, &p->read_noise_e) ||
+        api_get_str(q, o, "map", "map", 0, 16, &map))
         return -1;
+    if (map && strcmp(map, "recommended") != 0 && strcmp(map, "shrunk") != 0) {
+        api_error(q, 422, "out_of_range", "map", "map must be recommended or shrunk (got '%s')",
+                  map);
+        return -1;
+    }
+    p->map_shrunk = map && strcmp(map, "shrunk") == 0;
     if (geometry_r && !p->fit_geometry) {
         api_error(q, 422, "invalid", "geometry_r", "geometry_r goes with \"fit_geometry\": true");
         return -1;

@@ -92,18 +92,20 @@ static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
 }
 
 /* Copies the recommended map of the sweep (fit/recommend.h) into out (nothing when it has
- * none): the map a calibration stores. */
-static int keep_map(const fit_sweep_t *sw, srv_fit_out_t *out, err_t *err)
+ * none), or with shrunk its shrunk map (fit/shrink.h) when it has one: the map a calibration
+ * stores. I0, chi2_red and the status are the recommended fit's either way. */
+static int keep_map(const fit_sweep_t *sw, int shrunk, srv_fit_out_t *out, err_t *err)
 {
     if (!sw->recommended_r) return 0;
     const fit_result_t *f = &sw->fits[sw->recommended_r - sw->r_min];
     if (!f->S || !f->S_err) return 0;
+    const fit_shrunk_t *sh = shrunk && sw->shrunk ? sw->shrunk : NULL;
     size_t n = (size_t)f->r * f->r;
     out->S = malloc(n * sizeof(double));
     out->S_err = malloc(n * sizeof(double));
     if (!out->S || !out->S_err) return err_set(err, -ENOMEM, "out of memory");
-    memcpy(out->S, f->S, n * sizeof(double));
-    memcpy(out->S_err, f->S_err, n * sizeof(double));
+    memcpy(out->S, sh ? sh->S : f->S, n * sizeof(double));
+    memcpy(out->S_err, sh ? sh->S_err : f->S_err, n * sizeof(double));
     out->r = f->r;
     out->I0 = f->I0;
     out->chi2_red = f->chi2_red;
@@ -141,7 +143,7 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
         out->f_value = pl.ftest.F;
         out->p_value = pl.ftest.p_value;
     }
-    ret = keep_map(&pl.sweep, out, err);
+    ret = keep_map(&pl.sweep, p->map_shrunk, out, err);
     if (ret == 0 && !(out->result = document(scan, p, &pl, t0)))
         ret = err_set(err, -ENOMEM, "out of memory encoding the fit");
     fit_pipeline_free(&pl);

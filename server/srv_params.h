@@ -56,6 +56,9 @@ typedef struct srv_fit_params {
     /* the request's gain and read noise for sigma (eq. 5), overriding the sensor's measured
      * constants (srv_ptc.h) and the scan's; NaN: not given */
     double gain_e_per_dn, read_noise_e;
+    /* the map the fit offers as a calibration: 0 the recommended r's own (default), 1 the shrunk
+     * map (fit/shrink.h; "map": "shrunk"), the recommended one when there is none */
+    int map_shrunk;
 } srv_fit_params_t;
 
 /* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload, not

@@ -11,6 +11,8 @@
   older fit's again; it refuses an unknown fit (404), a fit without a map (409 no_data), a fit
   that already is the calibration (409 conflict) and bad bodies (400 / 422 naming the field),
   changing nothing stored;
+- "map": "shrunk" stores the result's shrunk map as the calibration (bad values 422 / 400
+  naming map, changing nothing);
 - an upload with a target pixel still becomes the calibration by default, unless
   "promote": false."""
 import struct
@@ -170,6 +172,34 @@ def test(c, t, argv, daemons):
          "history: a chain of four, each naming the one it superseded")
     c.eq(d.get("/api/fits/%d" % fit2).json()["calibration"]["current"], False,
          "the re-fit is no longer the calibration")
+
+    # ---- "map": "shrunk": the result's shrunk map (fit/shrink.h) becomes the calibration ----
+    before = db.all("SELECT id, superseded_by FROM calibrations ORDER BY id")
+    c.error(d.post("/api/scans/%d/fits" % scan, {"map": "smooth"}), 422, "map",
+            "map neither recommended nor shrunk")
+    c.error(d.post("/api/scans/%d/fits" % scan, {"map": 3}), 400, "map", "map not a string")
+    c.eq(db.all("SELECT id, superseded_by FROM calibrations ORDER BY id"), before,
+         "the refused map requests changed no calibration")
+    r = d.post("/api/scans/%d/fits" % scan, {"r_max": 6, "map": "shrunk", "promote": True,
+                                              "reason": "the shrunk map"})
+    c.status(r, 202, "re-fit storing the shrunk map")
+    j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    c.ok(j, "shrunk re-fit done")
+    c.eq(j["params"].get("map") if j else None, "shrunk", "the job's params record map shrunk")
+    f5 = d.get("/api/fits/%d" % (j["fit_id"] if j else 0)).json()
+    sh = f5.get("result", {}).get("shrunk_map")
+    c.ok(sh is not None and sh["r"] == f5["result"]["recommended_r"],
+         "the result has a shrunk map at the recommended r")
+    cal5 = d.get(pix + "/calibration").json()
+    c.eq((cal5.get("fit_id"), cal5.get("r"), cal5.get("S")),
+         (f5.get("id"), sh and sh["r"], sh and sh["S"]),
+         "the calibration is the result's shrunk map")
+    c.ok(sh is not None and cal5.get("S") != map_of(f5)[1],
+         "and not the recommended r's own map")
+    rr, blob = db.one("SELECT r, s FROM calibrations WHERE superseded_by IS NULL AND fit_id = ?",
+                      f5.get("id"))
+    c.eq(list(struct.unpack("<%dd" % (rr * rr), blob)), sh and sh["S"],
+         "database: the current map is the shrunk one")
 
     # ---- uploads with a target pixel: promoted by default, unless promote is false ----
     up = {"scan": pixel_file, "sensor_id": sensor, "pixel": {"col": 10, "row": 11}, "r_max": 2}
