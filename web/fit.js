@@ -164,10 +164,15 @@ export function renderFit(root, id, ctx) {
         // the map shown first is the recommended one, the map the calibration stores (fits stored
         // before the recommendation existed stored the best-BIC map)
         const rec = res.recommended_r !== undefined ? res.recommended_r : best.bic;
+        // the shrunk map (fit/shrink.h): the recommended map's detail over r - 1 kept where it
+        // stands above its noise, offered as one more choice of the selector
+        const sh = res.shrunk_map;
         const rSel = h('select', { id: 'r-select', 'data-testid': 'r-select' },
             fits.map((f) => h('option', { value: f.r, selected: f.r === rec },
                 `r = ${f.r}${f.r === rec ? ' (recommended)' : ''}` +
-                `${f.r === best.bic ? ' (best BIC)' : ''}${f.r === best.aic ? ' (best AIC)' : ''}`)));
+                `${f.r === best.bic ? ' (best BIC)' : ''}${f.r === best.aic ? ' (best AIC)' : ''}`)),
+            sh ? h('option', { value: 'shrunk' }, `r = ${sh.r}, shrunk toward r = ${sh.toward_r}`)
+                : null);
         const facts = h('dl', { class: 'facts' });
         const note = h('p', { class: 'muted small', 'data-testid': 'selection-note' });
         const maps = h('div', { class: 'maps' });
@@ -175,7 +180,11 @@ export function renderFit(root, id, ctx) {
         const points = fitPoints(fit);
         points.catch(() => {});
         const show = () => {
-            const f = fits.find((x) => x.r === Number(rSel.value));
+            const shrunk = rSel.value === 'shrunk' && sh;
+            const fr = fits.find((x) => x.r === (shrunk ? sh.r : Number(rSel.value)));
+            // the shrunk map shown in its fit's place (the fit's I0, status and goodness are the
+            // recommended fit's; its residuals and interpolation are of the fit's own map)
+            const f = shrunk && fr ? { ...fr, S: sh.S, S_err: sh.S_err } : fr;
             if (!f) {
                 fill(maps, h('p', { class: 'muted' }, 'This fit has no maps.'));
                 return;
@@ -193,7 +202,9 @@ export function renderFit(root, id, ctx) {
                 h('dd', { 'data-testid': 'best-r-aic' }, best.aic ?? '–'),
                 h('dt', {}, 'Best r (BIC)'),
                 h('dd', { 'data-testid': 'best-r-bic' }, best.bic ?? '–'),
-                h('dt', {}, 'Map shown'), h('dd', { 'data-testid': 'shown-r' }, `r = ${f.r}`),
+                h('dt', {}, 'Map shown'), h('dd', { 'data-testid': 'shown-r' }, shrunk
+                    ? `r = ${f.r}, shrunk toward r = ${sh.toward_r} ` +
+                        `(${fmt(100 * sh.factor, 2)} % of the detail kept)` : `r = ${f.r}`),
                 h('dt', {}, 'Fit status'), h('dd', { 'data-testid': 'map-status',
                     class: f.status === 'ok' ? 'ok' : 'warn' }, f.status),
                 h('dt', {}, 'Goodness of fit'), (() => {
@@ -208,10 +219,14 @@ export function renderFit(root, id, ctx) {
                 h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
                     `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`));
             fill(note, `Best r by AIC: ${best.aic ?? '–'}, by BIC: ${best.bic ?? '–'}; ` +
-                `recommended: ${rec ?? '–'}. The maps above ` +
-                `are r = ${f.r}` + (f.r === rec ? ', the recommended r: the map the fit offers ' +
+                `recommended: ${rec ?? '–'}. The maps above ` + (shrunk ? `are the shrunk ` +
+                `map: r = ${f.r}'s detail over r = ${sh.toward_r} kept where it stands above ` +
+                `its noise (closer to the truth than the recommended map in the fidelity ` +
+                `harness); a fit offers it as its pixel's calibration when asked ("map": ` +
+                `"shrunk"), else the recommended r = ${rec ?? '–'}.`
+                : `are r = ${f.r}` + (f.r === rec ? ', the recommended r: the map the fit offers ' +
                 'as its pixel\'s calibration.' : `; the map the fit offers as its pixel's ` +
-                `calibration is the recommended r = ${rec ?? '–'}.`));
+                `calibration is the recommended r = ${rec ?? '–'}.`)));
             purgeIn(maps);
             if (!f.S) {
                 fill(maps, h('p', { class: 'muted' }, `The r = ${f.r} fit has no map ` +
@@ -224,8 +239,8 @@ export function renderFit(root, id, ctx) {
                 h('p', { class: 'muted', 'data-testid': 'resid-missing' },
                     `No residual plot: ${err.message}.`)));
             fill(maps, mapPairFigure(f, res.wiener, pitch),
-                surfaceFigure(`/api/fits/${fit.id}/interp?r=${f.r}`, pitch),
-                f.S_err ? errFigure(f, pitch) : null, resid);
+                shrunk ? null : surfaceFigure(`/api/fits/${fit.id}/interp?r=${f.r}`, pitch),
+                f.S_err ? errFigure(f, pitch) : null, shrunk ? null : resid);
         };
         rSel.addEventListener('change', show);
         const where = fit.scan_id

@@ -626,6 +626,25 @@ async function run(base, page, api) {
     'signal, model and residuals side by side on one µm scale, the pixel outlined on each',
     ['xaxis', 'xaxis2', 'xaxis3'].map(rangeOf).join(' '));
 
+    // the shrunk map (fit/shrink.h) is one more choice of the selector: its heat map is the
+    // API's shrunk_map.S, named in "Map shown"; then back to the recommended map
+    const shr = res.shrunk_map;
+    check(shr && shr.r === best.r, 'the fit has a shrunk map at the recommended r',
+        JSON.stringify(shr && { r: shr.r, toward_r: shr.toward_r }));
+    if (shr) {
+        await page.locator('[data-testid="r-select"]').selectOption('shrunk');
+        await page.locator('[data-testid="shown-r"]', { hasText: `shrunk toward r = ${shr.toward_r}` })
+            .waitFor({ timeout: WAIT });
+        const sm = await graph('plot-maps');
+        check(same(flat(sm.data[0].z), shr.S), 'choosing the shrunk map plots the API\'s shrunk S',
+            JSON.stringify(sm.data[0].z).slice(0, 200));
+        check((await text('selection-note')).includes('are the shrunk map'),
+            'the note says the maps shown are the shrunk map', await text('selection-note'));
+        await page.locator('[data-testid="r-select"]').selectOption(String(best.r));
+        await page.locator('[data-testid="shown-r"]', { hasText: new RegExp(`^r = ${best.r}$`) })
+            .waitFor({ timeout: WAIT });
+    }
+
     // model selection: AIC and BIC against r, the recommended r marked, its reason in words
     const sel = await graph('plot-selection');
     const aicTr = sel.data.find((d) => d.name === 'AIC');
