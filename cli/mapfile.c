@@ -88,9 +88,17 @@ static int one_map(json_t *o, const char *what, mapfile_map_t *m, err_t *err)
     return 0;
 }
 
-/* The fit of r (0: recommended_r, else the best BIC) of an `ips fit` document. */
+/* The fit of r (0: recommended_r, else the best BIC; MAPFILE_SHRUNK: the shrunk map) of an
+ * `ips fit` document. */
 static json_t *fit_of(json_t *doc, int r, err_t *err)
 {
+    if (r == MAPFILE_SHRUNK) {
+        json_t *sh = json_object_get(doc, "shrunk_map");
+        if (json_is_object(sh) && json_is_array(json_object_get(sh, "S"))) return sh;
+        err_set(err, -EINVAL, "the fit document has no shrunk map (its recommended r is 1, or r - "
+                              "1 has no map)");
+        return NULL;
+    }
     if (r <= 0) r = (int)id(doc, "recommended_r");
     if (r <= 0) r = (int)id(json_object_get(doc, "best_r"), "bic");
     json_t *fits = json_object_get(doc, "fits"), *f;

@@ -27,8 +27,11 @@ typedef struct mapfile {
     void *doc; /* the parsed document the strings point into */
 } mapfile_t;
 
-/* Reads path; r > 0 picks that r of an `ips fit` document (0: its recommended r). Returns 0,
- * -ENOENT (no file), -EINVAL naming what the file lacks, -ENOMEM. */
+/* r of mapfile_read: an `ips fit` document's shrunk map (its shrunk_map, fit/shrink.h) */
+#define MAPFILE_SHRUNK (-1)
+
+/* Reads path; r > 0 picks that r of an `ips fit` document (0: its recommended r; MAPFILE_SHRUNK:
+ * its shrunk map). Returns 0, -ENOENT (no file), -EINVAL naming what the file lacks, -ENOMEM. */
 int mapfile_read(const char *path, int r, mapfile_t *out, err_t *err);
 void mapfile_free(mapfile_t *mf);
 
