@@ -142,6 +142,14 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
     double t = ml_tau2(z2, lk, kept);
     /* Gs = U diag(g) U^T, g_k = t / (t + lam_k) (1 for the noiseless patterns) */
     for (size_t k = 0; k < d; k++) lam[k] = lam[k] > 1e-14 * lmax ? t / (t + lam[k]) : 1;
+    /* the shrinkage's expected squared bias, (1 - g_k)^2 tau^2 per pattern (the detail's prior
+     * variance it takes away), on the diagonal in the noise model's units: with the noise
+     * g_k^2 lambda_k below, each pattern's variance is g_k lambda_k, the posterior's */
+    for (size_t j = 0; j < d; j++) {
+        double b = 0;
+        for (size_t k = 0; k < d; k++) b += V[j * d + k] * V[j * d + k] * (1 - lam[k]) * (1 - lam[k]);
+        z[j] = b * t / s2; /* z is free now: the coordinates were used */
+    }
     for (size_t j = 0; j < d; j++)
         for (size_t k = 0; k < d; k++) X[j * d + k] = V[j * d + k] * lam[k];
     fit_gemm(X, 0, V, 1, d, d, d, 1, 0, Gs);
@@ -166,7 +174,7 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
     fit_gemm(X, 0, Gs, 0, d, d, d, 1, 0, Y);
     for (size_t j = 0; j < d; j++)
         for (size_t k = 0; k < d; k++) C[j * d + k] += Y[j * d + k] + Y[k * d + j];
-    for (size_t j = 0; j < d; j++) out->S_err[j] = sqrt(fmax(C[j * d + j], 0));
+    for (size_t j = 0; j < d; j++) out->S_err[j] = sqrt(fmax(C[j * d + j] + z[j], 0));
     out->r = r;
     out->toward_r = q;
     out->factor = dd > 0 ? sqrt(kept2 / dd) : 0;

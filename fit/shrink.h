@@ -30,9 +30,9 @@ typedef struct fit_shrunk {
     double noise;   /* rms noise of D (sqrt(trace V / d), scaled to the data's scatter) */
     double tau;     /* the detail's signal rms per pattern, tau (0: none found above noise) */
     double *S;      /* r*r, row-major y then x, mean 1, as fit_result_t */
-    double *S_err;  /* r*r: its noise with tau held fixed, from the joint covariance (the noise
-                       model's units, as fit_result_t.S_err); the bias the shrinkage trades
-                       for lower noise is not in it */
+    double *S_err;  /* r*r: its noise (tau held fixed, from the joint covariance) and the
+                       shrinkage's expected squared bias, (1 - g_k)^2 tau^2 per pattern: the
+                       posterior's variance (the noise model's units, as fit_result_t.S_err) */
 } fit_shrunk_t;
 
 /* The weights of a coarse q-grid's cells in each cell of a finer r-grid along one axis: w[a*q+b]
@@ -49,7 +49,7 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
 
 /* Largest r with a shrunk map: the eigen-decomposition and the products of r^2 x r^2 matrices
  * cost O(r^6) (r = 20: 400 x 400, tens of ms; r = 32 would take seconds). */
-#define FIT_SHRINK_R_MAX 20
+#define FIT_SHRINK_R_MAX 20 /* (docs/numerics.md "The shrunk map") */
 
 /* The shrunk map of a sweep of scan (fitted with opts): its recommended r toward r - 1, with
  * their joint covariance. 0 with out->r = 0 when there is none (no recommended r, r = 1, r - 1

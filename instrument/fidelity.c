@@ -63,6 +63,40 @@ static double wiener_rms(const fit_wiener_t *w, double p, const double *T, int m
     return rms;
 }
 
+/* The S_err z-scores of the recommended and the shrunk map against the truth's mean over each
+ * sub-pixel (fidelity.h), both maps and the truth's means scaled to mean 1. */
+static void z_scores(const fit_sweep_t *sw, double scale, const double *T, int m,
+                     fid_result_t *out)
+{
+    const fit_shrunk_t *sh = sw->shrunk;
+    const fit_result_t *f = &sw->fits[sh->r - sw->r_min];
+    int r = sh->r;
+    double *w = malloc(sizeof(double) * (size_t)r * m), *tc = malloc(sizeof(double) * r * r);
+    if (!w || !tc) goto out;
+    fit_grid_overlap(r, m, w); /* the weights of the truth's m cells in each of the r cells */
+    double mean = 0;
+    for (int j = 0; j < r; j++)
+        for (int i = 0; i < r; i++) {
+            double s = 0;
+            for (int l = 0; l < m; l++)
+                for (int k = 0; k < m; k++) s += w[j * m + l] * w[i * m + k] * T[l * m + k];
+            tc[j * r + i] = s;
+            mean += s / (r * r);
+        }
+    for (int q = 0; q < r * r; q++) {
+        double t = tc[q] / mean, zr = (f->S[q] - t) / (f->S_err[q] * scale),
+               zs = (sh->S[q] - t) / (sh->S_err[q] * scale);
+        out->z_n++;
+        out->z2_rec += zr * zr;
+        out->z2_shrunk += zs * zs;
+        out->z_in2_rec += fabs(zr) <= 2;
+        out->z_in2_shrunk += fabs(zs) <= 2;
+    }
+out:
+    free(w);
+    free(tc);
+}
+
 /* Simulates the case's scan into *sf. */
 static int simulate(const fid_case_t *c, sim_t *sim, scanfile_t *sf, err_t *err)
 {
@@ -161,6 +195,7 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
         fit_recommendation_t rec;
         fit_recommend(&sw, c->rules ? &c->rules[k] : NULL, &rec);
         out->r_rec[k] = rec.r;
+        if (k == 0 && sw.shrunk) z_scores(&sw, rec.noise_scale, T, m, out);
     }
     fit_wiener_t w;
     err_t we;

@@ -60,6 +60,12 @@ typedef struct fid_result {
     double rms_shrunk;         /* the shrunk map's error (fit/shrink.h; NaN: none, then the
                                   recommended map stands as it is) */
     double shrunk_factor;      /* the fraction of its detail kept (NaN: none) */
+    /* how honest S_err is: z = (S - truth's sub-pixel mean) / (S_err x the data's scatter) over
+     * the sub-pixels of the recommended map and of the shrunk map (both mean 1): the count, the
+     * sum of z^2 and the count with |z| <= 2 (0 when there is no shrunk map) */
+    int z_n;
+    double z2_rec, z2_shrunk;
+    int z_in2_rec, z_in2_shrunk;
     size_t n_raster;           /* the points of the whole raster */
     double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */
 } fid_result_t;

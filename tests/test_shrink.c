@@ -39,7 +39,8 @@ static void overlaps(void)
 
 /* A checkerboard of amplitude a (r = 2) over a flat r = 1 map with V = sigma^2 I: the marginal
  * likelihood of tau^2 peaks at |D|^2 / d - sigma^2 = a^2 - sigma^2, so g = 1 - sigma^2 / a^2
- * (0 when sigma >= a), S = 1 +- g a, S_err = g sigma (the coarse map has no noise here). */
+ * (0 when sigma >= a), S = 1 +- g a, S_err^2 = g^2 sigma^2 (noise) + (1 - g)^2 tau^2 (bias)
+ * = g sigma^2, the posterior variance (the coarse map has no noise here). */
 static void isotropic(void)
 {
     double a = 0.1, Sr[4] = {1 + a, 1 - a, 1 - a, 1 + a}, Sq = 1, Cqq = 0, Crq[4] = {0};
@@ -61,7 +62,7 @@ static void isotropic(void)
         CHECK_NEAR(out.factor, g, 1e-5, 1e-5);
         CHECK_NEAR(out.S[0], 1 + g * a, 1e-6, 1e-6);
         CHECK_NEAR(out.S[1], 1 - g * a, 1e-6, 1e-6);
-        CHECK_NEAR(out.S_err[0], g * s, 1e-5, 1e-6);
+        CHECK_NEAR(out.S_err[0], sqrt(g) * s, 1e-5, 1e-6);
         CHECK_NEAR(out.tau, g > 0 ? sqrt(a * a - se * se) : 0, 1e-5, 1e-6);
         CHECK_NEAR(out.noise, se, 1e-12, 0);
         CHECK_NEAR(out.detail, a, 1e-12, 0);
