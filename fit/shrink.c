@@ -24,6 +24,10 @@ void fit_grid_overlap(int r, int q, double *w)
         }
 }
 
+/* Patterns whose noise variance is below this fraction of the largest carry no noise (the
+ * constant pattern: both maps have mean 1, so D and its noise have none) */
+#define NOISELESS 1e-14
+
 /* The negative log marginal likelihood of tau^2 = exp(u) (shrink.h), constants dropped. */
 struct marginal {
     const double *z2, *lam;
@@ -106,7 +110,6 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
                 for (int k = 0; k < q; k++)
                     P[(size_t)(j * r + i) * e + (size_t)(l * q + k)] = w[j * q + l] * w[i * q + k];
     double s2 = noise_scale * noise_scale, dd = 0, tr = 0;
-
     for (size_t j = 0; j < d; j++) {
         double ps = 0;
         for (size_t l = 0; l < e; l++) ps += P[j * e + l] * Sq[l];
@@ -122,8 +125,8 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
     fit_gemm(P, 0, Crq, 1, d, e, d, -1, 1, V); /* - P Crq^T */
     for (size_t j = 0; j < d * d; j++) V[j] *= s2;
     for (size_t j = 0; j < d; j++) tr += V[j * d + j];
-    /* V = U diag(lam) U^T; LAPACK's divide and conquer, U overwrites V (row-major: rows of U^T
-     * are not its columns; with the row-major layout the eigenvectors are V's columns) */
+    /* V = U diag(lam) U^T by LAPACK's divide and conquer; U overwrites V, eigenvector k in
+     * column k (V[j * d + k]) */
     if (LAPACKE_dsyevd(LAPACK_ROW_MAJOR, 'V', 'U', (lapack_int)d, V, (lapack_int)d, lam)) {
         rc = err_set(err, -EDOM, "the eigen-decomposition of the detail's covariance failed");
         goto out;
@@ -137,11 +140,11 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
         double s = 0;
         for (size_t j = 0; j < d; j++) s += V[j * d + k] * D[j];
         z[k] = s;
-        if (lam[k] > 1e-14 * lmax) z2[kept] = s * s, lk[kept++] = lam[k];
+        if (lam[k] > NOISELESS * lmax) z2[kept] = s * s, lk[kept++] = lam[k];
     }
     double t = ml_tau2(z2, lk, kept);
     /* Gs = U diag(g) U^T, g_k = t / (t + lam_k) (1 for the noiseless patterns) */
-    for (size_t k = 0; k < d; k++) lam[k] = lam[k] > 1e-14 * lmax ? t / (t + lam[k]) : 1;
+    for (size_t k = 0; k < d; k++) lam[k] = lam[k] > NOISELESS * lmax ? t / (t + lam[k]) : 1;
     /* the shrinkage's expected squared bias, (1 - g_k)^2 tau^2 per pattern (the detail's prior
      * variance it takes away), on the diagonal in the noise model's units: with the noise
      * g_k^2 lambda_k below, each pattern's variance is g_k lambda_k, the posterior's */
