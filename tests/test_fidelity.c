@@ -5,7 +5,8 @@
  * checkerboard that AIC and BIC pick on the denser rasters (its noise is below 0.1 of the mean,
  * and where BIC's map is over 2x the best error, the recommendation is another r). The shrunk
  * map (fit/shrink.h), where there is one, must be within 1.1x of the best r on each, and no
- * farther from the truth than the recommended map by more than 0.001. The full table is a benchmark
+ * farther from the truth than the recommended map by more than 0.001; three more cases, misses
+ * of the rule, check the shrunk map alone. The full table is a benchmark
  * (build/bench/ipsd-bench-fidelity, README). */
 #include <math.h>
 
@@ -18,7 +19,7 @@ static const struct {
     double step;
     unsigned long seed; /* 0: seed 1 under the paper's noise model; else this seed, shot+read */
     double flux;        /* photon level relative to the bench's default */
-    double rec_bound;   /* the recommended map's bound against the best r (0: 1.2) */
+    int shrunk_only;    /* a miss of the rule: only the shrunk map is checked */
 } cases[] = {
     {"paperlike", 9, 0.6, 0, 1, 0},   /* the paper's raster: AIC and BIC pick r = 8 here */
     {"paperlike", 13, 0.42, 0, 1, 0}, /* a finer raster: BIC picks the r = 9 checkerboard */
@@ -38,10 +39,11 @@ static const struct {
      * scatter^2 0.550) */
     {"deadcorner", 9, 0.6, 13, 1, 0},
     /* misses of the rule (1.32x, 1.32x, 1.14x: one r too fine at a low scatter, one r too
-     * coarse) that the shrunk map (fit/shrink.h) brings within 1.1x */
-    {"softedge", 9, 0.6, 5, 0.1, 1.4},
-    {"softedge", 0, 0.6, 4, 0.1, 1.4},
-    {"dip", 9, 0.6, 15, 0.1, 0},
+     * coarse; README) that the shrunk map (fit/shrink.h) brings within 1.1x: the shrunk map's
+     * cases only */
+    {"softedge", 9, 0.6, 5, 0.1, 1},
+    {"softedge", 0, 0.6, 4, 0.1, 1},
+    {"dip", 9, 0.6, 15, 0.1, 1},
 };
 
 int main(void)
@@ -57,16 +59,18 @@ int main(void)
         CHECK(rec >= 1 && f.r_best >= 1);
         if (rec < 1 || f.r_best < 1) continue;
         double floor = fmax(f.rms[f.r_best], 1e-3);
-        double bound = cases[i].rec_bound > 0 ? cases[i].rec_bound : 1.2;
-        if (!(f.rms[rec] <= bound * floor))
-            fprintf(stderr, "%s %dx%d: recommended r = %d (rms %.4f), best r = %d (rms %.4f)\n",
-                    c.scene, c.grid, c.grid, rec, f.rms[rec], f.r_best, f.rms[f.r_best]);
-        CHECK(f.rms[rec] <= bound * floor);
-        /* never the checkerboard: the recommended map's own noise (S_err, whose scale the
-         * paper's sigma inflates by at most sqrt(G) ~ 1.6 here) stays below its error bound,
-         * and where BIC's map is a checkerboard (over 2x the best error) the pick is not it */
-        CHECK(f.serr_rms[rec] <= 0.1);
-        if (f.r_bic > 0 && f.rms[f.r_bic] > 2 * floor) CHECK(rec != f.r_bic);
+        if (!cases[i].shrunk_only) {
+            if (!(f.rms[rec] <= 1.2 * floor))
+                fprintf(stderr, "%s %dx%d: recommended r = %d (rms %.4f), best r = %d (rms %.4f)\n",
+                        c.scene, c.grid, c.grid, rec, f.rms[rec], f.r_best, f.rms[f.r_best]);
+            CHECK(f.rms[rec] <= 1.2 * floor);
+            /* never the checkerboard: the recommended map's own noise (S_err, whose scale the
+             * paper's sigma inflates by at most sqrt(G) ~ 1.6 here) stays below its error
+             * bound, and where BIC's map is a checkerboard (over 2x the best error) the pick is
+             * not it */
+            CHECK(f.serr_rms[rec] <= 0.1);
+            if (f.r_bic > 0 && f.rms[f.r_bic] > 2 * floor) CHECK(rec != f.r_bic);
+        }
         /* the shrunk map exists unless the recommendation is r = 1 (a flat pixel) */
         CHECK(isfinite(f.rms_shrunk) == (rec > 1));
         if (!isfinite(f.rms_shrunk)) continue;
