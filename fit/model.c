@@ -398,12 +398,10 @@ int fit_map_joint_cov(const fit_scan_t *scan, int r1, int r2, const fit_options_
         rc = err_set(err, -ENOMEM, "out of memory");
         goto out;
     }
-    for (size_t i = 0; i < m1; i++)
-        for (size_t k = 0; k < m2; k++) {
-            double s = 0;
-            for (size_t q = 0; q < p.n; q++) s += a.A[q * m1 + i] * p.w[q] * b.A[q * m2 + k];
-            G[i * m2 + k] = s;
-        }
+    /* G = A1^T (W A2); W A2 overwrites A2, which is not needed again */
+    for (size_t q = 0; q < p.n; q++)
+        for (size_t k = 0; k < m2; k++) b.A[q * m2 + k] *= p.w[q];
+    fit_gemm(a.A, 1, b.A, 0, m1, p.n, m2, 1, 0, G);
     fit_gemm(a.cov, 0, G, 0, m1, m1, m2, 1, 0, X);  /* C1 G */
     fit_gemm(X, 0, b.cov, 0, m1, m2, m2, 1, 0, Y);  /* C1 G C2 = Cov(T1, T2) */
     fit_gemm(J1, 0, Y, 0, m1, m1, m2, 1, 0, X);     /* J1 Cov(T1, T2) */
