@@ -144,8 +144,11 @@ int fitsmap_write(const fitsmap_file_t *file, const fitsmap_t *maps, size_t n, v
         int ret = check_map(&maps[k], k, err);
         if (ret) return ret;
     }
+    /* zeroed: cfitsio's memory driver reads what lies past the end of the file it writes, and
+     * takes an old FITS header left there in reused heap memory (an earlier file's extension)
+     * for an HDU of the new file, keeping it and appending after it (test_fitsmap) */
     size_t size = 4 * 2880;
-    void *mem = malloc(size);
+    void *mem = calloc(size, 1);
     if (!mem) return err_set(err, -ENOMEM, "out of memory");
     fitsfile *f = NULL;
     int status = 0;

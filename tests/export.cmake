@@ -24,3 +24,7 @@ if(TARGET ips AND TARGET ipsd AND Python3_Interpreter_FOUND)
     set_tests_properties(test_import_fits PROPERTIES TIMEOUT 600 SKIP_RETURN_CODE 77
         ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}" FIXTURES_SETUP api_records)
 endif()
+
+# fitsmap_write's files read back by a minimal reader in the test, one written after another in
+# reused heap memory (~0.1 s)
+ipsd_add_test(test_fitsmap ipsexport)

@@ -1,0 +1,116 @@
+/* test_fitsmap.c: the FITS files fitsmap_write builds in memory, read back by a minimal reader
+ * written here (80-byte cards in 2880-byte blocks, FITS standard 4.0 sections 3-4; independent
+ * of cfitsio): the HDU count is 1 + 2 x NMAPS, the extensions S and S_ERR alternate with EXTVER
+ * 1..n, and each holds its map's values (big-endian float64). A regression test: a file written
+ * after another into reused heap memory once held an old extension (cfitsio's memory file took
+ * a stale header left in the uninitialised buffer for an HDU of the new file; the API's
+ * calibrations.fits showed it in one run of ten on a busy machine). */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "export/fitsmap.h"
+
+/* The card's value after "KEY     = " as text (NULL when the header has no such card). */
+static const char *card(const char *hdr, size_t ncards, const char *key, char *out, size_t n)
+{
+    for (size_t c = 0; c < ncards; c++) {
+        const char *k = hdr + 80 * c;
+        size_t kl = strlen(key);
+        if (strncmp(k, key, kl) == 0 && (k[kl] == ' ' || k[kl] == '=') && k[8] == '=') {
+            size_t len = 70 < n - 1 ? 70 : n - 1;
+            memcpy(out, k + 10, len);
+            out[len] = 0;
+            return out;
+        }
+    }
+    return NULL;
+}
+
+static double be_double(const unsigned char *p)
+{
+    uint64_t u = 0;
+    for (int i = 0; i < 8; i++) u = (u << 8) | p[i];
+    double d;
+    memcpy(&d, &u, sizeof d);
+    return d;
+}
+
+/* Walks the file: checks every HDU against maps (n of them); returns the HDUs found. */
+static int walk(const unsigned char *buf, size_t len, const fitsmap_t *maps, int n)
+{
+    size_t at = 0;
+    int hdus = 0;
+    while (at + 2880 <= len) {
+        const char *hdr = (const char *)buf + at;
+        size_t ncards = 0;
+        while (at + 80 * (ncards + 1) <= len && strncmp(hdr + 80 * ncards, "END     ", 8) != 0)
+            ncards++;
+        size_t hbytes = (80 * (ncards + 1) + 2879) / 2880 * 2880;
+        char v[80];
+        long naxis = card(hdr, ncards, "NAXIS", v, sizeof v) ? atol(v) : -1;
+        long n1 = naxis >= 1 && card(hdr, ncards, "NAXIS1", v, sizeof v) ? atol(v) : 0;
+        long n2 = naxis >= 2 && card(hdr, ncards, "NAXIS2", v, sizeof v) ? atol(v) : 0;
+        size_t dbytes = naxis > 0 ? ((size_t)n1 * (size_t)n2 * 8 + 2879) / 2880 * 2880 : 0;
+        if (hdus > 0) { /* extension k: S or S_ERR of map (k + 1) / 2 */
+            int m = (hdus + 1) / 2, err = hdus % 2 == 0;
+            char name[80] = "", word[80] = "";
+            card(hdr, ncards, "EXTNAME", name, sizeof name); /* 'S       ': quoted, padded */
+            sscanf(name, "'%79[^' ]", word);
+            long ver = card(hdr, ncards, "EXTVER", v, sizeof v) ? atol(v) : 0;
+            CHECK(strcmp(word, err ? "S_ERR" : "S") == 0 && ver == m);
+            if (m <= n && at + hbytes + (size_t)n1 * n2 * 8 <= len) {
+                const fitsmap_t *f = &maps[m - 1];
+                CHECK(n1 == f->r && n2 == f->r);
+                const double *want = err ? f->S_err : f->S;
+                for (long q = 0; q < n1 * n2 && n1 == f->r && n2 == f->r; q++)
+                    CHECK(be_double(buf + at + hbytes + 8 * (size_t)q) == want[q]);
+            }
+        } else {
+            long nmaps = card(hdr, ncards, "NMAPS", v, sizeof v) ? atol(v) : -1;
+            CHECK(nmaps == n);
+        }
+        hdus++;
+        at += hbytes + dbytes;
+    }
+    CHECK(at == len);
+    return hdus;
+}
+
+int main(void)
+{
+    enum { R = 7, N = 3 };
+    double S[N][R * R], E[N][R * R];
+    fitsmap_t maps[N];
+    for (int k = 0; k < N; k++) {
+        for (int j = 0; j < R * R; j++) S[k][j] = 1 + 0.01 * (j - 24) * (k + 1), E[k][j] = 0.01;
+        maps[k] = (fitsmap_t){.r = k == 2 ? R : 1 + 3 * k, .S = S[k], .S_err = E[k],
+                              .pitch_um = 6, .pixel_col = 10 + k, .pixel_row = 11,
+                              .wavelength_um = NAN, .na = NAN, .spot_radius_um = NAN,
+                              .I0 = 4000, .chi2_red = 1, .status = "ok", .noise_model = "paper",
+                              .calib_id = k + 1, .sensor_id = 1};
+    }
+    fitsmap_t big = maps[2];
+    big.pixel_col = 40, big.pixel_row = 30;
+    fitsmap_file_t file = {.creator = "test", .sensor_id = 1, .sensor_model = "M",
+                           .sensor_serial = "s", .pitch_um = 6, .date_ms = 0};
+    /* one map, freed, then three, as the API answers map.fits then calibrations.fits: the second
+     * buffer is the first's memory again */
+    for (int round = 0; round < 20; round++) {
+        void *buf;
+        size_t len;
+        err_t err;
+        CHECK(fitsmap_write(&file, &big, 1, &buf, &len, &err) == 0);
+        CHECK(walk(buf, len, &big, 1) == 3);
+        free(buf);
+        CHECK(fitsmap_write(&file, maps, N, &buf, &len, &err) == 0);
+        int h = walk(buf, len, maps, N);
+        if (h != 1 + 2 * N) fprintf(stderr, "round %d: %d HDUs, want %d\n", round, h, 1 + 2 * N);
+        CHECK(h == 1 + 2 * N);
+        free(buf);
+    }
+    CHECK_DONE();
+}
