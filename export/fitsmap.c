@@ -2,6 +2,7 @@
  * docs/api.md "FITS"). cfitsio, not our own writer: it is the reference implementation of the
  * standard (header cards, padding to 2880-byte blocks, the long-string convention). */
 #include <errno.h>
+#include <malloc.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -134,6 +135,16 @@ static int check_map(const fitsmap_t *m, size_t k, err_t *err)
 
 /* ---- the file ---- */
 
+/* realloc for cfitsio's memory file that zeroes what it adds, for the reason below: the grown
+ * part may be reused heap memory too (glibc's malloc_usable_size gives the old block's size) */
+static void *realloc_zeroed(void *p, size_t n)
+{
+    size_t old = p ? malloc_usable_size(p) : 0;
+    void *q = realloc(p, n);
+    if (q && n > old) memset((char *)q + old, 0, n - old);
+    return q;
+}
+
 int fitsmap_write(const fitsmap_file_t *file, const fitsmap_t *maps, size_t n, void **buf,
                   size_t *len, err_t *err)
 {
@@ -154,7 +165,7 @@ int fitsmap_write(const fitsmap_file_t *file, const fitsmap_t *maps, size_t n, v
     int status = 0;
     char date[40];
     LONGLONG head, data, end = 0;
-    if (fits_create_memfile(&f, &mem, &size, 2880 * 8, realloc, &status)) {
+    if (fits_create_memfile(&f, &mem, &size, 2880 * 8, realloc_zeroed, &status)) {
         free(mem);
         return err_set(err, -ENOMEM, "cfitsio: could not open a memory file (status %d)", status);
     }

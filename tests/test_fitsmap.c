@@ -112,5 +112,28 @@ int main(void)
         CHECK(h == 1 + 2 * N);
         free(buf);
     }
+    /* larger maps (r = 30: three data blocks each), so the file outgrows the first buffer and
+     * cfitsio reallocates it: the grown part must hold no old header either */
+    enum { RB = 30 };
+    static double SB[N][RB * RB], EB[N][RB * RB];
+    fitsmap_t bigs[N];
+    for (int k = 0; k < N; k++) {
+        for (int j = 0; j < RB * RB; j++) SB[k][j] = 1 + 1e-4 * j * (k + 1), EB[k][j] = 0.02;
+        bigs[k] = maps[k];
+        bigs[k].r = RB, bigs[k].S = SB[k], bigs[k].S_err = EB[k];
+    }
+    for (int round = 0; round < 20; round++) {
+        void *buf;
+        size_t len;
+        err_t err;
+        int n = round % 2 ? N : 1; /* alternately one map and three */
+        const fitsmap_t *mp = n == 1 ? &bigs[round % N] : bigs;
+        CHECK(fitsmap_write(&file, mp, (size_t)n, &buf, &len, &err) == 0);
+        int h = walk(buf, len, mp, n);
+        if (h != 1 + 2 * n) fprintf(stderr, "r = %d, round %d: %d HDUs, want %d\n", RB, round, h,
+                                    1 + 2 * n);
+        CHECK(h == 1 + 2 * n);
+        free(buf);
+    }
     CHECK_DONE();
 }
