@@ -24,6 +24,24 @@ void fit_grid_overlap(int r, int q, double *w)
         }
 }
 
+int fit_grid_average(const double *v, int q, int r, double *out)
+{
+    double *w = malloc(sizeof(double) * (size_t)r * q);
+    if (!w) return -ENOMEM;
+    fit_grid_overlap(r, q, w);
+    for (int j = 0; j < r; j++)
+        for (int i = 0; i < r; i++) {
+            double s = 0;
+            for (int l = 0; l < q; l++) {
+                if (w[j * q + l] == 0) continue;
+                for (int k = 0; k < q; k++) s += w[j * q + l] * w[i * q + k] * v[l * q + k];
+            }
+            out[j * r + i] = s;
+        }
+    free(w);
+    return 0;
+}
+
 /* Patterns whose noise variance is below this fraction of the largest carry no noise (the
  * constant pattern: both maps have mean 1, so D and its noise have none) */
 #define NOISELESS 1e-14
@@ -110,11 +128,12 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
                 for (int k = 0; k < q; k++)
                     P[(size_t)(j * r + i) * e + (size_t)(l * q + k)] = w[j * q + l] * w[i * q + k];
     double s2 = noise_scale * noise_scale, dd = 0, tr = 0;
+    if (fit_grid_average(Sq, q, r, out->S)) { /* P Sq; the kept detail is added below */
+        rc = err_set(err, -ENOMEM, "out of memory");
+        goto out;
+    }
     for (size_t j = 0; j < d; j++) {
-        double ps = 0;
-        for (size_t l = 0; l < e; l++) ps += P[j * e + l] * Sq[l];
-        D[j] = Sr[j] - ps;
-        out->S[j] = ps; /* P Sq, the detail added below */
+        D[j] = Sr[j] - out->S[j];
         dd += D[j] * D[j];
     }
     /* V = Crr + P Cqq P^T - Crq P^T - P Crq^T (scaled by s2 below) */

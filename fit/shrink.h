@@ -39,6 +39,10 @@ typedef struct fit_shrunk {
  * is the fraction of fine cell a covered by coarse cell b (each row sums to 1). */
 void fit_grid_overlap(int r, int q, double *w);
 
+/* out (r x r) = the q x q map v averaged over each cell of an r x r grid of the same square (any
+ * r, q >= 1; row-major y then x): W v W^T with W from fit_grid_overlap. 0 or -ENOMEM. */
+int fit_grid_average(const double *v, int q, int r, double *out);
+
 /* The shrinkage itself: maps Sr (r*r) and Sq (q*q, q < r), their covariances Crr, Cqq and
  * Crq = Cov(Sr, Sq) (row-major, the noise model's units), noise_scale the data's scatter
  * (multiplies the noise's sigma). 0, or -EINVAL (q >= r, q < 1) / -ENOMEM / -EDOM (the

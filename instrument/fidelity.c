@@ -71,18 +71,9 @@ static void z_scores(const fit_sweep_t *sw, double scale, const double *T, int m
     const fit_shrunk_t *sh = sw->shrunk;
     const fit_result_t *f = &sw->fits[sh->r - sw->r_min];
     int r = sh->r;
-    double *w = malloc(sizeof(double) * (size_t)r * m), *tc = malloc(sizeof(double) * r * r);
-    if (!w || !tc) goto out;
-    fit_grid_overlap(r, m, w); /* the weights of the truth's m cells in each of the r cells */
-    double mean = 0;
-    for (int j = 0; j < r; j++)
-        for (int i = 0; i < r; i++) {
-            double s = 0;
-            for (int l = 0; l < m; l++)
-                for (int k = 0; k < m; k++) s += w[j * m + l] * w[i * m + k] * T[l * m + k];
-            tc[j * r + i] = s;
-            mean += s / (r * r);
-        }
+    double *tc = malloc(sizeof(double) * r * r), mean = 0;
+    if (!tc || fit_grid_average(T, m, r, tc)) goto out; /* the truth's mean over each sub-pixel */
+    for (int q = 0; q < r * r; q++) mean += tc[q] / (r * r);
     for (int q = 0; q < r * r; q++) {
         double t = tc[q] / mean, zr = (f->S[q] - t) / (f->S_err[q] * scale),
                zs = (sh->S[q] - t) / (sh->S_err[q] * scale);
@@ -93,7 +84,6 @@ static void z_scores(const fit_sweep_t *sw, double scale, const double *T, int m
         out->z_in2_shrunk += fabs(zs) <= 2;
     }
 out:
-    free(w);
     free(tc);
 }
 

@@ -35,6 +35,13 @@ static void overlaps(void)
     CHECK(w[0] == 1 && w[1] == 0 && w[4] == 0 && w[5] == 1);
     CHECK_NEAR(w[2], 0.5, 1e-12, 0);
     CHECK_NEAR(w[3], 0.5, 1e-12, 0);
+    /* a 2 x 2 map averaged onto 3 x 3: corners keep their cell, edge middles average two cells,
+     * the centre all four; and back onto 1 x 1, the mean */
+    double v[4] = {1, 2, 3, 4}, out[9], want[9] = {1, 1.5, 2, 2, 2.5, 3, 3, 3.5, 4}, one;
+    CHECK(fit_grid_average(v, 2, 3, out) == 0);
+    for (int j = 0; j < 9; j++) CHECK_NEAR(out[j], want[j], 1e-12, 0);
+    CHECK(fit_grid_average(v, 2, 1, &one) == 0);
+    CHECK_NEAR(one, 2.5, 1e-12, 0);
 }
 
 /* A checkerboard of amplitude a (r = 2) over a flat r = 1 map with V = sigma^2 I: the marginal
