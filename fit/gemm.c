@@ -1,4 +1,4 @@
-/* gemm.c: row-major products through the Fortran BLAS (see gemm.h). */
+/* gemm.c: matrix products through the Fortran BLAS (see gemm.h). */
 #include "gemm.h"
 
 #include "fit/gslerr.h"
@@ -7,6 +7,9 @@
 extern void dgemm_(const char *ta, const char *tb, const int *m, const int *n, const int *k,
                    const double *alpha, const double *a, const int *lda, const double *b,
                    const int *ldb, const double *beta, double *c, const int *ldc);
+extern void dtrmm_(const char *side, const char *uplo, const char *ta, const char *diag,
+                   const int *m, const int *n, const double *alpha, const double *a,
+                   const int *lda, double *b, const int *ldb);
 
 void fit_gemm(const double *X, int tx, const double *Y, int ty, size_t a, size_t b, size_t c,
               double alpha, double beta, double *out)
@@ -19,4 +22,15 @@ void fit_gemm(const double *X, int tx, const double *Y, int ty, size_t a, size_t
     int ldy = ty ? (int)b : (int)c, ldx = tx ? (int)a : (int)b, ldo = (int)c;
     dgemm_(ty ? "T" : "N", tx ? "T" : "N", &m, &n, &k, &alpha, Y, &ldy, X, &ldx, &beta, out,
            &ldo);
+}
+
+void fit_trmm(int left, int upper, int trans, int unit, size_t rows, size_t cols,
+              const double *A, size_t lda, double *B, size_t ldb)
+{
+    if (rows == 0 || cols == 0) return;
+    fit_gsl_policy();
+    int m = (int)rows, n = (int)cols, la = (int)lda, lb = (int)ldb;
+    double one = 1;
+    dtrmm_(left ? "L" : "R", upper ? "U" : "L", trans ? "T" : "N", unit ? "U" : "N", &m, &n, &one,
+           A, &la, B, &lb);
 }

@@ -1,15 +1,21 @@
-/* wls.c: weighted linear least squares through LAPACK's blocked Householder QR (dgeqrf) of the
- * column-balanced weighted matrix, with the exact 2-norm condition number from the singular
- * values of R, the covariance from R^-1 R^-T and the leverages from the rows of the thin Q;
- * a rank-deficient matrix falls back to GSL's truncated SVD (the minimum-norm solution). And
- * non-negative least squares by the active-set method of Lawson and Hanson (1974, ch. 23),
- * hand-written because neither GSL nor LAPACK has one; each subproblem is the same solve.
+/* wls.c: weighted linear least squares through LAPACK's recursive Householder QR (dgeqrt with
+ * one block: the compact WY form Q = I - V T V^T) of the column-balanced weighted matrix, with
+ * the exact 2-norm condition number from the singular values of R, the covariance from
+ * R^-1 R^-T and the leverages from the rows of the thin Q; a rank-deficient matrix falls back to
+ * GSL's truncated SVD (the minimum-norm solution). And non-negative least squares by the
+ * active-set method of Lawson and Hanson (1974, ch. 23), hand-written because neither GSL nor
+ * LAPACK has one; each subproblem is the same solve.
  *
  * Why QR and not SVD: W^1/2 X D^-1 = Q R (D the column balancing) costs 2 n m^2 flops in
  * BLAS-3 blocks, a few times less than GSL's unblocked one-sided SVD, and R has the same
  * singular values as the matrix itself, so cond comes from an m x m SVD (no U, no V) instead of
  * an n x m one. Householder QR is backward stable like the SVD: chi2, the parameters and the
- * covariance agree with the SVD's to rounding times cond (docs/numerics.md). */
+ * covariance agree with the SVD's to rounding times cond (docs/numerics.md).
+ * Why dgeqrt and not dgeqrf + dorgqr: LAPACK's blocked dgeqrf and dorgqr run their last 128
+ * columns through the unblocked (BLAS-2) code, i.e. all of a fit with r <= 11; dgeqrt's
+ * recursive panel (dgeqrt3) is BLAS-3 throughout, and the single T gives the thin Q's rows by
+ * two triangular multiplies (qr_leverages). On the 41 x 41 raster at r = 12 (1681 x 144) the
+ * factorisation and the leverages took 3.3 + 3.2 ms, now 2.1 + 1.0 ms (bench/README.md). */
 #include "wls.h"
 
 #include <errno.h>
@@ -21,6 +27,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "gemm.h"
 #include "fit/gslerr.h"
 
 /* A column's scale: the power of two that brings its 1-norm into [0.5, 1], so balancing is exact
@@ -53,7 +60,7 @@ static double chi2_of(const double *X, const double *w, const double *y, size_t 
 }
 
 struct qr_work {
-    double *A, *b, *tau, *R, *Rs, *s, *d;
+    double *A, *b, *T, *R, *Rs, *s, *d;
 };
 
 static void qr_work_free(struct qr_work *q)
@@ -66,14 +73,42 @@ static int qr_work_alloc(struct qr_work *q, size_t n, size_t mc)
 {
     memset(q, 0, sizeof *q);
     q->A = malloc(sizeof(double) * (n * mc + n));
-    q->R = malloc(sizeof(double) * (2 * mc * mc + 3 * mc));
+    q->R = malloc(sizeof(double) * (3 * mc * mc + 2 * mc));
     if (!q->A || !q->R) return -ENOMEM;
     q->b = q->A + n * mc;
     q->Rs = q->R + mc * mc;
-    q->tau = q->Rs + mc * mc;
-    q->s = q->tau + mc;
+    q->T = q->Rs + mc * mc;
+    q->s = q->T + mc * mc;
     q->d = q->s + mc;
     return 0;
+}
+
+/* The leverages h_kk = ||Q_k||^2, Q_k row k of the thin Q = Q [I; 0] (exact to rounding at any
+ * cond: Q is orthogonal to rounding; A R^-1 would lose cond x eps, bench/README.md). With
+ * Q = I - V T V^T and V = [V1; V2] (V1 unit lower triangular, mc x mc), the thin Q is
+ * [I - V1 M; -V2 M] with M = T V1^T, upper triangular as a product of two upper triangles, so
+ * V2 M = (V2 T) V1^T is formed in place over V2 by two triangular multiplies (dtrmm) and the top
+ * block I - V1 T V1^T in Rs (free once the singular values are out). Destroys V. */
+static void qr_leverages(struct qr_work *q, size_t n, size_t mc, double *hat)
+{
+    double *top = q->Rs;
+    for (size_t j = 0; j < mc; j++)
+        for (size_t i = 0; i < mc; i++) top[i + j * mc] = i <= j ? q->T[i + j * mc] : 0;
+    fit_trmm(0, 0, 1, 1, mc, mc, q->A, n, top, mc); /* M = T V1^T */
+    fit_trmm(1, 0, 0, 1, mc, mc, q->A, n, top, mc); /* V1 M */
+    if (n > mc) {
+        fit_trmm(0, 1, 0, 0, n - mc, mc, q->T, mc, q->A + mc, n); /* V2 T */
+        fit_trmm(0, 0, 1, 1, n - mc, mc, q->A, n, q->A + mc, n);  /* (V2 T) V1^T = V2 M */
+    }
+    memset(hat, 0, sizeof(double) * n);
+    for (size_t j = 0; j < mc; j++) {
+        const double *vj = q->A + j * n, *tj = top + j * mc;
+        for (size_t k = 0; k < mc; k++) {
+            double e = (k == j) - tj[k];
+            hat[k] += e * e;
+        }
+        for (size_t k = mc; k < n; k++) hat[k] += vj[k] * vj[k];
+    }
 }
 
 /* The QR path on the columns cols (all when NULL). Returns 0, 1 when the balanced matrix is
@@ -84,10 +119,14 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
                     double *rcond)
 {
     struct qr_work q;
-    double wq[4] = {0, 0, 0, 0}, *work = NULL;
+    double wq = 0, *work = NULL;
     lapack_int *iwork = NULL;
     int rc = qr_work_alloc(&q, n, mc);
     if (rc) goto out;
+    if (n < mc || mc == 0) { /* fewer points than columns: rank-deficient by count */
+        rc = 1;
+        goto out;
+    }
     lapack_int N = (lapack_int)n, M = (lapack_int)mc;
     /* A = W^1/2 X (column-major, as LAPACK wants it), b = W^1/2 y */
     for (size_t k = 0; k < n; k++) q.b[k] = sqrt(w[k]); /* W^1/2 for now */
@@ -109,33 +148,29 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
         for (size_t k = 0; k < n; k++) a[k] *= inv;
     }
     /* LAPACKE's _work calls: the plain ones scan every input for NaN first (2 % of a 41 x 41
-     * sweep's instructions) and allocate their workspace on each call; one workspace here */
+     * sweep's instructions) and allocate their workspace on each call; one workspace here.
+     * dgeqrt wants mc x mc, dgemqrt (one column) mc, dgesdd what it says. */
     iwork = malloc(sizeof(lapack_int) * 8 * mc);
-    if (!iwork ||
-        LAPACKE_dgeqrf_work(LAPACK_COL_MAJOR, N, M, q.A, N, q.tau, &wq[0], -1) ||
-        LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', M, M, q.Rs, M, q.s, NULL, 1, NULL, 1, &wq[1],
-                            -1, iwork) ||
-        LAPACKE_dormqr_work(LAPACK_COL_MAJOR, 'L', 'T', N, 1, M, q.A, N, q.tau, q.b, N, &wq[2],
-                            -1) ||
-        (hat && LAPACKE_dorgqr_work(LAPACK_COL_MAJOR, N, M, M, q.A, N, q.tau, &wq[3], -1))) {
+    if (!iwork || LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', M, M, q.Rs, M, q.s, NULL, 1, NULL,
+                                      1, &wq, -1, iwork)) {
         rc = iwork ? -EDOM : -ENOMEM;
         goto out;
     }
-    lapack_int lwork = 1;
-    for (int i = 0; i < 4; i++)
-        if (wq[i] > lwork) lwork = (lapack_int)wq[i];
-    if (!(work = malloc(sizeof(double) * (size_t)lwork))) {
+    size_t lwork = mc * mc > (size_t)wq ? mc * mc : (size_t)wq;
+    if (!(work = malloc(sizeof(double) * lwork))) {
         rc = -ENOMEM;
         goto out;
     }
-    if (LAPACKE_dgeqrf_work(LAPACK_COL_MAJOR, N, M, q.A, N, q.tau, work, lwork)) {
+    /* A = Q R with Q = I - V T V^T: V below A's diagonal (unit diagonal implied), R on and
+     * above it, T (mc x mc, upper triangular) apart: one block, nb = mc */
+    if (LAPACKE_dgeqrt_work(LAPACK_COL_MAJOR, N, M, M, q.A, N, q.T, M, work)) {
         rc = -EDOM;
         goto out;
     }
     for (size_t j = 0; j < mc; j++) /* R (upper triangle) and a copy for its singular values */
         for (size_t i = 0; i < mc; i++) q.R[i + j * mc] = q.Rs[i + j * mc] = i <= j ? q.A[i + j * n] : 0;
     if (LAPACKE_dgesdd_work(LAPACK_COL_MAJOR, 'N', M, M, q.Rs, M, q.s, NULL, 1, NULL, 1, work,
-                            lwork, iwork)) {
+                            (lapack_int)lwork, iwork)) {
         rc = -EDOM;
         goto out;
     }
@@ -145,13 +180,14 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
     }
     *rcond = q.s[mc - 1] / q.s[0];
     /* x = R^-1 (Q^T b), c = D^-1 x */
-    if (LAPACKE_dormqr_work(LAPACK_COL_MAJOR, 'L', 'T', N, 1, M, q.A, N, q.tau, q.b, N, work,
-                            lwork) ||
+    if (LAPACKE_dgemqrt_work(LAPACK_COL_MAJOR, 'L', 'T', N, 1, M, M, q.A, N, q.T, M, q.b, N,
+                             work) ||
         LAPACKE_dtrtrs_work(LAPACK_COL_MAJOR, 'U', 'N', 'N', M, 1, q.R, M, q.b, N)) {
         rc = -EDOM;
         goto out;
     }
     for (size_t j = 0; j < mc; j++) c[j] = q.b[j] / q.d[j];
+    if (hat) qr_leverages(&q, n, mc, hat); /* before cov: it overwrites R */
     if (cov) { /* (X^T W X)^-1 = D^-1 R^-1 R^-T D^-1: dtrtri, then dlauum forms U U^T */
         if (LAPACKE_dtrtri_work(LAPACK_COL_MAJOR, 'U', 'N', M, q.R, M) ||
             LAPACKE_dlauum_work(LAPACK_COL_MAJOR, 'U', M, q.R, M)) {
@@ -161,17 +197,6 @@ static int qr_solve(const double *X, const double *w, const double *y, size_t n,
         for (size_t j = 0; j < mc; j++)
             for (size_t i = 0; i <= j; i++)
                 cov[i * mc + j] = cov[j * mc + i] = q.R[i + j * mc] / (q.d[i] * q.d[j]);
-    }
-    if (hat) { /* h_kk = ||Q_k||^2 on the thin Q (dorgqr forms it in place) */
-        if (LAPACKE_dorgqr_work(LAPACK_COL_MAJOR, N, M, M, q.A, N, q.tau, work, lwork)) {
-            rc = -EDOM;
-            goto out;
-        }
-        memset(hat, 0, sizeof(double) * n);
-        for (size_t j = 0; j < mc; j++) {
-            const double *qj = q.A + j * n;
-            for (size_t k = 0; k < n; k++) hat[k] += qj[k] * qj[k];
-        }
     }
 out:
     free(work);

@@ -1,4 +1,4 @@
-/* wls.h (internal to fit/): weighted linear least squares, the exact global minimum of the
+/* wls.h: weighted linear least squares, the exact global minimum of the
  * chi-square of eq. 4 for a model linear in its parameters (numerics note 1), optionally with
  * non-negative parameters. */
 #ifndef IPSD_FIT_WLS_H

@@ -2,7 +2,8 @@
  * computations that share none of its code: the design matrix by adaptive quadrature
  * (fit_box_integral, not design.c), the closed-form one-parameter solution and its variance,
  * the exact map on noiseless data built from known S and I0, and the leave-one-out chi2
- * against brute-force refits without each point. Also the rank-deficient fallback. */
+ * against brute-force refits without each point, and the leverages of an ill-conditioned matrix
+ * whose column space is known in closed form. Also the rank-deficient fallback. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,6 +12,7 @@
 #include "fit/box.h"
 #include "fit/model.h"
 #include "fit/noise.h"
+#include "fit/wls.h"
 
 #define NG 7            /* NG x NG spot positions */
 #define NP (NG * NG)
@@ -129,6 +131,56 @@ static void test_leave_one_out(const double *sig)
     fit_result_free(&all);
 }
 
+/* Q0_kj: the orthonormal DCT-II basis on n points (column j). */
+static double dct_basis(int n, int k, int j)
+{
+    return (j ? sqrt(2.0 / n) : sqrt(1.0 / n)) * cos(M_PI * (k + 0.5) * j / n);
+}
+
+/* X = Q0 R0 (n x m, row-major) with R0_ij = d_i = 10^(-9 i / (m - 1)) for i <= j: column j is
+ * column j - 1 plus d_j Q0_j, so the columns are nearly parallel whatever their scaling (cond
+ * ~1e9 after the column balancing); and h0_k = sum_j Q0_kj^2. */
+static void ill_conditioned(int n, int m, double *X, double *h0)
+{
+    for (int k = 0; k < n; k++) {
+        h0[k] = 0;
+        for (int j = 0; j < m; j++) {
+            double x = 0, q = dct_basis(n, k, j);
+            h0[k] += q * q;
+            for (int i = 0; i <= j; i++) x += dct_basis(n, k, i) * pow(10, -9.0 * i / (m - 1));
+            X[k * m + j] = x;
+        }
+    }
+}
+
+/* Leverages (wls_solve_hat) of X = Q0 R0: the hat matrix is Q0 Q0^T whatever R0 is, so
+ * h_k = sum_j Q0_kj^2, while R0 makes cond ~1e9 and more. X is rounded as it is built, which
+ * moves its column space by ~cond x eps, so h_k agrees to that (1e-6); but the h_k of the thin
+ * Q, orthonormal to rounding, sum to m to rounding (the trace of a projector) and are each 1
+ * with as many points as parameters, at any cond. Leverages from A R^-1 (not orthonormal) would
+ * miss both by ~cond x eps. */
+static void test_leverages(void)
+{
+    enum { N = 200, M = 48 };
+    static double X[N * M], w[N], y[N], c[M], hat[N], h0[N];
+    for (int k = 0; k < N; k++) w[k] = 1, y[k] = sin(0.1 * k);
+    ill_conditioned(N, M, X, h0);
+    wls_result_t res;
+    CHECK(wls_solve_hat(X, w, y, N, M, 0, c, NULL, hat, NULL, &res) == 0);
+    CHECK(res.lapack == 1);
+    CHECK(1 / res.rcond > 1e9);
+    double sum = 0;
+    for (int k = 0; k < N; k++) {
+        CHECK_NEAR(hat[k], h0[k], 0, 1e-6);
+        sum += hat[k];
+    }
+    CHECK_NEAR(sum, M, 1e-12, 0);
+    ill_conditioned(M, M, X, h0); /* square */
+    CHECK(wls_solve_hat(X, w, y, M, M, 0, c, NULL, hat, NULL, &res) == 0);
+    CHECK(res.lapack == 1);
+    for (int k = 0; k < M; k++) CHECK_NEAR(hat[k], 1, 0, 1e-12);
+}
+
 /* Every spot at one place: the columns are proportional, the fit says so (the SVD fallback). */
 static void test_rank_deficient(void)
 {
@@ -159,6 +211,7 @@ int main(void)
     test_exact();
     test_one_parameter(sig);
     test_leave_one_out(sig);
+    test_leverages();
     test_rank_deficient();
     CHECK_DONE();
 }
