@@ -39,7 +39,8 @@ static fitsmap_t map_of(const storage_calib_t *c, const storage_sensor_t *sn)
                        .created_ms = c->created_ms,
                        .current = c->superseded_by == 0,
                        .by = c->by,
-                       .reason = c->reason};
+                       .reason = c->reason,
+                       .map = c->shrunk ? "shrunk" : "recommended"};
 }
 
 /* Writes maps and replies with the file (application/fits, RFC 4047), named filename. */

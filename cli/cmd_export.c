@@ -90,7 +90,8 @@ int cmd_export(int argc, char **argv)
                               .software_version = m->software_version, .calib_id = m->id,
                               .sensor_id = m->sensor_id, .scan_id = m->scan_id,
                               .fit_id = m->fit_id, .created_ms = m->created_ms,
-                              .current = m->current, .by = m->by, .reason = m->reason};
+                              .current = m->current, .by = m->by, .reason = m->reason,
+                              .map = m->map};
     }
     fitsmap_file_t file = {.creator = "ips " IPSD_VERSION, .sensor_id = mf.maps[0].sensor_id,
                            .pitch_um = a.pitch, .date_ms = clock_wall_ms()};

@@ -78,6 +78,7 @@ static int one_map(json_t *o, const char *what, mapfile_map_t *m, err_t *err)
     m->software_version = str(o, "software_version");
     m->by = str(o, "by");
     m->reason = str(o, "reason");
+    m->map = str(o, "map");
     m->id = id(o, "id");
     m->sensor_id = id(o, "sensor_id");
     m->scan_id = id(o, "scan_id");
@@ -147,6 +148,10 @@ int mapfile_read(const char *path, int r, mapfile_t *out, err_t *err)
         ret = one_map(o, what, &out->maps[k], err);
         if (!ret) out->n++;
     }
+    if (!ret && single != doc && !bare) /* an `ips fit` document's map: which one */
+        out->maps[0].map = r == MAPFILE_SHRUNK                             ? "shrunk"
+                           : id(single, "r") == id(doc, "recommended_r") ? "recommended"
+                                                                           : NULL;
     json_decref(bare);
     return ret;
 }

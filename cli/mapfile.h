@@ -17,6 +17,8 @@ typedef struct mapfile_map {
     int col, row;      /* sensor pixel; 0 when the file does not say */
     double wavelength_um, na, spot_radius_um, I0, chi2_red;            /* NaN: unknown */
     const char *status, *noise_model, *software_version, *by, *reason; /* NULL: unknown */
+    const char *map; /* "recommended" or "shrunk" (a calibration's map, or the fit document's
+                        map read); NULL: unknown or another r of a fit document */
     int64_t id, sensor_id, scan_id, fit_id, created_ms;                /* 0: unknown */
     int current;                                                       /* 1 / 0, -1 unknown */
 } mapfile_map_t;

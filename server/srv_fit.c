@@ -107,6 +107,7 @@ static int keep_map(const fit_sweep_t *sw, int shrunk, srv_fit_out_t *out, err_t
     memcpy(out->S, sh ? sh->S : f->S, n * sizeof(double));
     memcpy(out->S_err, sh ? sh->S_err : f->S_err, n * sizeof(double));
     out->r = f->r;
+    out->shrunk = sh != NULL;
     out->I0 = f->I0;
     out->chi2_red = f->chi2_red;
     out->status = fit_status_name(f->flags);

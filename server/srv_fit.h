@@ -17,8 +17,9 @@ typedef struct srv_fit_out {
     json_t *result;          /* the `ips fit` document (owned) */
     int best_aic, best_bic;  /* 0: none */
     double f_value, p_value; /* NaN without an F-test */
-    /* the recommended map, when there is one (r = 0: none) */
-    int r;
+    /* the recommended map, when there is one (r = 0: none), or its shrunk map when the params
+     * asked for it and the sweep has one (shrunk = 1) */
+    int r, shrunk;
     double *S, *S_err; /* r*r each (owned) */
     double I0, chi2_red;
     const char *status; /* static status word of that fit */

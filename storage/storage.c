@@ -186,6 +186,14 @@ char *stg_col_text(sqlite3_stmt *s, int i, int *oom)
     return copy;
 }
 
+int stg_col_is(sqlite3_stmt *s, int i, const char *t)
+{
+    const unsigned char *v = sqlite3_column_text(s, i);
+    return v && strcmp((const char *)v, t) == 0;
+}
+
+const char *stg_map_name(int shrunk) { return shrunk ? "shrunk" : "recommended"; }
+
 int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
 {
     /* a write outside a transaction (one statement) takes its turn at the gate too */

@@ -413,6 +413,8 @@ typedef struct storage_calib {
      * "ipsd" and "no reason given"; an empty string is -EINVAL */
     char *by;
     char *reason;
+    int shrunk; /* which map (schema 7, column map): 1 the shrunk map (fit/shrink.h, 'shrunk'),
+                   0 the recommended r's own fit ('recommended') */
 } storage_calib_t;
 
 typedef struct storage_calib_list {

@@ -68,6 +68,7 @@ static int read_calib(sqlite3_stmt *s, void *item)
     o->supersedes = stg_col_id(s, 19);
     o->by = stg_col_text(s, 20, &oom);
     o->reason = stg_col_text(s, 21, &oom);
+    o->shrunk = stg_col_is(s, 22, "shrunk");
     int ret = bad_s || bad_e ? -EIO : (oom || !o->S || !o->S_err) ? -ENOMEM : 0;
     if (ret) storage_calib_free(o);
     return ret;
@@ -177,6 +178,7 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
     stg_bind_id(q, 19, old, &rc);
     stg_bind_text(q, 20, c->by ? c->by : DEFAULT_BY, &rc);
     stg_bind_text(q, 21, c->reason ? c->reason : DEFAULT_REASON, &rc);
+    stg_bind_text(q, 22, stg_map_name(c->shrunk), &rc);
     if (rc != SQLITE_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a calibration");

@@ -164,6 +164,7 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
     stg_bind_double(q, 12, c->na, &rc);
     stg_bind_double(q, 13, c->spot_radius_um, &rc);
     stg_bind_text(q, 14, c->software_version ? c->software_version : IPSD_VERSION, &rc);
+    stg_bind_text(q, 15, stg_map_name(c->shrunk), &rc);
     if (rc != SQLITE_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a fit's map");
@@ -223,6 +224,7 @@ int stg_fit_map_load(storage_t *st, int64_t fit_id, storage_calib_t *out, err_t 
         out->na = stg_col_double(q, 13);
         out->spot_radius_um = stg_col_double(q, 14);
         out->software_version = stg_col_text(q, 15, &oom);
+        out->shrunk = stg_col_is(q, 16, "shrunk");
         if (bad_s || bad_e)
             ret = err_set(err, -EIO, "fit %lld's map: BLOB of the wrong size", (long long)fit_id);
         else if (oom || !out->S || !out->S_err)

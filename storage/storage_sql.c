@@ -251,6 +251,23 @@ const char *const stg_migrations[] = {
     "    WHERE json_type(params, '$.fit_ids') IS NOT NULL;\n"
     "CREATE INDEX fits_job ON fits (job_id);\n"
     "PRAGMA user_version = 6;\n",
+
+    /* 7: which map a fit offers and a calibration holds: 'recommended' (the recommended r's own
+     * fit) or 'shrunk' (its detail shrunk toward r - 1, fit/shrink.h), asked by a fit request's
+     * "map": "shrunk" (docs/api.md). Filled from what schema 6 recorded: a fit whose job asked
+     * for the shrunk map and whose document has one (fits.result's shrunk_map; without one the
+     * job stored the recommended map), and every calibration of such a fit. ALTER TABLE ADD
+     * COLUMN keeps every row and id. */
+    "ALTER TABLE fit_maps ADD COLUMN map TEXT NOT NULL DEFAULT 'recommended'\n"
+    "    CHECK (map IN ('recommended', 'shrunk'));\n"
+    "ALTER TABLE calibrations ADD COLUMN map TEXT NOT NULL DEFAULT 'recommended'\n"
+    "    CHECK (map IN ('recommended', 'shrunk'));\n"
+    "UPDATE fit_maps SET map = 'shrunk' WHERE fit_id IN (SELECT f.id FROM fits f\n"
+    "    JOIN jobs j ON j.id = f.job_id WHERE json_extract(j.params, '$.map') = 'shrunk'\n"
+    "    AND json_type(f.result, '$.shrunk_map') = 'object');\n"
+    "UPDATE calibrations SET map = 'shrunk'\n"
+    "    WHERE fit_id IN (SELECT fit_id FROM fit_maps WHERE map = 'shrunk');\n"
+    "PRAGMA user_version = 7;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -378,8 +395,8 @@ const char *const stg_sql[STG_N] = {
     [STG_FIT_SET_JOB] = "UPDATE fits SET job_id = ?2 WHERE id = ?1",
     [STG_FIT_MAP_INSERT] =
         "INSERT INTO fit_maps (fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
-        "chi2_red, status, wavelength_um, na, spot_radius_um, software_version) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+        "chi2_red, status, wavelength_um, na, spot_radius_um, software_version, map) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)",
     /* one row for a known fit, its map columns NULL when it offers none */
     [STG_FIT_MAP_GET] = "SELECT " STG_FIT_MAP_COLS " FROM fits f "
                         "LEFT JOIN fit_maps m ON m.fit_id = f.id WHERE f.id = ?1",
@@ -394,9 +411,9 @@ const char *const stg_sql[STG_N] = {
     [STG_CALIB_INSERT] =
         "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
         "chi2_red, status, scan_id, fit_id, noise_model, wavelength_um, na, spot_radius_um, "
-        "software_version, created_ms, supersedes, changed_by, reason) "
+        "software_version, created_ms, supersedes, changed_by, reason, map) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
-        "?19, ?20, ?21)",
+        "?19, ?20, ?21, ?22)",
     [STG_CALIB_GET] = "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.id = ?1",
     [STG_CALIB_CURRENT] =
         "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.sensor_id = ?1 "

@@ -130,6 +130,8 @@ with tempfile.TemporaryDirectory() as tmp:
                   max(abs(a - b) for a, b in zip(got_s.ravel().tolist(), sh["S"])) == 0 and
                   max(abs(a - b) for a, b in zip(got_e.ravel().tolist(), sh["S_err"])) == 0,
                   "the FITS file holds the shrunk map and its S_err")
+            check(h["S", 1].header.get("IPSMAP") == "shrunk",
+                  "its header names the map: IPSMAP = 'shrunk'")
     p = subprocess.run([IPS, "export", doc_path, "--pitch", "6", "-o", out, "--shrunk", "--r",
                         "3"], capture_output=True, text=True)
     check(p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--r" in p.stderr,

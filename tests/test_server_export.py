@@ -9,7 +9,7 @@ neighbouring pixels' raster (fits promoted to those pixels) make three calibrati
   GET /api/calibrations/{id}/map.fits, .../pixels/{col}/{row}/calibration.fits and the sensor's
   /api/sensors/{id}/calibrations.fits: every map value and every S_err equal to the API's JSON
   (bit for bit: both are doubles), the header numbers (OVERSAMP, PITCH, SUBPIX, WAVELEN, NA,
-  SPOTRAD, I0, CHI2RED) and words (FITSTAT, NOISEMOD, SWVERS, CALBY, REASON) and ids (CALIBID,
+  SPOTRAD, I0, CHI2RED) and words (FITSTAT, NOISEMOD, SWVERS, CALBY, REASON, IPSMAP) and ids (CALIBID,
   SCANID, FITID, CAL_MS, PIXCOL, PIXROW) equal to the JSON's; the sampling read through astropy's
   WCS: the first sample's centre at pitch / (2 r) um, the last at pitch - pitch / (2 r), and in
   the 'P' system at the pixel's column + 1 / (2 r); the file a multiple of 2880 bytes; 404 for
@@ -60,7 +60,8 @@ def header_checks(c, h, cal, what):
             "FITSTAT": cal["status"], "NOISEMOD": cal["noise_model"],
             "SWVERS": cal["software_version"], "CALBY": cal["by"], "REASON": cal["reason"],
             "CALIBID": cal["id"], "SENSORID": cal["sensor_id"], "SCANID": cal["scan_id"],
-            "FITID": cal["fit_id"], "CAL_MS": cal["created_ms"], "CURRENT": cal["current"]}
+            "FITID": cal["fit_id"], "CAL_MS": cal["created_ms"], "CURRENT": cal["current"],
+            "IPSMAP": cal["map"]}
     for k, v in want.items():
         got = h.get(k)
         if v is None or v == 0 and k in ("SCANID", "FITID"):

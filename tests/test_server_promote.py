@@ -200,6 +200,18 @@ def test(c, t, argv, daemons):
                       f5.get("id"))
     c.eq(list(struct.unpack("<%dd" % (rr * rr), blob)), sh and sh["S"],
          "database: the current map is the shrunk one")
+    c.eq((cal5.get("map"), db.val("SELECT map FROM calibrations WHERE superseded_by IS NULL"),
+          db.val("SELECT map FROM fit_maps WHERE fit_id = ?", f5.get("id"))),
+         ("shrunk", "shrunk", "shrunk"), "the calibration says it holds the shrunk map (schema 7)")
+    c.eq([x.get("map") for x in d.get(pix + "/history").json()["items"]],
+         ["shrunk", "recommended", "recommended", "recommended", "recommended"],
+         "history: the shrunk map, and the four recommended maps before it")
+    r = d.post("/api/fits/%d/promote" % fit1, {"reason": "the automatic map again"})
+    c.eq((r.status, r.json().get("map")), (201, "recommended"),
+         "promoting the automatic fit again: a recommended map")
+    r = d.post("/api/fits/%d/promote" % f5.get("id", 0), {"reason": "shrunk again"})
+    c.eq((r.status, r.json().get("map"), r.json().get("S")), (201, "shrunk", sh and sh["S"]),
+         "promoting the shrunk fit again: its shrunk map, named so")
 
     # ---- uploads with a target pixel: promoted by default, unless promote is false ----
     up = {"scan": pixel_file, "sensor_id": sensor, "pixel": {"col": 10, "row": 11}, "r_max": 2}

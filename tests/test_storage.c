@@ -145,7 +145,7 @@ static void test_open_migrate(void)
     struct stat sb;
     char mode[32];
     CHECK(stat(db_path("open.db"), &sb) == 0);
-    CHECK(storage_schema_version() == 6); /* docs/schema.md: "currently 6" (keep in step) */
+    CHECK(storage_schema_version() == 7); /* docs/schema.md: "currently 7" (keep in step) */
     CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
     raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
     CHECK(strcmp(mode, "wal") == 0);
@@ -1131,6 +1131,92 @@ static void test_migrate_v2(void)
     storage_close(st);
 }
 
+/* A schema-6 database (migrations 1 to 6 run by hand) migrates to schema 7 with each fit's map
+ * and each calibration named: `shrunk` for the fit whose job asked for "map": "shrunk" and whose
+ * document has a shrunk_map (and for both calibrations of that fit), `recommended` for a job
+ * that asked but whose fit had no shrunk map (it stored the recommended one), for a fit without
+ * a job and for a calibration without a fit. Promoting the shrunk fit again keeps the word, and
+ * a fit stored now with shrunk = 1 reads back so (fit_maps, then its promoted calibration). */
+static void test_migrate_v6(void)
+{
+    for (int i = 0; i < 6; i++)
+        CHECK(raw_exec("v6m.db", stg_migrations[i]) == SQLITE_OK);
+    CHECK(raw_int("v6m.db", "PRAGMA user_version") == 6);
+    CHECK(raw_exec("v6m.db",
+                   "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"
+                   "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, "
+                   "spot_radius_um, area_px, step_um, sub_px, frames, exposure_us, points_total, "
+                   "state, points_done, created_ms) VALUES "
+                   "(1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 'done', 9, 1);"
+                   "INSERT INTO jobs (id, kind, params, state, progress, points_done, created_ms, "
+                   "scan_id, fit_id) VALUES "
+                   "(1, 'fit', '{\"scan_id\": 1, \"map\": \"shrunk\"}', 'done', 1, 0, 2, 1, 21),"
+                   "(2, 'fit', '{\"scan_id\": 1, \"map\": \"shrunk\"}', 'done', 1, 0, 3, 1, 22),"
+                   "(3, 'fit', '{\"scan_id\": 1}', 'done', 1, 0, 4, 1, 23);"
+                   "INSERT INTO fits (id, scan_id, dcol, drow, noise_model, result, created_ms, "
+                   "job_id) VALUES "
+                   "(21, 1, 0, 0, 'paper', '{\"shrunk_map\": {\"r\": 1}}', 2, 1), "
+                   "(22, 1, 0, 0, 'paper', '{\"shrunk_map\": null}', 3, 2), "
+                   "(23, 1, 0, 0, 'paper', '{}', 4, 3), "
+                   "(24, 1, 0, 0, 'paper', '{}', 5, NULL);"
+                   "INSERT INTO fit_maps (fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, "
+                   "status, software_version) VALUES "
+                   "(21, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', '0.1'), "
+                   "(22, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', '0.1'), "
+                   "(23, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', '0.1'), "
+                   "(24, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', '0.1');"
+                   "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, "
+                   "status, scan_id, fit_id, noise_model, software_version, created_ms, "
+                   "superseded_by, supersedes) VALUES "
+                   "(1, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', 1, 21, 'paper', "
+                   "'0.1', 2, 2, NULL), "
+                   "(2, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', 1, 22, 'paper', "
+                   "'0.1', 3, 3, 1), "
+                   "(3, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', 1, 21, 'paper', "
+                   "'0.1', 4, 4, 2), "
+                   "(4, 1, 5, 5, 1, x'000000000000F03F', zeroblob(8), 'ok', NULL, NULL, 'paper', "
+                   "'0.1', 5, NULL, 3);") == SQLITE_OK);
+    storage_t *st = open_db("v6m.db");
+    if (!st) return;
+    CHECK(raw_int("v6m.db", "PRAGMA user_version") == storage_schema_version()); /* and on */
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM pragma_foreign_key_check") == 0);
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM fit_maps") == 4);
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM calibrations") == 4);
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM fit_maps WHERE map = 'shrunk'") == 1);
+    CHECK(raw_int("v6m.db", "SELECT fit_id FROM fit_maps WHERE map = 'shrunk'") == 21);
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM fit_maps WHERE map = 'recommended'") == 3);
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM calibrations WHERE map = 'shrunk' "
+                            "AND id IN (1, 3)") == 2);
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM calibrations WHERE map = 'recommended' "
+                            "AND id IN (2, 4)") == 2);
+    storage_calib_t c;
+    CHECK(storage_calib_get(st, 3, &c, NULL) == 0 && c.shrunk == 1);
+    storage_calib_free(&c);
+    CHECK(storage_calib_get(st, 4, &c, NULL) == 0 && c.shrunk == 0);
+    storage_calib_free(&c);
+    int64_t id = 0;
+    CHECK(storage_calib_promote(st, 21, "bob", "the shrunk map again", &id, NULL) == 0);
+    CHECK(storage_calib_current(st, 1, 5, 5, &c, NULL) == 0 && c.id == id && c.shrunk == 1);
+    storage_calib_free(&c);
+    CHECK(storage_calib_promote(st, 23, "bob", "back to r's own map", &id, NULL) == 0);
+    CHECK(storage_calib_current(st, 1, 5, 5, &c, NULL) == 0 && c.id == id && c.shrunk == 0);
+    storage_calib_free(&c);
+    /* stored now: the fit's map is shrunk, kept in fit_maps, promoted later */
+    double S = 1, E = 0.01;
+    storage_fit_t f = {.scan_id = 1, .noise_model = "paper", .result = "{}"};
+    storage_calib_t m = {.sensor_id = 1, .pixel_col = 5, .pixel_row = 5, .r = 1, .S = &S,
+                         .S_err = &E, .status = "ok", .scan_id = 1, .noise_model = "paper",
+                         .wavelength_um = NAN, .na = NAN, .spot_radius_um = NAN, .I0 = NAN,
+                         .chi2_red = NAN, .shrunk = 1};
+    int64_t fid = 0;
+    CHECK(storage_fit_store(st, &f, &m, 0, 0, &fid, NULL, NULL) == 0 && fid > 0);
+    CHECK(raw_int("v6m.db", "SELECT count(*) FROM fit_maps WHERE map = 'shrunk'") == 2);
+    CHECK(storage_calib_promote(st, fid, NULL, NULL, &id, NULL) == 0);
+    CHECK(storage_calib_current(st, 1, 5, 5, &c, NULL) == 0 && c.id == id && c.shrunk == 1);
+    storage_calib_free(&c);
+    storage_close(st);
+}
+
 /* A schema-5 database (migrations 1 to 5 run by hand), where a job of every pixel kept its fits
  * in its params' "fit_ids", migrates to schema 6 with each fit's job recorded: the jobs answer
  * the same fit_ids in the same order (from SQL now) and their params lose only "fit_ids"; an
@@ -1352,6 +1438,7 @@ int main(void)
     test_promote();
     test_migrate_v2();
     test_migrate_v5();
+    test_migrate_v6();
     test_setup_release_upload();
     remove_tmpdir();
     CHECK_DONE();

@@ -3,8 +3,8 @@
 // map of one sensor pixel (S, the interpolated surface, S_err: Plotly, µm axes) with its
 // downloads (JSON, and CSV with positions in µm and the pitch), two maps compared side by side
 // with their difference (calib_maps.js), and the pixel's history (GET .../calibration and
-// .../history) as small multiples and a table: who made each map current, when and why, and the
-// map it superseded.
+// .../history) as small multiples and a table: who made each map current, when and why, the map
+// it superseded, and which map of its fit each is (recommended or shrunk).
 import { get } from './api.js';
 import {
     clearError, errorBox, failure, field, fill, fmt, fmtTime, formBody, h, showError,
@@ -24,6 +24,14 @@ function pixelHref(c) {
 function csvLink(c, label = 'CSV') {
     return h('a', { href: `/api/calibrations/${c.id}?format=csv`,
         download: `calibration-${c.id}.csv`, 'aria-label': `CSV of calibration #${c.id}` }, label);
+}
+
+// Which map of its fit a calibration holds (its `map`, database schema 7).
+function mapWord(c) {
+    return c.map === 'shrunk'
+        ? `The shrunk map: r = ${c.r}'s detail shrunk toward r = ${c.r - 1} (fit request "map": ` +
+          '"shrunk"; S_err includes the shrinkage\'s expected bias)'
+        : `The recommended r's own least-squares map (r = ${c.r})`;
 }
 
 function provenance(c) {
@@ -119,7 +127,8 @@ export function renderCalibrations(root, params) {
                             s ? `${s.model} ${s.serial}` : `#${c.sensor_id}`)),
                         h('td', {}, h('a', { href: pixelHref(c) },
                             `(${c.pixel.col}, ${c.pixel.row})`)),
-                        h('td', {}, c.r), h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
+                        h('td', { title: mapWord(c) }, c.map === 'shrunk' ? `${c.r} shrunk` : c.r),
+                    h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
                         h('td', {}, fmt(c.I0, 6)),
                         h('td', {}, c.current ? 'yes' : `superseded by #${c.superseded_by}`),
                         h('td', {}, fmtTime(c.created_ms)), h('td', {}, provenance(c)),
@@ -283,6 +292,7 @@ export function renderPixel(root, sensorId, col, row) {
                     `λ = ${fmt(cur.optics.wavelength_nm)} nm, NA = ${fmt(cur.optics.na)}, ` +
                     `ipsd ${cur.software_version} · ${fmtTime(cur.created_ms)} · from `,
                 provenance(cur)),
+                h('p', { class: 'sub', 'data-testid': 'current-map' }, mapWord(cur)),
                 h('p', { class: 'sub', 'data-testid': 'current-why' }, `Made current by ` +
                     `${cur.by ?? '–'}: ${cur.reason ?? '–'}`, cur.supersedes
                     ? ` (replaced #${cur.supersedes})` : ''),

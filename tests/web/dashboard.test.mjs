@@ -727,6 +727,10 @@ async function run(base, page, api) {
 
     check((await page.locator('[data-testid="current-why"]').textContent())
         .includes(`automatic fit of scan ${scan.id}`), 'the pixel view says why its map is current');
+    check(cals[0].map === 'recommended' && (await page.locator('[data-testid="current-map"]')
+        .textContent()).includes(`recommended r's own least-squares map (r = ${cals[0].r})`),
+    'the pixel view says which map of its fit the calibration holds (the API\'s map)',
+    cals[0].map);
 
     // a re-fit is stored as a fit only; its Fit view says so, and promotes it with a reason typed
     // and sent from the keyboard (POST /api/fits/{id}/promote)
