@@ -76,6 +76,8 @@ struct tally {
     double wiener_sum, best_sum;
     long z_n, z_in2_rec, z_in2_shrunk; /* S_err's honesty (fidelity.h) */
     double z2_rec, z2_shrunk;
+    long z_in2_rec_res, z_in2_shrunk_res; /* with the resolution error S_res */
+    double z2_rec_res, z2_shrunk_res;
 };
 
 struct run {
@@ -335,6 +337,8 @@ static void tally_case(struct tally *k, const fid_result_t *f, int n_rules)
     k->wiener_sum += isfinite(f->rms_wiener) ? f->rms_wiener : 0;
     k->z_n += f->z_n, k->z_in2_rec += f->z_in2_rec, k->z_in2_shrunk += f->z_in2_shrunk;
     k->z2_rec += f->z2_rec, k->z2_shrunk += f->z2_shrunk;
+    k->z_in2_rec_res += f->z_in2_rec_res, k->z_in2_shrunk_res += f->z_in2_shrunk_res;
+    k->z2_rec_res += f->z2_rec_res, k->z2_shrunk_res += f->z2_shrunk_res;
 }
 
 /* Adds tally k into sum. */
@@ -345,6 +349,8 @@ static void tally_sum(struct tally *sum, const struct tally *k)
     sum->wiener_sum += k->wiener_sum;
     sum->z_n += k->z_n, sum->z_in2_rec += k->z_in2_rec, sum->z_in2_shrunk += k->z_in2_shrunk;
     sum->z2_rec += k->z2_rec, sum->z2_shrunk += k->z2_shrunk;
+    sum->z_in2_rec_res += k->z_in2_rec_res, sum->z_in2_shrunk_res += k->z_in2_shrunk_res;
+    sum->z2_rec_res += k->z2_rec_res, sum->z2_shrunk_res += k->z2_shrunk_res;
     for (int i = 0; i < N_FIXED + FID_MAX_RULES; i++) {
         sum->s[i].ok += k->s[i].ok;
         sum->s[i].worst = fmax(sum->s[i].worst, k->s[i].worst);
@@ -388,16 +394,35 @@ static void print_summary(const struct tally *t, const struct tally *ts, const s
         print_row(rasters[ri].name, &t[ri], u->r_max);
     }
     print_row("all", &all, u->r_max);
-    if (all.z_n)
+    if (all.z_n) {
         printf("S_err against the truth's sub-pixel means (cases with a shrunk map, %ld "
                "sub-pixels): recommended map rms z %.3f, |z| <= 2 in %.1f %%; shrunk map rms z "
                "%.3f, |z| <= 2 in %.1f %% (Gaussian: 1, 95.4 %%)\n", all.z_n,
                sqrt(all.z2_rec / (double)all.z_n), 100.0 * (double)all.z_in2_rec / (double)all.z_n,
                sqrt(all.z2_shrunk / (double)all.z_n),
                100.0 * (double)all.z_in2_shrunk / (double)all.z_n);
+        printf("With the resolution error S_res added in quadrature: recommended map rms z %.3f, "
+               "|z| <= 2 in %.1f %%; shrunk map rms z %.3f, |z| <= 2 in %.1f %%\n",
+               sqrt(all.z2_rec_res / (double)all.z_n),
+               100.0 * (double)all.z_in2_rec_res / (double)all.z_n,
+               sqrt(all.z2_shrunk_res / (double)all.z_n),
+               100.0 * (double)all.z_in2_shrunk_res / (double)all.z_n);
+    }
     printf("\n");
     print_header("scene");
     for (size_t si = 0; si < N_SCENES; si++) print_row(scenes[si], &ts[si], u->r_max);
+    printf("\nS_err's honesty by scene (rms z, %% with |z| <= 2): recommended map alone, with "
+           "S_res; shrunk map alone, with S_res\n");
+    for (size_t si = 0; si < N_SCENES; si++) {
+        const struct tally *k = &ts[si];
+        if (!k->z_n) continue;
+        double n = (double)k->z_n;
+        printf("  %-12s %6ld sub-pixels  %5.2f %5.1f%%  %5.2f %5.1f%%   %5.2f %5.1f%%  %5.2f "
+               "%5.1f%%\n", scenes[si], k->z_n, sqrt(k->z2_rec / n), 100 * k->z_in2_rec / n,
+               sqrt(k->z2_rec_res / n), 100 * k->z_in2_rec_res / n, sqrt(k->z2_shrunk / n),
+               100 * k->z_in2_shrunk / n, sqrt(k->z2_shrunk_res / n),
+               100 * k->z_in2_shrunk_res / n);
+    }
     if (!u->tune) return;
     printf("\nrule settings noise_to_contrast, noise_weight (0: steps 1-2 only): cases within "
            "%.1fx of the best, worst ratio, over all rasters (the first row is the default)\n",

@@ -70,6 +70,11 @@ void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fi
                    "noise (%.0f %% kept; detail rms %.3g, its noise %.3g), mean 1\n", sh->r,
                 sh->toward_r, 100 * sh->factor, sh->detail, sh->noise);
         print_map(f, sh->S, sh->S_err, sh->r);
+        double v = 0;
+        for (int j = 0; j < sh->r * sh->r; j++) v += sh->S_res[j] * sh->S_res[j];
+        fprintf(f, "Resolution error of r = %d's sub-pixel values (structure finer than the grid, "
+                   "fit/shrink.h): S_res rms %.3g; add it in quadrature to S_err\n",
+                sh->r, sqrt(v / (sh->r * sh->r)));
     }
     if (ftest) {
         fprintf(f, "\nF-test at r = %d: H0 (edge sub-pixels free, the rest one S0) p0 = %d, "

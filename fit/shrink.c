@@ -115,8 +115,10 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
     double *Y = malloc(sizeof(double) * d * d);
     out->S = malloc(sizeof(double) * d);
     out->S_err = malloc(sizeof(double) * d);
+    out->S_res = malloc(sizeof(double) * d);
     int rc = 0;
-    if (!w || !P || !V || !X || !Gs || !lam || !D || !z || !Y || !out->S || !out->S_err) {
+    if (!w || !P || !V || !X || !Gs || !lam || !D || !z || !Y || !out->S || !out->S_err ||
+        !out->S_res) {
         rc = err_set(err, -ENOMEM, "out of memory");
         goto out;
     }
@@ -180,6 +182,7 @@ int fit_shrink_with_cov(const double *Sr, int r, const double *Sq, int q, const 
         double s = 0;
         for (size_t k = 0; k < d; k++) s += Gs[j * d + k] * D[k];
         out->S[j] += s;
+        out->S_res[j] = FIT_RES_FRACTION * fabs(s); /* shrink.h */
         kept2 += s * s;
     }
     /* Cov(M), M = A Sq + Gs Sr with A = (I - Gs) P:
@@ -234,6 +237,7 @@ void fit_shrunk_free(fit_shrunk_t *s)
     if (!s) return;
     free(s->S);
     free(s->S_err);
-    s->S = s->S_err = NULL;
+    free(s->S_res);
+    s->S = s->S_err = s->S_res = NULL;
     s->r = 0;
 }

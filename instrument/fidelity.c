@@ -64,7 +64,8 @@ static double wiener_rms(const fit_wiener_t *w, double p, const double *T, int m
 }
 
 /* The S_err z-scores of the recommended and the shrunk map against the truth's mean over each
- * sub-pixel (fidelity.h), both maps and the truth's means scaled to mean 1. */
+ * sub-pixel (fidelity.h), both maps and the truth's means scaled to mean 1; and the same with
+ * the resolution error S_res added in quadrature (fit/shrink.h). */
 static void z_scores(const fit_sweep_t *sw, double scale, const double *T, int m,
                      fid_result_t *out)
 {
@@ -75,13 +76,19 @@ static void z_scores(const fit_sweep_t *sw, double scale, const double *T, int m
     if (!tc || fit_grid_average(T, m, r, tc)) goto out; /* the truth's mean over each sub-pixel */
     for (int q = 0; q < r * r; q++) mean += tc[q] / (r * r);
     for (int q = 0; q < r * r; q++) {
-        double t = tc[q] / mean, zr = (f->S[q] - t) / (f->S_err[q] * scale),
-               zs = (sh->S[q] - t) / (sh->S_err[q] * scale);
+        double t = tc[q] / mean, er = f->S_err[q] * scale, es = sh->S_err[q] * scale,
+               b2 = sh->S_res[q] * sh->S_res[q], dr = f->S[q] - t, ds = sh->S[q] - t;
+        double zr = dr / er, zs = ds / es, zrr = dr / sqrt(er * er + b2),
+               zsr = ds / sqrt(es * es + b2);
         out->z_n++;
         out->z2_rec += zr * zr;
         out->z2_shrunk += zs * zs;
         out->z_in2_rec += fabs(zr) <= 2;
         out->z_in2_shrunk += fabs(zs) <= 2;
+        out->z2_rec_res += zrr * zrr;
+        out->z2_shrunk_res += zsr * zsr;
+        out->z_in2_rec_res += fabs(zrr) <= 2;
+        out->z_in2_shrunk_res += fabs(zsr) <= 2;
     }
 out:
     free(tc);

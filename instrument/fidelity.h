@@ -66,6 +66,9 @@ typedef struct fid_result {
     int z_n;
     double z2_rec, z2_shrunk;
     int z_in2_rec, z_in2_shrunk;
+    /* the same with the resolution error added, sqrt(S_err^2 x scatter^2 + S_res^2) */
+    double z2_rec_res, z2_shrunk_res;
+    int z_in2_rec_res, z_in2_shrunk_res;
     size_t n_raster;           /* the points of the whole raster */
     double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */
 } fid_result_t;

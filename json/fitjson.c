@@ -166,11 +166,11 @@ json_t *fitjson_shrunk(const fit_shrunk_t *s)
 {
     if (!s || s->r < 1) return json_null();
     size_t m = (size_t)s->r * s->r;
-    return json_pack("{s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:o}", "r", s->r, "toward_r",
+    return json_pack("{s:i, s:i, s:o, s:o, s:o, s:o, s:o, s:o, s:o}", "r", s->r, "toward_r",
                      s->toward_r, "factor", fitjson_num(s->factor), "detail_rms",
                      fitjson_num(s->detail), "noise_rms", fitjson_num(s->noise), "tau",
                      fitjson_num(s->tau), "S", fitjson_array(s->S, m), "S_err",
-                     fitjson_array(s->S_err, m));
+                     fitjson_array(s->S_err, m), "S_res", fitjson_array(s->S_res, m));
 }
 
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,

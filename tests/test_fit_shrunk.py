@@ -3,7 +3,8 @@
 docs/contracts.md), end to end through the ips binary, recomputed here from the document's own
 fits (area overlaps by interval arithmetic, independent of fit/shrink.c): the map is r - 1's
 projected onto the r grid plus a part of the detail D = S_r - P S_{r-1}, whose kept fraction is
-`factor`, `detail_rms` is D's rms, the mean is 1; and against the simulator's truth (`ips
+`factor`, `detail_rms` is D's rms, the resolution error `S_res` is 0.4 of the kept detail, the mean
+is 1; and against the simulator's truth (`ips
 simulate --truth`): over these scans the shrunk maps are closer to it than the recommended ones. A flat pixel (recommended r = 1) has none; `--table` prints it."""
 import json
 import math
@@ -89,6 +90,9 @@ with tempfile.TemporaryDirectory() as tmp:
         check(abs(sh["factor"] - c) <= 1e-9 and 0 <= c <= 1,
               "%s: factor %.6f = |S - P S_r-1| / |S_r - P S_r-1| %.6f by hand" % (name, sh["factor"], c))
         check(abs(sh["detail_rms"] - math.sqrt(dd / d)) <= 1e-9, "%s: detail_rms by hand" % name)
+        check(len(sh["S_res"]) == d and
+              max(abs(a - 0.4 * abs(b)) for a, b in zip(sh["S_res"], kept)) <= 1e-9,
+              "%s: S_res = 0.4 |S - P S_r-1| by hand (docs/contracts.md)" % name)
         check(abs(sum(sh["S"]) / d - 1) <= 1e-9, "%s: mean 1" % name)
         check(all(e > 0 for e in sh["S_err"]) and sh["noise_rms"] > 0 and sh["tau"] >= 0,
               "%s: S_err, noise_rms positive, tau >= 0" % name)
@@ -112,6 +116,9 @@ with tempfile.TemporaryDirectory() as tmp:
     table = subprocess.run([IPS, "fit", scan, "--r-max", "10", "--table"], capture_output=True,
                            text=True, check=True).stdout
     check("Shrunk map, r = " in table, "--table prints the shrunk map")
+    sh = fit(scan, "--r-max", "10")["shrunk_map"]
+    want = "S_res rms %.3g;" % math.sqrt(sum(x * x for x in sh["S_res"]) / sh["r"] ** 2)
+    check(want in table, "--table prints the resolution error's rms (%s)" % want)
     # ips export --shrunk: the shrunk map as FITS (read back by astropy, an independent reader)
     doc_path, out = os.path.join(tmp, "fit.json"), os.path.join(tmp, "shrunk.fits")
     with open(doc_path, "w") as f:

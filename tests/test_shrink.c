@@ -70,6 +70,8 @@ static void isotropic(void)
         CHECK_NEAR(out.S[0], 1 + g * a, 1e-6, 1e-6);
         CHECK_NEAR(out.S[1], 1 - g * a, 1e-6, 1e-6);
         CHECK_NEAR(out.S_err[0], sqrt(g) * s, 1e-5, 1e-6);
+        for (int j = 0; j < 4; j++) /* that fraction of the kept detail g a */
+            CHECK_NEAR(out.S_res[j], FIT_RES_FRACTION * g * a, 1e-5, 1e-6);
         CHECK_NEAR(out.tau, g > 0 ? sqrt(a * a - se * se) : 0, 1e-5, 1e-6);
         CHECK_NEAR(out.noise, se, 1e-12, 0);
         CHECK_NEAR(out.detail, a, 1e-12, 0);
