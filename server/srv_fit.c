@@ -21,6 +21,7 @@ void srv_fit_out_free(srv_fit_out_t *o)
     json_decref(o->result);
     free(o->S);
     free(o->S_err);
+    free(o->S_res);
     memset(o, 0, sizeof *o);
 }
 
@@ -93,7 +94,8 @@ static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
 
 /* Copies the recommended map of the sweep (fit/recommend.h) into out (nothing when it has
  * none), or with shrunk its shrunk map (fit/shrink.h) when it has one: the map a calibration
- * stores. I0, chi2_red and the status are the recommended fit's either way. */
+ * stores. I0, chi2_red and the status are the recommended fit's either way, and so is the
+ * resolution error S_res (the shrinkage's, of the r grid both maps share; NULL without one). */
 static int keep_map(const fit_sweep_t *sw, int shrunk, srv_fit_out_t *out, err_t *err)
 {
     if (!sw->recommended_r) return 0;
@@ -108,6 +110,11 @@ static int keep_map(const fit_sweep_t *sw, int shrunk, srv_fit_out_t *out, err_t
     memcpy(out->S_err, sh ? sh->S_err : f->S_err, n * sizeof(double));
     out->r = f->r;
     out->shrunk = sh != NULL;
+    if (sw->shrunk && sw->shrunk->r == f->r && sw->shrunk->S_res) { /* either map's grid */
+        if (!(out->S_res = malloc(n * sizeof(double))))
+            return err_set(err, -ENOMEM, "out of memory");
+        memcpy(out->S_res, sw->shrunk->S_res, n * sizeof(double));
+    }
     out->I0 = f->I0;
     out->chi2_red = f->chi2_red;
     out->status = fit_status_name(f->flags);

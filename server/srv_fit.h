@@ -21,6 +21,7 @@ typedef struct srv_fit_out {
      * asked for it and the sweep has one (shrunk = 1) */
     int r, shrunk;
     double *S, *S_err; /* r*r each (owned) */
+    double *S_res;     /* r*r (owned), or NULL: the map's resolution error (fit/shrink.h) */
     double I0, chi2_red;
     const char *status; /* static status word of that fit */
 } srv_fit_out_t;

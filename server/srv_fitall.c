@@ -143,6 +143,7 @@ static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const stor
                          .S = out.S,
                          .S_err = out.S_err,
                          .shrunk = out.shrunk,
+                         .S_res = out.S_res,
                          .I0 = out.I0,
                          .chi2_red = out.chi2_red,
                          .status = (char *)out.status,

@@ -113,6 +113,7 @@ static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struc
         c->S = out->S;
         c->S_err = out->S_err;
         c->shrunk = out->shrunk;
+        c->S_res = out->S_res;
         c->I0 = out->I0;
         c->chi2_red = out->chi2_red;
         c->status = (char *)out->status;

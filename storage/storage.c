@@ -194,6 +194,30 @@ int stg_col_is(sqlite3_stmt *s, int i, const char *t)
 
 const char *stg_map_name(int shrunk) { return shrunk ? "shrunk" : "recommended"; }
 
+int stg_bind_f64_or_null(sqlite3_stmt *q, int i, const double *v, size_t n, unsigned char **buf,
+                         int *rc)
+{
+    *buf = NULL;
+    if (!v) {
+        if (*rc == SQLITE_OK) *rc = sqlite3_bind_null(q, i);
+        return 0;
+    }
+    if (!(*buf = stg_blob_from_f64(v, n))) return -ENOMEM;
+    stg_bind_blob(q, i, *buf, n * 8, rc);
+    return 0;
+}
+
+double *stg_col_f64_or_null(sqlite3_stmt *s, int i, size_t n, int *bad, int *oom)
+{
+    if (sqlite3_column_type(s, i) == SQLITE_NULL) return NULL;
+    int b = 0;
+    double *v = stg_f64_from_blob(sqlite3_column_blob(s, i), (size_t)sqlite3_column_bytes(s, i), n,
+                                  &b);
+    if (b) *bad = 1;
+    else if (!v) *oom = 1;
+    return v;
+}
+
 int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
 {
     /* a write outside a transaction (one statement) takes its turn at the gate too */

@@ -415,6 +415,8 @@ typedef struct storage_calib {
     char *reason;
     int shrunk; /* which map (schema 7, column map): 1 the shrunk map (fit/shrink.h, 'shrunk'),
                    0 the recommended r's own fit ('recommended') */
+    double *S_res; /* r*r or NULL (not known): the map's resolution error (schema 7, fit/shrink.h:
+                      add in quadrature to S_err) */
 } storage_calib_t;
 
 typedef struct storage_calib_list {

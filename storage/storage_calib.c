@@ -16,6 +16,7 @@ void storage_calib_free(storage_calib_t *c)
     if (!c) return;
     free(c->S);
     free(c->S_err);
+    free(c->S_res);
     free(c->status);
     free(c->noise_model);
     free(c->software_version);
@@ -69,6 +70,7 @@ static int read_calib(sqlite3_stmt *s, void *item)
     o->by = stg_col_text(s, 20, &oom);
     o->reason = stg_col_text(s, 21, &oom);
     o->shrunk = stg_col_is(s, 22, "shrunk");
+    o->S_res = stg_col_f64_or_null(s, 23, n, &bad_e, &oom);
     int ret = bad_s || bad_e ? -EIO : (oom || !o->S || !o->S_err) ? -ENOMEM : 0;
     if (ret) storage_calib_free(o);
     return ret;
@@ -159,7 +161,7 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
     int64_t new_id = 0, old = 0;
     int ret = stg_calib_check(st, c, err), rc = SQLITE_OK;
     if (ret || (ret = supersede(st, c, &old, &new_id, err))) return ret;
-    unsigned char *s = NULL, *e = NULL;
+    unsigned char *s = NULL, *e = NULL, *res = NULL;
     if ((ret = stg_stmt(st, STG_CALIB_INSERT, &q, err))) goto out;
     stg_bind_int(q, 1, new_id, &rc);
     if (stg_bind_map(q, c, &s, &e, &rc)) {
@@ -179,6 +181,11 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
     stg_bind_text(q, 20, c->by ? c->by : DEFAULT_BY, &rc);
     stg_bind_text(q, 21, c->reason ? c->reason : DEFAULT_REASON, &rc);
     stg_bind_text(q, 22, stg_map_name(c->shrunk), &rc);
+    if (stg_bind_f64_or_null(q, 23, c->S_res, (size_t)c->r * (size_t)c->r, &res, &rc)) {
+        stg_reset(q);
+        ret = err_set(err, -ENOMEM, "calibration: out of memory");
+        goto out;
+    }
     if (rc != SQLITE_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a calibration");
@@ -195,6 +202,7 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
 out:
     free(s);
     free(e);
+    free(res);
     return ret;
 }
 

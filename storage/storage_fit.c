@@ -152,7 +152,7 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
 {
     sqlite3_stmt *q;
     int ret, rc = SQLITE_OK;
-    unsigned char *s = NULL, *e = NULL;
+    unsigned char *s = NULL, *e = NULL, *res = NULL;
     if ((ret = stg_stmt(st, STG_FIT_MAP_INSERT, &q, err))) goto out;
     stg_bind_int(q, 1, fit_id, &rc);
     if (stg_bind_map(q, c, &s, &e, &rc)) {
@@ -165,6 +165,11 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
     stg_bind_double(q, 13, c->spot_radius_um, &rc);
     stg_bind_text(q, 14, c->software_version ? c->software_version : IPSD_VERSION, &rc);
     stg_bind_text(q, 15, stg_map_name(c->shrunk), &rc);
+    if (stg_bind_f64_or_null(q, 16, c->S_res, (size_t)c->r * (size_t)c->r, &res, &rc)) {
+        stg_reset(q);
+        ret = err_set(err, -ENOMEM, "fit map: out of memory");
+        goto out;
+    }
     if (rc != SQLITE_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a fit's map");
@@ -174,6 +179,7 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
 out:
     free(s);
     free(e);
+    free(res);
     return ret;
 }
 
@@ -183,6 +189,7 @@ static void map_free(storage_calib_t *c)
 {
     free(c->S);
     free(c->S_err);
+    free(c->S_res);
     free(c->status);
     free(c->noise_model);
     free(c->software_version);
@@ -225,6 +232,7 @@ int stg_fit_map_load(storage_t *st, int64_t fit_id, storage_calib_t *out, err_t 
         out->spot_radius_um = stg_col_double(q, 14);
         out->software_version = stg_col_text(q, 15, &oom);
         out->shrunk = stg_col_is(q, 16, "shrunk");
+        out->S_res = stg_col_f64_or_null(q, 17, n, &bad_e, &oom);
         if (bad_s || bad_e)
             ret = err_set(err, -EIO, "fit %lld's map: BLOB of the wrong size", (long long)fit_id);
         else if (oom || !out->S || !out->S_err)

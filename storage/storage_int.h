@@ -101,12 +101,12 @@ enum stg_id {
 #define STG_FIT_MAP_COLS                                                                          \
     "m.fit_id, m.sensor_id, m.pixel_col, m.pixel_row, m.r, m.s, m.s_err, m.i0, m.chi2_red, "      \
     "m.status, f.scan_id, f.noise_model, m.wavelength_um, m.na, m.spot_radius_um, "               \
-    "m.software_version, m.map"
+    "m.software_version, m.map, m.s_res"
 #define STG_CALIB_COLS                                                                            \
     "c.id, c.sensor_id, c.pixel_col, c.pixel_row, c.r, c.s, c.s_err, c.i0, c.chi2_red, "          \
     "c.status, c.scan_id, c.fit_id, c.noise_model, c.wavelength_um, c.na, c.spot_radius_um, "     \
     "c.software_version, c.created_ms, c.superseded_by, c.supersedes, c.changed_by, c.reason, "   \
-    "c.map"
+    "c.map, c.s_res"
 
 #define STG_PTC_COLS                                                                              \
     "id, sensor_id, gain_e_per_dn, read_noise_e, dark_dn, saturation_dn, linearity_error_pct, "   \
@@ -176,6 +176,13 @@ char *stg_col_text(sqlite3_stmt *s, int i, int *oom);
 int stg_col_is(sqlite3_stmt *s, int i, const char *t);
 /* The map column's word for storage_calib_t.shrunk (schema 7). */
 const char *stg_map_name(int shrunk);
+/* Binds ?i to the r*r float64 BLOB of v, or NULL when v is NULL; *buf (caller frees, also on
+ * error) must live until the statement has run. -ENOMEM when the BLOB cannot be made. */
+int stg_bind_f64_or_null(sqlite3_stmt *q, int i, const double *v, size_t n, unsigned char **buf,
+                         int *rc);
+/* Column i as n doubles (malloc'ed), NULL for SQL NULL; *bad = 1 for a BLOB of the wrong size,
+ * *oom = 1 when out of memory. */
+double *stg_col_f64_or_null(sqlite3_stmt *s, int i, size_t n, int *bad, int *oom);
 
 /* Runs a bound statement that returns no rows and resets it: 0 or a negative errno. */
 int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what);

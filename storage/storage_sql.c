@@ -256,12 +256,16 @@ const char *const stg_migrations[] = {
      * fit) or 'shrunk' (its detail shrunk toward r - 1, fit/shrink.h), asked by a fit request's
      * "map": "shrunk" (docs/api.md). Filled from what schema 6 recorded: a fit whose job asked
      * for the shrunk map and whose document has one (fits.result's shrunk_map; without one the
-     * job stored the recommended map), and every calibration of such a fit. ALTER TABLE ADD
-     * COLUMN keeps every row and id. */
+     * job stored the recommended map), and every calibration of such a fit. And s_res, the map's
+     * resolution error (fit/shrink.h's S_res, r*r float64; NULL: not known, as for every row
+     * before schema 7). ALTER TABLE ADD COLUMN keeps every row and id. */
     "ALTER TABLE fit_maps ADD COLUMN map TEXT NOT NULL DEFAULT 'recommended'\n"
     "    CHECK (map IN ('recommended', 'shrunk'));\n"
     "ALTER TABLE calibrations ADD COLUMN map TEXT NOT NULL DEFAULT 'recommended'\n"
     "    CHECK (map IN ('recommended', 'shrunk'));\n"
+    "ALTER TABLE fit_maps ADD COLUMN s_res BLOB CHECK (s_res IS NULL OR length(s_res) = 8 * r * r);\n"
+    "ALTER TABLE calibrations ADD COLUMN s_res BLOB\n"
+    "    CHECK (s_res IS NULL OR length(s_res) = 8 * r * r);\n"
     "UPDATE fit_maps SET map = 'shrunk' WHERE fit_id IN (SELECT f.id FROM fits f\n"
     "    JOIN jobs j ON j.id = f.job_id WHERE json_extract(j.params, '$.map') = 'shrunk'\n"
     "    AND json_type(f.result, '$.shrunk_map') = 'object');\n"
@@ -395,8 +399,8 @@ const char *const stg_sql[STG_N] = {
     [STG_FIT_SET_JOB] = "UPDATE fits SET job_id = ?2 WHERE id = ?1",
     [STG_FIT_MAP_INSERT] =
         "INSERT INTO fit_maps (fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
-        "chi2_red, status, wavelength_um, na, spot_radius_um, software_version, map) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)",
+        "chi2_red, status, wavelength_um, na, spot_radius_um, software_version, map, s_res) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
     /* one row for a known fit, its map columns NULL when it offers none */
     [STG_FIT_MAP_GET] = "SELECT " STG_FIT_MAP_COLS " FROM fits f "
                         "LEFT JOIN fit_maps m ON m.fit_id = f.id WHERE f.id = ?1",
@@ -411,9 +415,9 @@ const char *const stg_sql[STG_N] = {
     [STG_CALIB_INSERT] =
         "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
         "chi2_red, status, scan_id, fit_id, noise_model, wavelength_um, na, spot_radius_um, "
-        "software_version, created_ms, supersedes, changed_by, reason, map) "
+        "software_version, created_ms, supersedes, changed_by, reason, map, s_res) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
-        "?19, ?20, ?21, ?22)",
+        "?19, ?20, ?21, ?22, ?23)",
     [STG_CALIB_GET] = "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.id = ?1",
     [STG_CALIB_CURRENT] =
         "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.sensor_id = ?1 "

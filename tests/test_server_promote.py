@@ -70,6 +70,10 @@ def test(c, t, argv, daemons):
                              "r": map_of(f1)[0], "current": True,
                              "current_calibration_id": cal1["id"]},
          "the automatic fit's JSON: its map is the current calibration")
+    sh1 = f1.get("result", {}).get("shrunk_map")
+    c.eq((cal1.get("map"), cal1.get("S_res")),
+         ("recommended", sh1["S_res"] if sh1 and sh1["r"] == cal1.get("r") else None),
+         "the automatic calibration: the recommended map, with the resolution error of its r")
 
     # ---- a re-fit without promote: stored as a fit, the calibration unchanged ----
     r = d.post("/api/scans/%d/fits" % scan, {"r_max": 4, "sigma": "shot+read"})
@@ -200,6 +204,11 @@ def test(c, t, argv, daemons):
                       f5.get("id"))
     c.eq(list(struct.unpack("<%dd" % (rr * rr), blob)), sh and sh["S"],
          "database: the current map is the shrunk one")
+    c.eq(cal5.get("S_res"), sh and sh["S_res"],
+         "the calibration keeps the map's resolution error S_res (the result's)")
+    c.ok(sh is not None and len(sh["S_res"]) == sh["r"] ** 2 and
+         all(v >= 0 for v in sh["S_res"]) and any(v > 0 for v in sh["S_res"]),
+         "S_res: r*r non-negative values, not all zero on the paper-like pixel")
     c.eq((cal5.get("map"), db.val("SELECT map FROM calibrations WHERE superseded_by IS NULL"),
           db.val("SELECT map FROM fit_maps WHERE fit_id = ?", f5.get("id"))),
          ("shrunk", "shrunk", "shrunk"), "the calibration says it holds the shrunk map (schema 7)")

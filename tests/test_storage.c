@@ -1135,8 +1135,9 @@ static void test_migrate_v2(void)
  * and each calibration named: `shrunk` for the fit whose job asked for "map": "shrunk" and whose
  * document has a shrunk_map (and for both calibrations of that fit), `recommended` for a job
  * that asked but whose fit had no shrunk map (it stored the recommended one), for a fit without
- * a job and for a calibration without a fit. Promoting the shrunk fit again keeps the word, and
- * a fit stored now with shrunk = 1 reads back so (fit_maps, then its promoted calibration). */
+ * a job and for a calibration without a fit; no row's resolution error (s_res) is known. Promoting
+ * the shrunk fit again keeps the word, and a fit stored now with shrunk = 1 and its S_res reads
+ * back so (fit_maps, then its promoted calibration). */
 static void test_migrate_v6(void)
 {
     for (int i = 0; i < 6; i++)
@@ -1190,7 +1191,7 @@ static void test_migrate_v6(void)
     CHECK(raw_int("v6m.db", "SELECT count(*) FROM calibrations WHERE map = 'recommended' "
                             "AND id IN (2, 4)") == 2);
     storage_calib_t c;
-    CHECK(storage_calib_get(st, 3, &c, NULL) == 0 && c.shrunk == 1);
+    CHECK(storage_calib_get(st, 3, &c, NULL) == 0 && c.shrunk == 1 && c.S_res == NULL);
     storage_calib_free(&c);
     CHECK(storage_calib_get(st, 4, &c, NULL) == 0 && c.shrunk == 0);
     storage_calib_free(&c);
@@ -1202,18 +1203,24 @@ static void test_migrate_v6(void)
     CHECK(storage_calib_current(st, 1, 5, 5, &c, NULL) == 0 && c.id == id && c.shrunk == 0);
     storage_calib_free(&c);
     /* stored now: the fit's map is shrunk, kept in fit_maps, promoted later */
-    double S = 1, E = 0.01;
+    double S = 1, E = 0.01, Res = 0.02;
     storage_fit_t f = {.scan_id = 1, .noise_model = "paper", .result = "{}"};
     storage_calib_t m = {.sensor_id = 1, .pixel_col = 5, .pixel_row = 5, .r = 1, .S = &S,
                          .S_err = &E, .status = "ok", .scan_id = 1, .noise_model = "paper",
                          .wavelength_um = NAN, .na = NAN, .spot_radius_um = NAN, .I0 = NAN,
-                         .chi2_red = NAN, .shrunk = 1};
+                         .chi2_red = NAN, .shrunk = 1, .S_res = &Res};
     int64_t fid = 0;
     CHECK(storage_fit_store(st, &f, &m, 0, 0, &fid, NULL, NULL) == 0 && fid > 0);
     CHECK(raw_int("v6m.db", "SELECT count(*) FROM fit_maps WHERE map = 'shrunk'") == 2);
+    CHECK(raw_hex_eq("v6m.db", "SELECT hex(s_res) FROM fit_maps WHERE map = 'shrunk' AND "
+                               "s_res IS NOT NULL", "7B14AE47E17A943F")); /* 0.02 */
     CHECK(storage_calib_promote(st, fid, NULL, NULL, &id, NULL) == 0);
     CHECK(storage_calib_current(st, 1, 5, 5, &c, NULL) == 0 && c.id == id && c.shrunk == 1);
+    CHECK(c.S_res && c.S_res[0] == 0.02);
     storage_calib_free(&c);
+    /* a BLOB of the wrong size is refused by the table */
+    CHECK(raw_exec("v6m.db", "UPDATE calibrations SET s_res = zeroblob(16) WHERE id = 1") !=
+          SQLITE_OK);
     storage_close(st);
 }
 

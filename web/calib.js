@@ -26,12 +26,17 @@ function csvLink(c, label = 'CSV') {
         download: `calibration-${c.id}.csv`, 'aria-label': `CSV of calibration #${c.id}` }, label);
 }
 
-// Which map of its fit a calibration holds (its `map`, database schema 7).
+// Which map of its fit a calibration holds (its `map`, database schema 7), and the rms of its
+// resolution error S_res where known (structure finer than the grid, beside S_err's noise).
 function mapWord(c) {
-    return c.map === 'shrunk'
+    const which = c.map === 'shrunk'
         ? `The shrunk map: r = ${c.r}'s detail shrunk toward r = ${c.r - 1} (fit request "map": ` +
           '"shrunk"; S_err includes the shrinkage\'s expected bias)'
         : `The recommended r's own least-squares map (r = ${c.r})`;
+    const res = Array.isArray(c.S_res) && c.S_res.length
+        ? Math.sqrt(c.S_res.reduce((a, v) => a + v * v, 0) / c.S_res.length) : null;
+    return res === null ? which : `${which}; resolution error S_res rms ${fmt(res, 3)} ` +
+        '(add in quadrature to S_err)';
 }
 
 function provenance(c) {

@@ -731,6 +731,10 @@ async function run(base, page, api) {
         .textContent()).includes(`recommended r's own least-squares map (r = ${cals[0].r})`),
     'the pixel view says which map of its fit the calibration holds (the API\'s map)',
     cals[0].map);
+    const mapText = await page.locator('[data-testid="current-map"]').textContent();
+    check(Array.isArray(cals[0].S_res) === mapText.includes('resolution error S_res rms'),
+        'the pixel view gives the resolution error when the API has one',
+        JSON.stringify([cals[0].S_res?.length, mapText]));
 
     // a re-fit is stored as a fit only; its Fit view says so, and promotes it with a reason typed
     // and sent from the keyboard (POST /api/fits/{id}/promote)
