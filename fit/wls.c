@@ -15,7 +15,8 @@
  * columns through the unblocked (BLAS-2) code, i.e. all of a fit with r <= 11; dgeqrt's
  * recursive panel (dgeqrt3) is BLAS-3 throughout, and the single T gives the thin Q's rows by
  * two triangular multiplies (qr_leverages). On the 41 x 41 raster at r = 12 (1681 x 144) the
- * factorisation and the leverages took 3.3 + 3.2 ms, now 2.1 + 1.0 ms (bench/README.md). */
+ * factorisation and the leverages took 3.3 + 3.2 ms, now 2.1 + 1.0 ms (random matrices of that
+ * shape, one OpenBLAS thread, 2026-11-24; the whole 41 x 41 sweep: docs/numerics.md). */
 #include "wls.h"
 
 #include <errno.h>
@@ -84,7 +85,8 @@ static int qr_work_alloc(struct qr_work *q, size_t n, size_t mc)
 }
 
 /* The leverages h_kk = ||Q_k||^2, Q_k row k of the thin Q = Q [I; 0] (exact to rounding at any
- * cond: Q is orthogonal to rounding; A R^-1 would lose cond x eps, bench/README.md). With
+ * cond: Q is orthogonal to rounding; A R^-1 would lose cond x eps, bench/README.md; tested in
+ * test_solve). With
  * Q = I - V T V^T and V = [V1; V2] (V1 unit lower triangular, mc x mc), the thin Q is
  * [I - V1 M; -V2 M] with M = T V1^T, upper triangular as a product of two upper triangles, so
  * V2 M = (V2 T) V1^T is formed in place over V2 by two triangular multiplies (dtrmm) and the top
