@@ -85,12 +85,12 @@ static int qr_work_alloc(struct qr_work *q, size_t n, size_t mc)
 }
 
 /* The leverages h_kk = ||Q_k||^2, Q_k row k of the thin Q = Q [I; 0] (exact to rounding at any
- * cond: Q is orthogonal to rounding; A R^-1 would lose cond x eps, bench/README.md; tested in
- * test_solve). With
- * Q = I - V T V^T and V = [V1; V2] (V1 unit lower triangular, mc x mc), the thin Q is
- * [I - V1 M; -V2 M] with M = T V1^T, upper triangular as a product of two upper triangles, so
- * V2 M = (V2 T) V1^T is formed in place over V2 by two triangular multiplies (dtrmm) and the top
- * block I - V1 T V1^T in Rs (free once the singular values are out). Destroys V. */
+ * cond: Q is orthogonal to rounding; A R^-1 would lose cond x eps, bench/README.md; test_solve
+ * checks both). With Q = I - V T V^T and V = [V1; V2] (V1 unit lower triangular, mc x mc), the
+ * thin Q is [I - V1 M; -V2 M] with M = T V1^T, upper triangular as a product of two upper
+ * triangles, so V2 M = (V2 T) V1^T is formed in place over V2 by two triangular multiplies
+ * (dtrmm) and the top block I - V1 T V1^T in Rs (free once the singular values are out).
+ * Destroys V. */
 static void qr_leverages(struct qr_work *q, size_t n, size_t mc, double *hat)
 {
     double *top = q->Rs;
