@@ -11,7 +11,9 @@ import { get, post } from './api.js';
 import { errorBox, failure, field, fill, fmt, fmtTime, h, onSubmit } from './dom.js';
 import { purgeIn } from './charts.js';
 import { buildFitForm } from './fit_form.js';
-import { errFigure, fitPoints, mapPairFigure, residualFigure, surfaceFigure } from './fit_maps.js';
+import {
+    errFigure, fitPoints, mapPairFigure, resFigure, residualFigure, surfaceFigure,
+} from './fit_maps.js';
 import { goodness, reasonText, selectionFigure } from './fit_select.js';
 import { requestRules, ruleAttrs } from './rules.js';
 
@@ -240,7 +242,9 @@ export function renderFit(root, id, ctx) {
                     `No residual plot: ${err.message}.`)));
             fill(maps, mapPairFigure(f, res.wiener, pitch),
                 shrunk ? null : surfaceFigure(`/api/fits/${fit.id}/interp?r=${f.r}`, pitch),
-                f.S_err ? errFigure(f, pitch) : null, shrunk ? null : resid);
+                f.S_err ? errFigure(f, pitch) : null,
+                sh && sh.S_res && f.r === sh.r ? resFigure(sh.S_res, f.r, pitch) : null,
+                shrunk ? null : resid);
         };
         rSel.addEventListener('change', show);
         const where = fit.scan_id

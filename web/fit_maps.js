@@ -3,7 +3,7 @@
 // pixel outlined:
 //   - the fitted S beside the Wiener-deconvolution baseline on ONE colour scale (so their
 //     contrast compares), hover giving S ± S_err;
-//   - the uncertainty S_err;
+//   - the uncertainty S_err, and the resolution error S_res where the fit has one for that r;
 //   - the interpolated map (GET /api/fits/{id}/interp, fit_interp_bicubic) as a 3-D surface, the
 //     paper's own figure;
 //   - the measured signal, the fitted model (fits[].model_dn) and the normalised residuals
@@ -89,6 +89,22 @@ export function errFigure(f, pitch) {
                 '<extra></extra>' }],
         layout: { ...squareAxes(fr, '', [0, 1], [0, fr.w]), shapes: [outline(fr)] } });
     if (r * r <= 400) fig.append(valueTable(f.S_err, r, r));
+    return fig;
+}
+
+// S_res, the resolution error of an r grid's sub-pixel values (fit/shrink.h: structure finer
+// than the grid, which S_err does not count; add the two in quadrature), on its own scale.
+export function resFigure(sRes, r, pitch) {
+    const fr = pixelFrame(pitch);
+    const fig = plotFigure({ title: 'Resolution error S_res (add in quadrature to S_err)',
+        testid: 'plot-Sres', height: 320, name: `S_res-r${r}`,
+        data: [{ type: 'heatmap', ...cellAxes(r, fr.w), z: rows(sRes, r, r),
+            colorscale: MAGMA,
+            colorbar: { title: { text: 'S_res' }, thickness: 14 },
+            hovertemplate: `x %{x:.3f}${fr.u}, y %{y:.3f}${fr.u}<br>S_res = %{z:.3g}` +
+                '<extra></extra>' }],
+        layout: { ...squareAxes(fr, '', [0, 1], [0, fr.w]), shapes: [outline(fr)] } });
+    if (r * r <= 400) fig.append(valueTable(sRes, r, r));
     return fig;
 }
 

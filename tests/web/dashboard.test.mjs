@@ -640,6 +640,9 @@ async function run(base, page, api) {
             JSON.stringify(sm.data[0].z).slice(0, 200));
         check((await text('selection-note')).includes('are the shrunk map'),
             'the note says the maps shown are the shrunk map', await text('selection-note'));
+        const sRes = await graph('plot-Sres');
+        check(same(flat(sRes.data[0].z), shr.S_res), 'the shrunk map\'s resolution error S_res ' +
+            'plotted is the API\'s', JSON.stringify(sRes.data[0].z).slice(0, 120));
         await page.locator('[data-testid="r-select"]').selectOption(String(best.r));
         await page.locator('[data-testid="shown-r"]', { hasText: new RegExp(`^r = ${best.r}$`) })
             .waitFor({ timeout: WAIT });
@@ -669,6 +672,9 @@ async function run(base, page, api) {
     `the goodness of fit in words (p = ${best.chi2_p})`, goodText);
     const sErr = await graph('plot-Serr');
     check(same(flat(sErr.data[0].z), best.S_err), 'the S_err map plotted is the API\'s');
+    const resBest = await graph('plot-Sres');
+    check(shr && same(flat(resBest.data[0].z), shr.S_res), 'the recommended map shows the ' +
+        'resolution error of its r (the API\'s shrunk_map.S_res) beside S_err');
     check(await page.locator('[data-testid="sweep-table"] tbody tr').count() === res.fits.length,
         'the model-selection table has a row per r');
     await page.screenshot({ path: path.join(SHOTS, 'fit-1280.png'), fullPage: true });
