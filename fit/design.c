@@ -20,7 +20,12 @@
  * row of wedge values (wedge_pass). A raster symmetric about the pixel centre with the same
  * offsets in x as in y has each row about five times (41 x 41 at r = 16: 57072 pairs, 11316
  * distinct rows; the 9 x 9 reference scan: 3.7 times), so the design matrix costs in proportion
- * to the distinct edge-line * rows, not to spots x nodes. */
+ * to the distinct edge-line * rows, not to spots x nodes. The bookkeeping scales the same way:
+ * the pairs are found through the spots' distinct coordinates (a raster's 41 columns, not its
+ * 1681 spots, are sorted by distance), a row is found by its along-coordinate's number, and each
+ * spot's nodes read their two rows when its matrix row is assembled, so no per-spot array of
+ * node values is filled (the 41 x 41 sweep's design matrices: 81 -> 49 ms, with the batch below
+ * holding the whole raster). */
 #include "fit/design.h"
 
 #include <errno.h>
@@ -38,8 +43,9 @@
 
 #define MAX_ORDER 64
 /* Spots per batch: as many as BATCH_BYTES of node and pair buffers hold (rows of wedges are
- * shared only inside a batch, so a raster is best done in one), but at least BATCH_MIN. */
-#define BATCH_BYTES ((size_t)8 << 20)
+ * shared only inside a batch, so a raster is best done in one: the 41 x 41 raster's r = 16 in
+ * three batches evaluated 2.1 times the wedges of one), but at least BATCH_MIN. */
+#define BATCH_BYTES ((size_t)24 << 20)
 #define BATCH_MIN 256
 
 fit_design_opts_t fit_design_opts_for_tol(double tol)
@@ -430,8 +436,8 @@ static struct line_pair *sort_pairs(struct line_pair *p, struct line_pair *tmp, 
     return p;
 }
 
-/* The rows of one line distance: an open-addressing table from the bits of the along-coordinate
- * to the row, stamped per run of pairs so that it is cleared only once a batch. */
+/* The distinct spot coordinates of a batch: an open-addressing table from the bits of a
+ * coordinate to its number (spots_by_coordinate); stamp 0 marks an empty slot. */
 struct row_slot {
     uint64_t key;
     uint32_t row, stamp;
@@ -443,18 +449,26 @@ struct work {
     double a;
     double near2;             /* cells nearer than sqrt(near2) to the spot are never left out */
     const double *x, *y;      /* spot positions of the batch */
-    double *wq;               /* [k][node]: the sum of the Q wedges of the node's two lines */
-    double *wp[2];            /* [k][node]: P wedges of the vertical [0] and horizontal [1] line */
+    uint32_t *krow;           /* [k][dir][l]: the row of wedges of spot k's line l (dir 0:
+                                 vertical, x = e_l; 1: horizontal), the n1 nodes along it */
     unsigned char *need, *skip; /* [k][node] wedges needed (1: Q, 2: Q and P), [k][cell] left out */
     double *gs;               /* [node]: signed node values of the row being assembled */
     struct target *tg;        /* the targets of one sweep */
-    double *vq, *vp;          /* their values: Q and P wedges of the rows of one sweep */
-    unsigned char *rneed;     /* what the rows of one sweep need, per node along the line */
     size_t tg_cap;
-    struct line_pair *pairs;  /* 2 * n1 * batch of them, then as many for sort_pairs */
-    uint32_t *prow;           /* [pair]: its row within its line distance */
-    double *ralong;           /* [row]: the along-coordinate of each row of one line distance */
-    struct row_slot *slots;   /* at least 4 * n1 * batch of them, a power of two */
+    double *vq;               /* [row][m]: Q wedges of the batch's rows at node m of n1 */
+    unsigned char *rneed;     /* [row][m]: what the row's pairs need there (1: Q, 2: Q and P) */
+    double *ralong;           /* [row]: the spots' coordinate along the row's line */
+    uint32_t *rowp;           /* [row]: its row of P wedges in vp, for the few rows that need P
+                                 (a line next to a spot), else UINT32_MAX */
+    double *vp;               /* [rowp][m]: P wedges */
+    size_t row_cap, prow_cap;
+    struct line_pair *pairs;  /* the pairs of one run of equal distance (up to 2 * n1 * batch) */
+    struct line_pair *items;  /* (line, distinct coordinate) items: 2 * n1 * batch, then as
+                                 many for sort_pairs */
+    uint32_t *ulist[2], *ustart[2], *cid[2]; /* spots_by_coordinate's, per direction: batch,
+                                                2 * batch + 1 and batch entries */
+    uint32_t *rstamp, *rrow;  /* [coordinate]: the run that last made a row of it, and the row */
+    struct row_slot *slots;   /* at least 4 * batch of them, a power of two */
     size_t nslot;
     size_t batch;
     struct sweep sw;
@@ -528,77 +542,140 @@ static void mark_cells(const fit_design_opts_t *o, struct work *wk, int k, fit_d
         }
 }
 
-/* Room for nt targets (and their values) in the work buffers. Returns 0 or -ENOMEM. */
+/* Room for nt targets of one sweep. Returns 0 or -ENOMEM. */
 static int targets_reserve(struct work *wk, size_t nt)
 {
     if (nt <= wk->tg_cap) return 0;
-    size_t cap = 2 * nt;
-    struct target *t = realloc(wk->tg, sizeof *t * cap);
-    if (t) wk->tg = t;
-    double *v = t ? realloc(wk->vq, sizeof *v * 2 * cap) : NULL;
-    unsigned char *rn = v ? realloc(wk->rneed, cap) : NULL;
-    if (v) wk->vq = v;
-    if (rn) wk->rneed = rn;
-    if (!rn) return -ENOMEM;
-    wk->vp = wk->vq + cap;
-    wk->tg_cap = cap;
+    struct target *t = realloc(wk->tg, sizeof *t * 2 * nt);
+    if (!t) return -ENOMEM;
+    wk->tg = t;
+    wk->tg_cap = 2 * nt;
     return 0;
 }
 
-/* The row of along-coordinate c among the rows of the current line distance (stamp), a new one
- * (*nrow grows) when c is not there yet. */
-static uint32_t row_of(struct work *wk, double c, uint32_t stamp, size_t *nrow)
+/* Room for nrow rows of wedges in the batch (their Q values, needs and coordinates) and for
+ * nprow rows of P values. Returns 0 or -ENOMEM. */
+static int rows_reserve(struct work *wk, size_t nrow, size_t nprow)
 {
-    uint64_t bits;
-    memcpy(&bits, &c, sizeof bits);
-    size_t mask = wk->nslot - 1, i = (size_t)((bits * 0x9E3779B97F4A7C15ull) >> 24) & mask;
-    for (;; i = (i + 1) & mask) {
-        struct row_slot *sl = &wk->slots[i];
-        if (sl->stamp != stamp) {
-            *sl = (struct row_slot){bits, (uint32_t)*nrow, stamp};
-            wk->ralong[*nrow] = c;
-            memset(wk->rneed + *nrow * (size_t)wk->n1, 0, (size_t)wk->n1);
-            return (uint32_t)(*nrow)++;
-        }
-        if (sl->key == bits) return sl->row;
+    size_t n1 = (size_t)wk->n1;
+    if (nrow > wk->row_cap) {
+        size_t cap = 2 * nrow;
+        double *v = realloc(wk->vq, sizeof *v * cap * n1);
+        if (v) wk->vq = v;
+        unsigned char *rn = v ? realloc(wk->rneed, cap * n1) : NULL;
+        if (rn) wk->rneed = rn;
+        double *al = rn ? realloc(wk->ralong, sizeof *al * cap) : NULL;
+        if (al) wk->ralong = al;
+        uint32_t *rp = al ? realloc(wk->rowp, sizeof *rp * cap) : NULL;
+        if (!rp) return -ENOMEM;
+        wk->rowp = rp;
+        wk->row_cap = cap;
     }
+    if (nprow > wk->prow_cap) {
+        size_t cap = 2 * nprow;
+        double *v = realloc(wk->vp, sizeof *v * cap * n1);
+        if (!v) return -ENOMEM;
+        wk->vp = v;
+        wk->prow_cap = cap;
+    }
+    return 0;
+}
+
+/* The distinct coordinates of the batch's spots, x and y together (bit for bit, through the row
+ * table): cid[dir][k] numbers spot k's x (dir 0) or y (dir 1) among them, and, per direction,
+ * ustart[dir][u]..ustart[dir][u + 1] index ulist[dir], the spots whose coordinate across that
+ * direction's lines (x for the vertical ones, dir 0) is the u-th value. Returns their number. */
+static size_t spots_by_coordinate(struct work *wk, int nb)
+{
+    size_t nu = 0, mask = wk->nslot - 1;
+    memset(wk->slots, 0, sizeof *wk->slots * wk->nslot);
+    for (int dir = 0; dir < 2; dir++)
+        for (int k = 0; k < nb; k++) {
+            uint64_t bits;
+            memcpy(&bits, dir ? &wk->y[k] : &wk->x[k], sizeof bits);
+            for (size_t i = (size_t)((bits * 0x9E3779B97F4A7C15ull) >> 24) & mask;;
+                 i = (i + 1) & mask) {
+                struct row_slot *sl = &wk->slots[i];
+                if (!sl->stamp) {
+                    *sl = (struct row_slot){bits, (uint32_t)nu++, 1};
+                    wk->cid[dir][k] = sl->row;
+                    break;
+                }
+                if (sl->key == bits) {
+                    wk->cid[dir][k] = sl->row;
+                    break;
+                }
+            }
+        }
+    for (int dir = 0; dir < 2; dir++) { /* a counting sort of the spots by cid */
+        uint32_t *start = wk->ustart[dir];
+        memset(start, 0, sizeof *start * (nu + 1));
+        for (int k = 0; k < nb; k++) start[wk->cid[dir][k] + 1]++;
+        for (size_t u = 0; u < nu; u++) start[u + 1] += start[u];
+        for (int k = 0; k < nb; k++) wk->ulist[dir][start[wk->cid[dir][k]]++] = (uint32_t)k;
+        for (size_t u = nu; u > 0; u--) start[u] = start[u - 1]; /* back to the starts */
+        start[0] = 0;
+    }
+    memset(wk->rstamp, 0, sizeof *wk->rstamp * nu);
+    return nu;
 }
 
 /* All wedges of the batch, both directions at once. The pairs are grouped by line distance (one
  * sweep per w) and, inside a group, by the spot's coordinate along the line: pairs equal in both
- * have the same targets, so each such row of n1 wedges is evaluated once and copied to every
- * pair of it. The values are those of evaluating every pair on its own, bit for bit (the same
- * arithmetic on the same numbers), and the Q wedges of a node's two lines are summed in wq
- * (0 + one + the other: the same sum in either order). */
+ * have the same targets, so each such row of n1 wedges is evaluated once, and krow tells every
+ * pair's spot which row its line's wedges are in (assemble_row reads them there). The values
+ * are those of evaluating every pair on its own, bit for bit (the same arithmetic on the same
+ * numbers), and the Q wedges of a node's two lines are summed by assemble_row (one + the other:
+ * the same sum in either order, as the earlier 0 + one + the other was for these non-negative
+ * integrals). */
 static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct work *wk, int nb,
                       size_t *evals)
 {
     int n1 = wk->n1;
-    size_t np = 0, nodes = (size_t)n1 * n1;
+    size_t ni = 0, nodes = (size_t)n1 * n1;
+    /* the pair of spot k and line l has distance |e_l - across_k|: one item per line and
+     * distinct across-coordinate, sorted by distance, stands for all the spots at that coordinate
+     * (a raster's 41 columns, not its 1681 spots) */
+    size_t nu = spots_by_coordinate(wk, nb);
     for (int dir = 0; dir < 2; dir++) {
         const double *across = dir ? wk->y : wk->x;
-        for (int k = 0; k < nb; k++)
+        for (size_t u = 0; u < nu; u++) {
+            if (wk->ustart[dir][u] == wk->ustart[dir][u + 1]) continue; /* the other's only */
             for (int l = 0; l < n1; l++) {
-                double dist = fabs(wk->e[l] - across[k]);
+                double dist = fabs(wk->e[l] - across[wk->ulist[dir][wk->ustart[dir][u]]]);
                 if (wk->a * dist < FIT_CORNER_TINY) continue; /* its nodes are axis corners */
-                wk->pairs[np++] = (struct line_pair){dist, k, 2 * l + dir};
+                wk->items[ni++] = (struct line_pair){dist, (int)u, 2 * l + dir};
             }
+        }
     }
-    const struct line_pair *pr =
-        sort_pairs(wk->pairs, wk->pairs + 2 * (size_t)n1 * wk->batch, np);
-    memset(wk->wq, 0, sizeof(double) * nodes * (size_t)nb);
-    for (size_t d0 = 0; d0 < np;) { /* runs of equal dist (inside runs of equal w) */
-        double dist = pr[d0].dist, w = wk->a * dist, smax = 0;
-        size_t d1 = d0, nt = 0, nrow = 0;
-        while (d1 < np && pr[d1].dist == dist) d1++;
-        if (targets_reserve(wk, (d1 - d0) * (size_t)n1)) return -ENOMEM;
-        uint32_t stamp = (uint32_t)d0 + 1; /* unique per run within a batch */
-        if (d0 == 0) /* a new batch: no stamp of the last one may match */
-            memset(wk->slots, 0, sizeof *wk->slots * wk->nslot);
+    const struct line_pair *it = sort_pairs(wk->items, wk->items + 2 * (size_t)n1 * wk->batch, ni);
+    uint32_t stamp = 0; /* rstamp: 0 none, else the run that made the row */
+    size_t nrow = 0, nprow = 0; /* rows of the batch so far, and those with P */
+    for (size_t i0 = 0; i0 < ni;) { /* runs of equal dist (inside runs of equal w) */
+        double dist = it[i0].dist, w = wk->a * dist, smax = 0;
+        size_t i1 = i0, nt = 0, row0 = nrow, d0 = 0, d1 = 0;
+        while (i1 < ni && it[i1].dist == dist) i1++;
+        for (size_t i = i0; i < i1; i++) { /* the run's pairs: its items' spots */
+            int dir = it[i].ld & 1;
+            const uint32_t *k = wk->ulist[dir], *start = wk->ustart[dir];
+            for (uint32_t q = start[it[i].k]; q < start[it[i].k + 1]; q++)
+                wk->pairs[d1++] = (struct line_pair){dist, (int)k[q], it[i].ld};
+        }
+        const struct line_pair *pr = wk->pairs;
+        if (targets_reserve(wk, (d1 - d0) * (size_t)n1) || rows_reserve(wk, nrow + d1 - d0, 0))
+            return -ENOMEM;
+        stamp++; /* unique per run within a batch */
         for (size_t q = d0; q < d1; q++) { /* rows, and what any pair of each needs */
             int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
-            uint32_t row = row_of(wk, dir ? wk->x[k] : wk->y[k], stamp, &nrow);
-            wk->prow[q] = row;
+            uint32_t along = wk->cid[!dir][k], row; /* rows: the run's distinct along-coordinates */
+            if (wk->rstamp[along] != stamp) {
+                wk->rstamp[along] = stamp;
+                wk->rrow[along] = row = (uint32_t)nrow++;
+                wk->ralong[row] = dir ? wk->x[k] : wk->y[k];
+                memset(wk->rneed + row * (size_t)n1, 0, (size_t)n1);
+            } else
+                row = wk->rrow[along];
+            wk->krow[((size_t)k * 2 + (size_t)dir) * (size_t)n1 + (size_t)l] = row;
             unsigned char *rn = wk->rneed + row * (size_t)n1;
             const unsigned char *need = wk->need + (size_t)k * nodes;
             for (int m = 0; m < n1; m++) {
@@ -606,8 +683,9 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 if (nd > rn[m]) rn[m] = nd;
             }
         }
-        for (size_t row = 0; row < nrow; row++) { /* the targets of the rows */
+        for (size_t row = row0; row < nrow; row++) { /* the targets of the run's rows */
             unsigned char *rn = wk->rneed + row * (size_t)n1;
+            wk->rowp[row] = UINT32_MAX;
             for (int m = 0; m < n1; m++) {
                 double other = fabs(wk->e[m] - wk->ralong[row]);
                 if (!rn[m] || wk->a * other < FIT_CORNER_TINY) {
@@ -617,6 +695,10 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
                 if (s > smax) smax = s;
                 wk->tg[nt++] = (struct target){s, row * (size_t)n1 + (size_t)m, rn[m]};
+                if (rn[m] == 2 && wk->rowp[row] == UINT32_MAX) {
+                    if (rows_reserve(wk, 0, nprow + 1)) return -ENOMEM;
+                    wk->rowp[row] = (uint32_t)nprow++;
+                }
             }
         }
         if (smax > 1) { /* some targets */
@@ -627,28 +709,19 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
             for (; t + 4 <= nt; t += 4) sweep_eval4(sw, ch->m, wk->tg + t, wk->vq);
             for (; t < nt; t++) sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[wk->tg[t].at], NULL);
             for (t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot (rare) */
-                if (wk->tg[t].need == 2)
-                    sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[wk->tg[t].at], &wk->vp[wk->tg[t].at]);
+                if (wk->tg[t].need == 2) {
+                    size_t at = wk->tg[t].at, n = (size_t)n1;
+                    sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[at],
+                               &wk->vp[(size_t)wk->rowp[at / n] * n + at % n]);
+                }
         }
-        for (size_t q = d0; q < d1; q++) { /* each row to its pairs' nodes */
-            int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
-            size_t row = wk->prow[q];
-            const unsigned char *rn = wk->rneed + row * (size_t)n1;
-            const double *vq = wk->vq + row * (size_t)n1, *vp = wk->vp + row * (size_t)n1;
-            double *wq = wk->wq + (size_t)k * nodes, *wp = wk->wp[dir] + (size_t)k * nodes;
-            for (int m = 0; m < n1; m++) {
-                if (!rn[m]) continue;
-                int node = dir ? l * n1 + m : m * n1 + l;
-                wq[node] += vq[m];
-                if (rn[m] == 2) wp[node] = vp[m];
-            }
-        }
-        d0 = d1;
+        i0 = i1;
     }
     return 0;
 }
 
-/* Cells of spot k from its node values, into row (r*r). A cell that does not hold the spot is
+/* Cells of spot k from its node values (the sums of the wedges of each node's two lines, from
+ * the rows wedge_pass left), into row (r*r). A cell that does not hold the spot is
  * minus the signed sum of its corners' G (corner.h), and the sign of a corner is that of its
  * quadrant, sgn(u) sgn(v), times the corner's place in the cell: so with the signed node values
  * g = sgn(u) sgn(v) G, computed once per node rather than once per cell corner, the cell is the
@@ -661,15 +734,18 @@ static void assemble_row(struct work *wk, int k, double *row)
     double xk = wk->x[k], yk = wk->y[k], unit = 2 / (wk->a * wk->a), *g = wk->gs;
     size_t base = (size_t)k * n1 * n1;
     const unsigned char *skip = wk->skip + (size_t)k * r * r, *need = wk->need + base;
+    /* node (i, j) lies on the vertical line i (at m = j along it) and the horizontal line j (at
+     * m = i): its Q wedges are in those two rows, whose sum is the node's (corner.h) */
+    const uint32_t *rv = wk->krow + (size_t)k * 2 * n1, *rh = rv + n1;
     for (int j = 0; j < n1; j++) {
         double v = e[j] - yk;
         for (int i = 0; i < n1; i++) {
             double u = e[i] - xk, sg = corner_sgn(u) * corner_sgn(v);
-            size_t node = base + (size_t)j * n1 + (size_t)i;
             if (!need[j * n1 + i] || sg == 0) g[j * n1 + i] = 0;
             else if (wk->a * fabs(u) < FIT_CORNER_TINY || wk->a * fabs(v) < FIT_CORNER_TINY)
                 g[j * n1 + i] = sg * (M_PI / 2); /* corner on an axis through the spot */
-            else g[j * n1 + i] = sg * wk->wq[node];
+            else g[j * n1 + i] = sg * (wk->vq[(size_t)rv[i] * n1 + (size_t)j] +
+                                       wk->vq[(size_t)rh[j] * n1 + (size_t)i]);
         }
     }
     for (int j = 0; j < r; j++)
@@ -687,14 +763,16 @@ static void assemble_row(struct work *wk, int k, double *row)
             double fq[2][2], fp[2][2];
             for (int b = 0; b < 2; b++)
                 for (int c = 0; c < 2; c++) {
-                    size_t node = base + (size_t)(j + b) * n1 + (size_t)(i + c);
+                    size_t at0 = (size_t)rv[i + c] * n1 + (size_t)(j + b),
+                           at1 = (size_t)rh[j + b] * n1 + (size_t)(i + c);
                     if (wk->a * fabs(uu[c]) < FIT_CORNER_TINY ||
                         wk->a * fabs(vv[b]) < FIT_CORNER_TINY) {
                         fq[b][c] = M_PI / 2; /* corner on an axis through the spot */
                         fp[b][c] = 0;
                     } else {
-                        fq[b][c] = wk->wq[node];
-                        fp[b][c] = wk->wp[0][node] + wk->wp[1][node];
+                        fq[b][c] = wk->vq[at0] + wk->vq[at1];
+                        fp[b][c] = wk->vp[(size_t)wk->rowp[rv[i + c]] * n1 + (size_t)(j + b)] +
+                                   wk->vp[(size_t)wk->rowp[rh[j + b]] * n1 + (size_t)(i + c)];
                     }
                 }
             row[j * r + i] = unit * corner_combine(uu, vv, fq, fp, NULL);
@@ -705,19 +783,28 @@ static void assemble_row(struct work *wk, int k, double *row)
 static int work_alloc(struct work *wk, size_t batch)
 {
     size_t nodes = (size_t)wk->n1 * wk->n1, cells = (size_t)wk->r * wk->r;
-    double *buf = malloc(sizeof(double) * (3 * nodes * batch + nodes));
+    wk->gs = malloc(sizeof(double) * nodes);
+    wk->krow = malloc(sizeof *wk->krow * 2 * (size_t)wk->n1 * batch);
     wk->need = malloc((nodes + cells) * batch);
     wk->batch = batch;
-    wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch * 4); /* and sort_pairs' */
-    wk->prow = malloc(sizeof *wk->prow * (size_t)wk->n1 * batch * 2);
-    wk->ralong = malloc(sizeof *wk->ralong * (size_t)wk->n1 * batch * 2);
-    for (wk->nslot = 16; wk->nslot < 4 * (size_t)wk->n1 * batch;) wk->nslot *= 2;
+    wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch * 2);
+    wk->items = malloc(sizeof *wk->items * (size_t)wk->n1 * batch * 4); /* and sort_pairs' */
+    uint32_t *u = malloc(sizeof(uint32_t) * (12 * batch + 2));
+    wk->ulist[0] = u;
+    if (u) {
+        wk->ulist[1] = u + batch;
+        wk->cid[0] = u + 2 * batch;
+        wk->cid[1] = u + 3 * batch;
+        wk->rstamp = u + 4 * batch;
+        wk->rrow = u + 6 * batch;
+        wk->ustart[0] = u + 8 * batch;
+        wk->ustart[1] = u + 10 * batch + 1;
+    }
+    for (wk->nslot = 16; wk->nslot < 4 * batch;) wk->nslot *= 2; /* 2 * batch coordinates */
     wk->slots = malloc(sizeof *wk->slots * wk->nslot);
-    wk->wq = buf;
-    if (!buf || !wk->need || !wk->pairs || !wk->prow || !wk->ralong || !wk->slots) return -ENOMEM;
-    wk->wp[0] = buf + nodes * batch;
-    wk->wp[1] = buf + 2 * nodes * batch;
-    wk->gs = buf + 3 * nodes * batch;
+    if (!wk->gs || !wk->krow || !wk->need || !wk->pairs || !wk->items || !wk->ulist[0] ||
+        !wk->slots)
+        return -ENOMEM;
     wk->skip = wk->need + nodes * batch;
     return 0;
 }
@@ -759,8 +846,15 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
     int rc = check_args(R_um, pitch, r, x, y, n, &o, err);
     if (rc) return rc;
     fit_design_stats_t st = {.entries = n * (size_t)r * r};
-    size_t n1 = (size_t)r + 1, per_spot = n1 * n1 * (3 * sizeof(double) + 1) + (size_t)r * r +
-                                           4 * n1 * (sizeof(struct line_pair) + 2 * sizeof(struct row_slot));
+    size_t n1 = (size_t)r + 1,
+           /* the rows of wedges at most (no two pairs share one): 2 n1 rows of n1 Q values and
+            * needs, each with its coordinate and P row, and 6 rows of P (the lines next to the
+            * spot); then the node marks, cell marks, rows of the lines, the coordinates' tables,
+            * the pairs and the (line, coordinate) items with sort_pairs' copy */
+           per_spot = 2 * n1 * (n1 * (sizeof(double) + 1) + sizeof(double) + sizeof(uint32_t)) +
+                      6 * n1 * sizeof(double) + n1 * n1 + (size_t)r * r +
+                      2 * n1 * sizeof(uint32_t) + 12 * sizeof(uint32_t) +
+                      8 * sizeof(struct row_slot) + n1 * 6 * sizeof(struct line_pair);
     size_t batch = BATCH_BYTES / per_spot > BATCH_MIN ? BATCH_BYTES / per_spot : BATCH_MIN;
     if (batch > n) batch = n;
     struct work wk = {.r = r, .n1 = r + 1, .a = fit_airy_a(R_um)};
@@ -793,13 +887,17 @@ out:
     free(wk.sw.seg);
     free(ch);
     free(e);
-    free(wk.wq);
+    free(wk.gs);
+    free(wk.krow);
     free(wk.need);
     free(wk.pairs);
+    free(wk.items);
+    free(wk.ulist[0]);
     free(wk.tg);
     free(wk.vq);
+    free(wk.vp);
+    free(wk.rowp);
     free(wk.rneed);
-    free(wk.prow);
     free(wk.ralong);
     free(wk.slots);
     return rc;
