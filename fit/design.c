@@ -452,12 +452,17 @@ struct work {
     uint32_t *krow;           /* [k][dir][l]: the row of wedges of spot k's line l (dir 0:
                                  vertical, x = e_l; 1: horizontal), the n1 nodes along it */
     unsigned char *need, *skip; /* [k][node] wedges needed (1: Q, 2: Q and P), [k][cell] left out */
+    unsigned char *full;      /* [k]: every node of spot k needs Q (mark_cells' shortcut), and P
+                                 exactly those in the window pwin */
+    int *pwin;                /* [k][4]: then the nodes i0..i1, j0..j1 of the cells holding it */
     double *gs;               /* [node]: signed node values of the row being assembled */
+    double *axis;             /* [4 n1]: assemble_row's signs and on-axis marks per node line */
     struct target *tg;        /* the targets of one sweep */
     size_t tg_cap;
     double *vq;               /* [row][m]: Q wedges of the batch's rows at node m of n1 */
     unsigned char *rneed;     /* [row][m]: what the row's pairs need there (1: Q, 2: Q and P) */
     double *ralong;           /* [row]: the spots' coordinate along the row's line */
+    unsigned char *rfull;     /* [row]: rneed is already at least 1 at every node */
     uint32_t *rowp;           /* [row]: its row of P wedges in vp, for the few rows that need P
                                  (a line next to a spot), else UINT32_MAX */
     double *vp;               /* [rowp][m]: P wedges */
@@ -500,18 +505,25 @@ static void mark_cells(const fit_design_opts_t *o, struct work *wk, int k, fit_d
      * the cells holding the spot P too; the same marks as the loop below, without it (the
      * reference tolerance keeps every cell of a 1.34 um spot on a 6 um pixel) */
     double DX = fmax(fmax(e[r] - xk, xk - e[0]), 0), DY = fmax(fmax(e[r] - yk, yk - e[0]), 0);
+    int *pwin = wk->pwin + 4 * (size_t)k;
     if (!(limit > 0) || DX * DX + DY * DY < wk->near2) {
         memset(skip, 0, (size_t)r * r);
         memset(need, 1, (size_t)n1 * n1);
+        pwin[0] = pwin[2] = n1, pwin[1] = pwin[3] = -1; /* empty */
         for (int j = 0; j < r; j++) {
             if (!(yk >= e[j] && yk <= e[j + 1])) continue;
             for (int i = 0; i < r; i++)
-                if (xk >= e[i] && xk <= e[i + 1])
+                if (xk >= e[i] && xk <= e[i + 1]) {
                     need[j * n1 + i] = need[j * n1 + i + 1] = need[(j + 1) * n1 + i] =
                         need[(j + 1) * n1 + i + 1] = 2;
+                    pwin[0] = i < pwin[0] ? i : pwin[0], pwin[1] = i + 1;
+                    pwin[2] = j < pwin[2] ? j : pwin[2], pwin[3] = j + 1;
+                }
         }
+        wk->full[k] = 1;
         return;
     }
+    wk->full[k] = 0;
     memset(need, 0, (size_t)n1 * n1);
     for (int j = 0; j < r; j++)
         for (int i = 0; i < r; i++) {
@@ -567,8 +579,10 @@ static int rows_reserve(struct work *wk, size_t nrow, size_t nprow)
         double *al = rn ? realloc(wk->ralong, sizeof *al * cap) : NULL;
         if (al) wk->ralong = al;
         uint32_t *rp = al ? realloc(wk->rowp, sizeof *rp * cap) : NULL;
-        if (!rp) return -ENOMEM;
-        wk->rowp = rp;
+        if (rp) wk->rowp = rp;
+        unsigned char *rf = rp ? realloc(wk->rfull, cap) : NULL;
+        if (!rf) return -ENOMEM;
+        wk->rfull = rf;
         wk->row_cap = cap;
     }
     if (nprow > wk->prow_cap) {
@@ -673,12 +687,24 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 wk->rrow[along] = row = (uint32_t)nrow++;
                 wk->ralong[row] = dir ? wk->x[k] : wk->y[k];
                 memset(wk->rneed + row * (size_t)n1, 0, (size_t)n1);
+                wk->rfull[row] = 0;
             } else
                 row = wk->rrow[along];
             wk->krow[((size_t)k * 2 + (size_t)dir) * (size_t)n1 + (size_t)l] = row;
             unsigned char *rn = wk->rneed + row * (size_t)n1;
             const unsigned char *need = wk->need + (size_t)k * nodes;
-            for (int m = 0; m < n1; m++) {
+            int m0 = 0, m1 = n1 - 1; /* the nodes along the line whose need can raise rn */
+            if (wk->full[k]) { /* 1 everywhere, 2 only inside the window */
+                const int *pw = wk->pwin + 4 * (size_t)k;
+                if (!wk->rfull[row]) {
+                    for (int m = 0; m < n1; m++) rn[m] = rn[m] ? rn[m] : 1;
+                    wk->rfull[row] = 1;
+                }
+                int across_in = dir ? l >= pw[2] && l <= pw[3] : l >= pw[0] && l <= pw[1];
+                m0 = across_in ? (dir ? pw[0] : pw[2]) : n1;
+                m1 = dir ? pw[1] : pw[3];
+            }
+            for (int m = m0; m <= m1; m++) {
                 unsigned char nd = need[dir ? l * n1 + m : m * n1 + l];
                 if (nd > rn[m]) rn[m] = nd;
             }
@@ -737,15 +763,28 @@ static void assemble_row(struct work *wk, int k, double *row)
     /* node (i, j) lies on the vertical line i (at m = j along it) and the horizontal line j (at
      * m = i): its Q wedges are in those two rows, whose sum is the node's (corner.h) */
     const uint32_t *rv = wk->krow + (size_t)k * 2 * n1, *rh = rv + n1;
-    for (int j = 0; j < n1; j++) {
-        double v = e[j] - yk;
+    /* per node column i and row j: the sign of u = e_i - x_k (v = e_j - y_k) and whether the
+     * node is on the axis through the spot */
+    double *su = wk->axis, *sv = su + n1;
+    unsigned char *tu = (unsigned char *)(sv + n1), *tv = tu + n1;
+    for (int i = 0; i < n1; i++) {
+        double u = e[i] - xk, v = e[i] - yk;
+        su[i] = corner_sgn(u), tu[i] = wk->a * fabs(u) < FIT_CORNER_TINY;
+        sv[i] = corner_sgn(v), tv[i] = wk->a * fabs(v) < FIT_CORNER_TINY;
+    }
+    for (int i = 0; i < n1; i++) { /* the vertical line's wedges, a row of them in vq */
+        const double *w = wk->vq + (size_t)rv[i] * n1;
+        if (!tu[i])
+            for (int j = 0; j < n1; j++) g[j * n1 + i] = w[j];
+    }
+    for (int j = 0; j < n1; j++) { /* plus the horizontal one's: the node's sum */
+        /* (a line through the spot has no row: its nodes are on an axis) */
+        const double *w = tv[j] ? NULL : wk->vq + (size_t)rh[j] * n1;
         for (int i = 0; i < n1; i++) {
-            double u = e[i] - xk, sg = corner_sgn(u) * corner_sgn(v);
+            double sg = su[i] * sv[j];
             if (!need[j * n1 + i] || sg == 0) g[j * n1 + i] = 0;
-            else if (wk->a * fabs(u) < FIT_CORNER_TINY || wk->a * fabs(v) < FIT_CORNER_TINY)
-                g[j * n1 + i] = sg * (M_PI / 2); /* corner on an axis through the spot */
-            else g[j * n1 + i] = sg * (wk->vq[(size_t)rv[i] * n1 + (size_t)j] +
-                                       wk->vq[(size_t)rh[j] * n1 + (size_t)i]);
+            else if (tu[i] || tv[j]) g[j * n1 + i] = sg * (M_PI / 2); /* on an axis */
+            else g[j * n1 + i] = sg * (g[j * n1 + i] + w[i]);
         }
     }
     for (int j = 0; j < r; j++)
@@ -754,12 +793,12 @@ static void assemble_row(struct work *wk, int k, double *row)
                 row[j * r + i] = 0;
                 continue;
             }
-            double uu[2] = {e[i] - xk, e[i + 1] - xk}, vv[2] = {e[j] - yk, e[j + 1] - yk};
-            if (!(uu[0] <= 0 && uu[1] >= 0 && vv[0] <= 0 && vv[1] >= 0)) {
+            if (!(su[i] <= 0 && su[i + 1] >= 0 && sv[j] <= 0 && sv[j + 1] >= 0)) {
                 const double *g0 = g + j * n1 + i, *g1 = g0 + n1;
                 row[j * r + i] = unit * (((-g0[0] + g0[1]) + g1[0]) - g1[1]);
                 continue;
             }
+            double uu[2] = {e[i] - xk, e[i + 1] - xk}, vv[2] = {e[j] - yk, e[j + 1] - yk};
             double fq[2][2], fp[2][2];
             for (int b = 0; b < 2; b++)
                 for (int c = 0; c < 2; c++) {
@@ -783,9 +822,11 @@ static void assemble_row(struct work *wk, int k, double *row)
 static int work_alloc(struct work *wk, size_t batch)
 {
     size_t nodes = (size_t)wk->n1 * wk->n1, cells = (size_t)wk->r * wk->r;
-    wk->gs = malloc(sizeof(double) * nodes);
+    wk->gs = malloc(sizeof(double) * (nodes + 4 * (size_t)wk->n1));
+    wk->axis = wk->gs ? wk->gs + nodes : NULL;
     wk->krow = malloc(sizeof *wk->krow * 2 * (size_t)wk->n1 * batch);
-    wk->need = malloc((nodes + cells) * batch);
+    wk->need = malloc((nodes + cells + 1) * batch);
+    wk->pwin = malloc(sizeof *wk->pwin * 4 * batch);
     wk->batch = batch;
     wk->pairs = malloc(sizeof *wk->pairs * (size_t)wk->n1 * batch * 2);
     wk->items = malloc(sizeof *wk->items * (size_t)wk->n1 * batch * 4); /* and sort_pairs' */
@@ -802,10 +843,11 @@ static int work_alloc(struct work *wk, size_t batch)
     }
     for (wk->nslot = 16; wk->nslot < 4 * batch;) wk->nslot *= 2; /* 2 * batch coordinates */
     wk->slots = malloc(sizeof *wk->slots * wk->nslot);
-    if (!wk->gs || !wk->krow || !wk->need || !wk->pairs || !wk->items || !wk->ulist[0] ||
+    if (!wk->gs || !wk->krow || !wk->need || !wk->pwin || !wk->pairs || !wk->items || !wk->ulist[0] ||
         !wk->slots)
         return -ENOMEM;
     wk->skip = wk->need + nodes * batch;
+    wk->full = wk->skip + cells * batch;
     return 0;
 }
 
@@ -851,8 +893,8 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
             * needs, each with its coordinate and P row, and 6 rows of P (the lines next to the
             * spot); then the node marks, cell marks, rows of the lines, the coordinates' tables,
             * the pairs and the (line, coordinate) items with sort_pairs' copy */
-           per_spot = 2 * n1 * (n1 * (sizeof(double) + 1) + sizeof(double) + sizeof(uint32_t)) +
-                      6 * n1 * sizeof(double) + n1 * n1 + (size_t)r * r +
+           per_spot = 2 * n1 * (n1 * (sizeof(double) + 1) + sizeof(double) + sizeof(uint32_t) + 1) +
+                      6 * n1 * sizeof(double) + n1 * n1 + (size_t)r * r + 1 + 4 * sizeof(int) +
                       2 * n1 * sizeof(uint32_t) + 12 * sizeof(uint32_t) +
                       8 * sizeof(struct row_slot) + n1 * 6 * sizeof(struct line_pair);
     size_t batch = BATCH_BYTES / per_spot > BATCH_MIN ? BATCH_BYTES / per_spot : BATCH_MIN;
@@ -890,6 +932,7 @@ out:
     free(wk.gs);
     free(wk.krow);
     free(wk.need);
+    free(wk.pwin);
     free(wk.pairs);
     free(wk.items);
     free(wk.ulist[0]);
@@ -897,6 +940,7 @@ out:
     free(wk.vq);
     free(wk.vp);
     free(wk.rowp);
+    free(wk.rfull);
     free(wk.rneed);
     free(wk.ralong);
     free(wk.slots);
