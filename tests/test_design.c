@@ -149,6 +149,44 @@ int main(void)
         for (int r = 3; r <= 8; r += 5) CHECK(design_error(1.34, r, xi, yi, 60, 1e-12, &st) < 1e-11);
     }
 
+    /* a raster too large for one batch of rows (r = 40: some 600 spots a batch, design.c): every
+     * row is the row of its spot designed alone (no row of wedges shared with another spot, no
+     * batch boundary), bit for bit, at the batches' edges and inside them, and a column and a
+     * row of cells through the spot (near a node: four cells hold it) are within the tolerance
+     * of the box integral. Rows are shared within a batch, not across: a spot's row must not depend on
+     * which others share its batch. */
+    {
+        enum { NG = 37, R = 40 };
+        double *xr = malloc(sizeof(double) * NG * NG), *yr = malloc(sizeof(double) * NG * NG);
+        double *Ar = malloc(sizeof(double) * NG * NG * R * R), one[R * R];
+        CHECK(xr && yr && Ar);
+        grid(xr, yr, NG, 0.3, 0.15);
+        fit_design_opts_t od = fit_design_opts_for_tol(1e-12);
+        CHECK(fit_design_build(1.34, 6.0, R, xr, yr, NG * NG, &od, Ar, NULL, NULL) == 0);
+        int rows[] = {0, 1, 300, 611, 612, 613, 614, 900, 1225, 1226, NG * NG - 1}, same = 1;
+        for (size_t q = 0; q < sizeof rows / sizeof rows[0]; q++) {
+            int k = rows[q];
+            CHECK(fit_design_build(1.34, 6.0, R, &xr[k], &yr[k], 1, &od, one, NULL, NULL) == 0);
+            for (int c = 0; c < R * R; c++) same &= Ar[(size_t)k * R * R + c] == one[c];
+        }
+        CHECK(same);
+        int k = 700; /* grid (34, 18): x 5.4, y 3.0, about a node of the 40 x 40 grid */
+        double worst = 0, rowmax = 0;
+        for (int q = 0; q < 2 * R; q++) { /* the cells of column i = 36, then of row j = 20 */
+            int c = q < R ? q * R + 36 : 20 * R + (q - R);
+            fit_rect_t b = {6.0 * (c % R) / R, 6.0 * (c % R + 1) / R, 6.0 * (c / R) / R,
+                            6.0 * (c / R + 1) / R};
+            double v, e;
+            fit_box_integral(1.34, &b, xr[k], yr[k], 1e-13, &v, &e, NULL);
+            rowmax = fmax(rowmax, v);
+            worst = fmax(worst, fabs(Ar[(size_t)k * R * R + c] - v));
+        }
+        CHECK(worst < 1e-12 * rowmax);
+        free(xr);
+        free(yr);
+        free(Ar);
+    }
+
     /* bad arguments */
     err_t err;
     CHECK(fit_design_build(0, 6, 3, x, y, 81, NULL, A, NULL, &err) == -EINVAL);
