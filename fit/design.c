@@ -676,8 +676,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 wk->pairs[d1++] = (struct line_pair){dist, (int)k[q], it[i].ld};
         }
         const struct line_pair *pr = wk->pairs;
-        if (targets_reserve(wk, (d1 - d0) * (size_t)n1) || rows_reserve(wk, nrow + d1 - d0, 0))
-            return -ENOMEM;
+        if (rows_reserve(wk, nrow + d1 - d0, 0)) return -ENOMEM;
         stamp++; /* unique per run within a batch */
         for (size_t q = d0; q < d1; q++) { /* rows, and what any pair of each needs */
             int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
@@ -709,6 +708,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 if (nd > rn[m]) rn[m] = nd;
             }
         }
+        if (targets_reserve(wk, (nrow - row0) * (size_t)n1)) return -ENOMEM;
         for (size_t row = row0; row < nrow; row++) { /* the targets of the run's rows */
             unsigned char *rn = wk->rneed + row * (size_t)n1;
             wk->rowp[row] = UINT32_MAX;
