@@ -314,6 +314,21 @@ void api_h_jitter(api_req_t *q)
                   r.n, work, MAX_WORK);
         goto out;
     }
+    /* the Airy integrals' own cost: it grows with the spot's rings between each sample and each
+     * pixel (a tiny spot jittered far from the pixel crosses thousands), which samples x cells
+     * does not see */
+    double evals = fit_jitter_cost(&r.s, r.dx, r.dy, r.n), cap = srv_config(q->srv)->max_jitter_evals;
+    if (evals > cap) {
+        double reach = 0;
+        for (size_t k = 0; k < r.n; k++) reach = fmax(reach, hypot(r.dx[k], r.dy[k]));
+        api_error(q, 422, "out_of_range", "jitter.samples",
+                  "%zu samples of an Airy spot of radius %.3g um reaching %.3g um (%.3g spot "
+                  "radii) from the nominal position need about %.3g radial evaluations, more "
+                  "than one request may do (%.3g, ipsd --max-jitter-evals): fewer samples, a "
+                  "smaller jitter or a larger spot",
+                  r.n, r.s.psf.width_um, reach, reach / r.s.psf.width_um, evals, cap);
+        goto out;
+    }
     json_t *doc;
     err_t err = {{0}};
     int ret = jitterjson_run(&r.s, r.dx, r.dy, r.n, r.measured, samples, &doc, &err);

@@ -880,6 +880,32 @@ static int check_args(double R_um, double pitch, int r, const double *x, const d
     return 0;
 }
 
+double fit_design_cost(double R_um, double pitch, int r, const double *x, const double *y,
+                       size_t n, const fit_design_opts_t *opts, double *far)
+{
+    fit_design_opts_t o = opts ? *opts : fit_design_opts_for_tol(1e-12);
+    if (far) *far = 0;
+    if (check_args(R_um, pitch, r, x, y, n, &o, NULL)) return 0;
+    double a = fit_airy_a(R_um), segs = 0, far_segs = 0;
+    for (size_t k = 0; k < n; k++)
+        for (int dir = 0; dir < 2; dir++) {
+            double across = dir ? y[k] : x[k], along = dir ? x[k] : y[k];
+            /* the farthest node along any line: one of the pixel's two edges */
+            double other = fmax(fabs(along), fabs(pitch - along));
+            for (int l = 0; l <= r; l++) {
+                double dist = fabs(pitch * l / r - across), w = a * dist;
+                if (w < FIT_CORNER_TINY) continue;
+                double E = (other + sqrt(other * other + dist * dist)) / dist;
+                if (!(E > 1)) continue;
+                double vend = w * (E + 1 / E) / 2; /* v = w cosh s from s = 0 up to here */
+                segs += ceil(log(E) / o.seg_ds) + ceil((vend - w) / o.seg_dv) + 1;
+                if (vend > RADIAL_Q_VMAX) far_segs += ceil((vend - fmax(w, RADIAL_Q_VMAX)) / o.seg_dv);
+            }
+        }
+    if (far) *far = far_segs * o.order;
+    return segs * o.order;
+}
+
 int fit_design_build(double R_um, double pitch, int r, const double *x, const double *y, size_t n,
                      const fit_design_opts_t *opts, double *A, fit_design_stats_t *stats,
                      err_t *err)

@@ -65,4 +65,15 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
                      const fit_design_opts_t *opts, double *A, fit_design_stats_t *stats,
                      err_t *err);
 
+/* An upper estimate of the radial evaluations fit_design_build takes for these spots when no two
+ * of them share a sweep (the case of scattered positions: a jitter series), without building
+ * anything: per spot and line, the segments of a fresh sweep to the line's farthest node, each
+ * of which advances E by e^seg_ds or a*rho by seg_dv (at most ln(E)/seg_ds + dv/seg_dv + 1),
+ * times the order. It grows with a x the spots' distance from the pixel: a small spot far away
+ * crosses thousands of Airy rings. *far (may be NULL) gets the part beyond the radial function's
+ * table (a rho >= RADIAL_Q_VMAX, radial.h), evaluated by Hankel's expansion at about 2.5 times
+ * the cost. Arguments as fit_design_build's; 0 for bad ones. */
+double fit_design_cost(double R_um, double pitch, int r, const double *x, const double *y,
+                       size_t n, const fit_design_opts_t *opts, double *far);
+
 #endif

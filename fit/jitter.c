@@ -154,6 +154,27 @@ int fit_jitter_flux(const fit_jitter_setup_t *s, const double *x, const double *
     return ret;
 }
 
+double fit_jitter_cost(const fit_jitter_setup_t *s, const double *dx, const double *dy, size_t n)
+{
+    if (check_setup(s, NULL) || s->psf.kind != FIT_PSF_AIRY) return 0;
+    double *xy = malloc(sizeof(double) * 2 * (n + 1)), cost = 0;
+    if (!xy) return INFINITY; /* cannot tell: as if too much */
+    fit_design_opts_t o = fit_design_opts_for_tol(DESIGN_TOL);
+    for (size_t p = 0; p < s->n_pixels; p++) {
+        const fit_jitter_pixel_t *px = &s->pixels[p];
+        double ox = s->x0_um - px->dcol * s->pitch_um, oy = s->y0_um - px->drow * s->pitch_um;
+        xy[0] = ox;
+        xy[n + 1] = oy;
+        for (size_t k = 0; k < n; k++) xy[k + 1] = ox + dx[k], xy[n + 2 + k] = oy + dy[k];
+        double far;
+        cost += fit_design_cost(s->psf.width_um, s->pitch_um, px->S ? px->r : 1, xy, xy + n + 1,
+                                n + 1, &o, &far);
+        cost += 1.5 * far; /* Hankel's expansion: a sincos and its series, ~2.5 table lookups */
+    }
+    free(xy);
+    return cost;
+}
+
 int fit_jitter_run(const fit_jitter_setup_t *s, const double *dx, const double *dy, size_t n,
                    double *rho, double *rel_err, fit_jitter_stats_t *stats, err_t *err)
 {

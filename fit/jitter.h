@@ -77,6 +77,14 @@ typedef struct fit_jitter_stats {
 int fit_jitter_run(const fit_jitter_setup_t *s, const double *dx, const double *dy, size_t n,
                    double *rho, double *rel_err, fit_jitter_stats_t *stats, err_t *err);
 
+/* What fit_jitter_run of this series costs at most, in radial evaluations of the Airy PSF's
+ * cell integrals (fit_design_cost over the aperture's pixels, the nominal position included),
+ * those by Hankel's expansion counted 2.5 times (their measured cost): it grows with the spot's
+ * a x the samples' distance from each pixel, so a caller can bound a run before starting it.
+ * About 16 ns each on the machine of docs/server.md (the API's default bound, 2e8, is a few
+ * seconds). 0 for the Gaussian PSF (closed form) or bad arguments. */
+double fit_jitter_cost(const fit_jitter_setup_t *s, const double *dx, const double *dy, size_t n);
+
 /* n jitter offsets drawn from a circular Gaussian of rms rms_um per axis (GSL mt19937 seeded with
  * seed, gsl_ran_gaussian_ziggurat): the same seed gives the same series. */
 int fit_jitter_draw(double rms_um, size_t n, unsigned long seed, double *dx, double *dy,

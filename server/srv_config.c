@@ -75,6 +75,8 @@ static const char usage[] =
     "                       more get 413\n"
     "  --max-fit-r N        largest r_max / ftest_r / geometry_r a fit may ask for, 1..32\n"
     "                       (default 32); more get 422\n"
+    "  --max-jitter-evals N largest Airy integration a jitter request may need, estimated in\n"
+    "                       radial evaluations (default 200000000, a few seconds); more get 422\n"
     "  --camera-timeout S   a camera that delivers no frame within S seconds fails the scan\n"
     "                       (default 0: the camera's own, the exposure time + 5 s)\n"
     "SIGINT / SIGTERM stop gracefully: running scans resume at the next start.\n";
@@ -99,7 +101,8 @@ srv_config_t srv_config_default(void)
                       .heartbeat_s = 15,
                       .max_attempts = 3,
                       .max_fit_points = 10000,
-                      .max_fit_r = 32};
+                      .max_fit_r = 32,
+                      .max_jitter_evals = 200000000};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
     snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
     snprintf(c.bench, sizeof c.bench, "sim");
@@ -196,6 +199,7 @@ enum {
     O_MAXSUBS,
     O_MAXFITPTS,
     O_MAXFITR,
+    O_MAXJITTER,
     O_PORTFILE,
     O_HEARTBEAT,
     O_ATTEMPTS,
@@ -231,6 +235,7 @@ static const struct option opts[] = {
     {"max-subscribers", required_argument, NULL, O_MAXSUBS},
     {"max-fit-points", required_argument, NULL, O_MAXFITPTS},
     {"max-fit-r", required_argument, NULL, O_MAXFITR},
+    {"max-jitter-evals", required_argument, NULL, O_MAXJITTER},
     {"port-file", required_argument, NULL, O_PORTFILE},
     {"heartbeat", required_argument, NULL, O_HEARTBEAT},
     {"max-attempts", required_argument, NULL, O_ATTEMPTS},
@@ -331,7 +336,8 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
     case O_REQTIMEOUT:
     case O_MAXSUBS:
     case O_MAXFITPTS:
-    case O_MAXFITR: {
+    case O_MAXFITR:
+    case O_MAXJITTER: {
         static const struct {
             int opt;
             const char *name;
@@ -341,6 +347,7 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
                    {O_REQTIMEOUT, "request-timeout", 1, 86400},
                    {O_MAXFITPTS, "max-fit-points", 1, 10000000},
                    {O_MAXFITR, "max-fit-r", 1, 32},
+                   {O_MAXJITTER, "max-jitter-evals", 100000, 2000000000},
                    {O_MAXSUBS, "max-subscribers", 1, 1000000}};
         size_t i = 0;
         while (lim[i].opt != c)
@@ -349,7 +356,8 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--%s must be %lld..%lld (got '%s')", lim[i].name,
                            lim[i].lo, lim[i].hi, arg);
         int *field[] = {&cfg->max_connections, &cfg->max_per_client, &cfg->request_timeout_s,
-                        &cfg->max_fit_points, &cfg->max_fit_r, &cfg->max_subscribers};
+                        &cfg->max_fit_points, &cfg->max_fit_r, &cfg->max_jitter_evals,
+                        &cfg->max_subscribers};
         *field[i] = (int)v;
         return 0;
     }

@@ -53,6 +53,8 @@ typedef struct srv_config {
     int max_attempts;             /* a job claimed this often by crashed runs fails (3) */
     int max_fit_points;           /* largest uploaded scan file a fit takes, in points (10000) */
     int max_fit_r;                /* largest r a fit request may ask for (32) */
+    int max_jitter_evals;         /* largest estimated Airy integration of a jitter request, in
+                                     radial evaluations (fit_jitter_cost; 200000000) */
     double camera_timeout_s;      /* a frame not delivered within fails the scan (0: camera's) */
 } srv_config_t;
 

@@ -187,6 +187,33 @@ int main(void)
         free(Ar);
     }
 
+    /* fit_design_cost, the bound a caller puts on a build before running it (the jitter API),
+     * against the radial evaluations a build of the one spot reports having taken (nothing
+     * shared, no cache): never below them, at most three times them, for the reference spot
+     * inside the pixel, a small spot outside it, and a 0.012 um spot 0.5 mm away (1e5 Airy
+     * rings between it and the pixel: nearly all of its cost beyond the radial table, none of
+     * the reference spot's); bad arguments cost 0 */
+    {
+        struct {
+            double R, x, y;
+            int r;
+        } cs[] = {{1.34, 3.1, 2.7, 8}, {0.05, -5, 9, 4}, {0.0122, 500, 300, 2}};
+        for (int i = 0; i < 3; i++) {
+            double Ac[64], far;
+            fit_design_opts_t oc = fit_design_opts_for_tol(1e-10);
+            fit_design_stats_t sc;
+            CHECK(fit_design_build(cs[i].R, 6.0, cs[i].r, &cs[i].x, &cs[i].y, 1, &oc, Ac, &sc,
+                                   NULL) == 0);
+            double cost = fit_design_cost(cs[i].R, 6.0, cs[i].r, &cs[i].x, &cs[i].y, 1, &oc, &far);
+            CHECK(sc.radial_evals > 0 && cost >= (double)sc.radial_evals &&
+                  cost <= 3.0 * (double)sc.radial_evals);
+            if (i == 0) CHECK(far == 0);                      /* a rho <= 30 over the pixel */
+            if (i == 2) CHECK(far > 0.9 * cost && cost > 1e6); /* a rho ~ 1.5e5 */
+        }
+        double xb = NAN, yb = 1, far = 1;
+        CHECK(fit_design_cost(1.34, 6.0, 4, &xb, &yb, 1, NULL, &far) == 0 && far == 0);
+    }
+
     /* bad arguments */
     err_t err;
     CHECK(fit_design_build(0, 6, 3, x, y, 81, NULL, A, NULL, &err) == -EINVAL);

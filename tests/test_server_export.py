@@ -272,6 +272,15 @@ def test(c, t, argv, daemons):
                                    "psf": {"kind": "gauss", "sigma_um": 1},
                                    "jitter": {"rms_um": 1, "samples": 100000}}), 422,
             "jitter.samples", "too much work for one request")
+    # a 0.012 um Airy spot (5 nm light) jittered 0.5 mm: few samples x cells, but each sample's
+    # cell integrals cross ~1e5 Airy rings (fit_jitter_cost ~7e8 evaluations, 10 s or more):
+    # refused before any is computed (the fuzzer found 20 such samples holding a thread 2 s)
+    far = d.post("/api/jitter", {"map": {"r": 2, "S": [1, 1, 1, 1]}, "pitch_um": PITCH,
+                                 "psf": {"kind": "airy", "wavelength_nm": 5, "na": 0.25},
+                                 "jitter": {"rms_um": 503, "samples": 100}})
+    c.error(far, 422, "jitter.samples", "a tiny spot jittered far: too many Airy rings")
+    c.ok("spot radii" in far.text and "--max-jitter-evals" in far.text,
+         "the refusal says how far the samples reach and which option bounds it: %s" % far.text)
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
 
