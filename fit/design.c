@@ -437,10 +437,10 @@ static struct line_pair *sort_pairs(struct line_pair *p, struct line_pair *tmp, 
 }
 
 /* The distinct spot coordinates of a batch: an open-addressing table from the bits of a
- * coordinate to its number (spots_by_coordinate); stamp 0 marks an empty slot. */
-struct row_slot {
+ * coordinate to its number (spots_by_coordinate). */
+struct coord_slot {
     uint64_t key;
-    uint32_t row, stamp;
+    uint32_t id, used;
 };
 
 struct work {
@@ -468,12 +468,12 @@ struct work {
     double *vp;               /* [rowp][m]: P wedges */
     size_t row_cap, prow_cap;
     struct line_pair *pairs;  /* the pairs of one run of equal distance (up to 2 * n1 * batch) */
-    struct line_pair *items;  /* (line, distinct coordinate) items: 2 * n1 * batch, then as
-                                 many for sort_pairs */
+    struct line_pair *items;  /* (line, distinct coordinate) items, their k the coordinate's
+                                 number: 2 * n1 * batch, then as many for sort_pairs */
     uint32_t *ulist[2], *ustart[2], *cid[2]; /* spots_by_coordinate's, per direction: batch,
                                                 2 * batch + 1 and batch entries */
     uint32_t *rstamp, *rrow;  /* [coordinate]: the run that last made a row of it, and the row */
-    struct row_slot *slots;   /* at least 4 * batch of them, a power of two */
+    struct coord_slot *slots;   /* at least 4 * batch of them, a power of two */
     size_t nslot;
     size_t batch;
     struct sweep sw;
@@ -595,8 +595,8 @@ static int rows_reserve(struct work *wk, size_t nrow, size_t nprow)
     return 0;
 }
 
-/* The distinct coordinates of the batch's spots, x and y together (bit for bit, through the row
- * table): cid[dir][k] numbers spot k's x (dir 0) or y (dir 1) among them, and, per direction,
+/* The distinct coordinates of the batch's spots, x and y together (bit for bit, through the
+ * coordinate table): cid[dir][k] numbers spot k's x (dir 0) or y (dir 1) among them, and, per direction,
  * ustart[dir][u]..ustart[dir][u + 1] index ulist[dir], the spots whose coordinate across that
  * direction's lines (x for the vertical ones, dir 0) is the u-th value. Returns their number. */
 static size_t spots_by_coordinate(struct work *wk, int nb)
@@ -609,14 +609,14 @@ static size_t spots_by_coordinate(struct work *wk, int nb)
             memcpy(&bits, dir ? &wk->y[k] : &wk->x[k], sizeof bits);
             for (size_t i = (size_t)((bits * 0x9E3779B97F4A7C15ull) >> 24) & mask;;
                  i = (i + 1) & mask) {
-                struct row_slot *sl = &wk->slots[i];
-                if (!sl->stamp) {
-                    *sl = (struct row_slot){bits, (uint32_t)nu++, 1};
-                    wk->cid[dir][k] = sl->row;
+                struct coord_slot *sl = &wk->slots[i];
+                if (!sl->used) {
+                    *sl = (struct coord_slot){bits, (uint32_t)nu++, 1};
+                    wk->cid[dir][k] = sl->id;
                     break;
                 }
                 if (sl->key == bits) {
-                    wk->cid[dir][k] = sl->row;
+                    wk->cid[dir][k] = sl->id;
                     break;
                 }
             }
@@ -667,18 +667,18 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
     size_t nrow = 0, nprow = 0; /* rows of the batch so far, and those with P */
     for (size_t i0 = 0; i0 < ni;) { /* runs of equal dist (inside runs of equal w) */
         double dist = it[i0].dist, w = wk->a * dist, smax = 0;
-        size_t i1 = i0, nt = 0, row0 = nrow, d0 = 0, d1 = 0;
+        size_t i1 = i0, nt = 0, row0 = nrow, np = 0;
         while (i1 < ni && it[i1].dist == dist) i1++;
         for (size_t i = i0; i < i1; i++) { /* the run's pairs: its items' spots */
             int dir = it[i].ld & 1;
             const uint32_t *k = wk->ulist[dir], *start = wk->ustart[dir];
             for (uint32_t q = start[it[i].k]; q < start[it[i].k + 1]; q++)
-                wk->pairs[d1++] = (struct line_pair){dist, (int)k[q], it[i].ld};
+                wk->pairs[np++] = (struct line_pair){dist, (int)k[q], it[i].ld};
         }
         const struct line_pair *pr = wk->pairs;
-        if (rows_reserve(wk, nrow + d1 - d0, 0)) return -ENOMEM;
+        if (rows_reserve(wk, nrow + np, 0)) return -ENOMEM;
         stamp++; /* unique per run within a batch */
-        for (size_t q = d0; q < d1; q++) { /* rows, and what any pair of each needs */
+        for (size_t q = 0; q < np; q++) { /* rows, and what any pair of each needs */
             int k = pr[q].k, l = pr[q].ld >> 1, dir = pr[q].ld & 1;
             uint32_t along = wk->cid[!dir][k], row; /* rows: the run's distinct along-coordinates */
             if (wk->rstamp[along] != stamp) {
@@ -773,9 +773,9 @@ static void assemble_row(struct work *wk, int k, double *row)
         sv[i] = corner_sgn(v), tv[i] = wk->a * fabs(v) < FIT_CORNER_TINY;
     }
     for (int i = 0; i < n1; i++) { /* the vertical line's wedges, a row of them in vq */
+        if (tu[i]) continue;          /* (a line through the spot has no row) */
         const double *w = wk->vq + (size_t)rv[i] * n1;
-        if (!tu[i])
-            for (int j = 0; j < n1; j++) g[j * n1 + i] = w[j];
+        for (int j = 0; j < n1; j++) g[j * n1 + i] = w[j];
     }
     for (int j = 0; j < n1; j++) { /* plus the horizontal one's: the node's sum */
         /* (a line through the spot has no row: its nodes are on an axis) */
@@ -922,7 +922,7 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
            per_spot = 2 * n1 * (n1 * (sizeof(double) + 1) + sizeof(double) + sizeof(uint32_t) + 1) +
                       6 * n1 * sizeof(double) + n1 * n1 + (size_t)r * r + 1 + 4 * sizeof(int) +
                       2 * n1 * sizeof(uint32_t) + 12 * sizeof(uint32_t) +
-                      8 * sizeof(struct row_slot) + n1 * 6 * sizeof(struct line_pair);
+                      8 * sizeof(struct coord_slot) + n1 * 6 * sizeof(struct line_pair);
     size_t batch = BATCH_BYTES / per_spot > BATCH_MIN ? BATCH_BYTES / per_spot : BATCH_MIN;
     if (batch > n) batch = n;
     struct work wk = {.r = r, .n1 = r + 1, .a = fit_airy_a(R_um)};
