@@ -171,7 +171,7 @@ static int put(char **buf, size_t *len, size_t *cap, const char *fmt, ...)
 }
 
 #define CSV_HEADER                                                                                 \
-    "calibration_id,sensor_id,pixel_col,pixel_row,r,i,j,S,S_err,status,current,created_ms\n"
+    "calibration_id,sensor_id,pixel_col,pixel_row,r,i,j,S,S_err,status,current,created_ms,S_res\n"
 
 char *api_csv_calibs(const storage_calib_t *c, size_t n, size_t *len)
 {
@@ -182,11 +182,14 @@ char *api_csv_calibs(const storage_calib_t *c, size_t n, size_t *len)
     for (size_t k = 0; k < n; k++)
         for (int j = 0; j < c[k].r; j++)
             for (int i = 0; i < c[k].r; i++)
-                if (put(&buf, len, &cap, "%lld,%lld,%d,%d,%d,%d,%d,%.17g,%.17g,%s,%d,%lld\n",
+                if (put(&buf, len, &cap, "%lld,%lld,%d,%d,%d,%d,%d,%.17g,%.17g,%s,%d,%lld,",
                         (long long)c[k].id, (long long)c[k].sensor_id, c[k].pixel_col,
                         c[k].pixel_row, c[k].r, i, j, c[k].S[j * c[k].r + i],
                         c[k].S_err[j * c[k].r + i], c[k].status, !c[k].superseded_by,
-                        (long long)c[k].created_ms))
+                        (long long)c[k].created_ms) ||
+                    /* S_res last (an addition): empty when not known */
+                    (c[k].S_res ? put(&buf, len, &cap, "%.17g\n", c[k].S_res[j * c[k].r + i])
+                                : put(&buf, len, &cap, "\n")))
                     goto oom;
     return buf;
 oom:

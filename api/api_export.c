@@ -21,6 +21,7 @@ static fitsmap_t map_of(const storage_calib_t *c, const storage_sensor_t *sn)
     return (fitsmap_t){.r = c->r,
                        .S = c->S,
                        .S_err = c->S_err,
+                       .S_res = c->S_res,
                        .pitch_um = sn->pitch_um,
                        .pixel_col = c->pixel_col,
                        .pixel_row = c->pixel_row,

@@ -17,7 +17,8 @@
 static const char usage[] =
     "usage: ips export MAPS.json --pitch UM -o OUT.fits [--r R | --shrunk]\n"
     "  Writes IPS maps as FITS: per map the image extensions ('S', k) and ('S_ERR', k) with\n"
-    "  their sampling (OVERSAMP, CDELT/CRVAL/CRPIX), optics and provenance (docs/api.md, FITS).\n"
+    "  their sampling (OVERSAMP, CDELT/CRVAL/CRPIX), optics and provenance, then ('S_RES', k)\n"
+    "  where the map's resolution error is known (docs/api.md, FITS).\n"
     "  MAPS.json: a Calibration (GET /api/calibrations/{id}), a page of them ({\"items\": ...}),\n"
     "  an `ips fit` document (its recommended r, or --r) or a map {\"r\", \"S\"}.\n"
     "  --pitch UM     pixel pitch of the sensor (um, > 0; the documents do not carry it)\n"
@@ -81,7 +82,7 @@ int cmd_export(int argc, char **argv)
     }
     for (size_t k = 0; k < mf.n; k++) {
         const mapfile_map_t *m = &mf.maps[k];
-        maps[k] = (fitsmap_t){.r = m->r, .S = m->S, .S_err = m->S_err, .pitch_um = a.pitch,
+        maps[k] = (fitsmap_t){.r = m->r, .S = m->S, .S_err = m->S_err, .S_res = m->S_res, .pitch_um = a.pitch,
                               .pixel_col = m->col, .pixel_row = m->row,
                               .wavelength_um = m->wavelength_um, .na = m->na,
                               .spot_radius_um = m->spot_radius_um, .I0 = m->I0,

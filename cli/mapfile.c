@@ -65,6 +65,12 @@ static int one_map(json_t *o, const char *what, mapfile_map_t *m, err_t *err)
     if (!E)
         for (size_t k = 0; k < n; k++)
             m->S_err[k] = NAN;
+    json_t *R = json_object_get(o, "S_res");
+    if (R && !json_is_null(R) && !(m->S_res = numbers(R, n))) {
+        free(m->S);
+        free(m->S_err);
+        return err_set(err, -EINVAL, "%s: S_res must be null or %zu numbers", what, n);
+    }
     json_t *px = json_object_get(o, "pixel"), *opt = json_object_get(o, "optics");
     m->col = (int)id(px, "col");
     m->row = (int)id(px, "row");
@@ -148,10 +154,18 @@ int mapfile_read(const char *path, int r, mapfile_t *out, err_t *err)
         ret = one_map(o, what, &out->maps[k], err);
         if (!ret) out->n++;
     }
-    if (!ret && single != doc && !bare) /* an `ips fit` document's map: which one */
+    if (!ret && single != doc && !bare) { /* an `ips fit` document's map: which one */
         out->maps[0].map = r == MAPFILE_SHRUNK                             ? "shrunk"
                            : id(single, "r") == id(doc, "recommended_r") ? "recommended"
                                                                            : NULL;
+        /* a fit's own map has the shrunk map's resolution error when they share the grid */
+        json_t *sh = json_object_get(doc, "shrunk_map"), *R = json_object_get(sh, "S_res");
+        mapfile_map_t *m = &out->maps[0];
+        if (!m->S_res && id(sh, "r") == m->r && json_is_array(R) &&
+            !(m->S_res = numbers(R, (size_t)m->r * m->r)))
+            ret = err_set(err, -EINVAL, "%s: shrunk_map.S_res must be %d numbers", path,
+                          m->r * m->r);
+    }
     json_decref(bare);
     return ret;
 }
@@ -162,6 +176,7 @@ void mapfile_free(mapfile_t *mf)
     for (size_t k = 0; k < mf->n; k++) {
         free(mf->maps[k].S);
         free(mf->maps[k].S_err);
+        free(mf->maps[k].S_res);
     }
     free(mf->maps);
     json_decref(mf->doc);

@@ -14,6 +14,9 @@
 typedef struct mapfile_map {
     int r;
     double *S, *S_err; /* r*r each (S_err NaN where the file has none) */
+    double *S_res;     /* r*r or NULL (the file does not say): the resolution error, a
+                          Calibration's S_res or, for an `ips fit` document, its shrunk_map's
+                          S_res when that map has the r read (fit/shrink.h) */
     int col, row;      /* sensor pixel; 0 when the file does not say */
     double wavelength_um, na, spot_radius_um, I0, chi2_red;            /* NaN: unknown */
     const char *status, *noise_model, *software_version, *by, *reason; /* NULL: unknown */

@@ -89,9 +89,10 @@ static void key_wcs(fitsfile *f, const fitsmap_t *m, int *status)
 static void key_map(fitsfile *f, const fitsmap_t *m, const char *extname, int extver, int *status)
 {
     char date[40];
-    int is_err = strcmp(extname, "S_ERR") == 0;
-    key_str(f, "EXTNAME", extname,
-            is_err ? "1-sigma uncertainty of S" : "relative sensitivity, mean 1", status);
+    const char *what = strcmp(extname, "S_ERR") == 0   ? "1-sigma uncertainty of S (noise)"
+                       : strcmp(extname, "S_RES") == 0 ? "resolution error of S, add to S_ERR in quadrature"
+                                                       : "relative sensitivity, mean 1";
+    key_str(f, "EXTNAME", extname, what, status);
     key_int(f, "EXTVER", extver, "map number in this file", status);
     key_str(f, "BUNIT", "", "dimensionless: sensitivity relative to the pixel mean", status);
     key_int(f, "OVERSAMP", m->r, "samples per pixel side (r of the r x r map)", status);
@@ -178,7 +179,11 @@ int fitsmap_write(const fitsmap_file_t *file, const fitsmap_t *maps, size_t n, v
         iso_date(file->date_ms, date, sizeof date);
         key_str(f, "DATE", date, "UTC the file was written", &status);
     }
+    long long n_res = 0;
+    for (size_t k = 0; k < n; k++) n_res += maps[k].S_res != NULL;
     key_int(f, "NMAPS", (long long)n, "maps: extensions ('S', k) and ('S_ERR', k)", &status);
+    key_int(f, "NRESMAPS", n_res, "maps with a resolution error: extensions ('S_RES', k)",
+            &status);
     if (file && file->sensor_id) key_int(f, "SENSORID", file->sensor_id, "sensor id", &status);
     if (file) {
         key_str(f, "SENSMOD", file->sensor_model, "sensor model", &status);
@@ -195,6 +200,16 @@ int fitsmap_write(const fitsmap_file_t *file, const fitsmap_t *maps, size_t n, v
             key_map(f, m, names[e], (int)k + 1, &status);
             fits_write_img(f, TDOUBLE, 1, (LONGLONG)m->r * m->r, (void *)arrays[e], &status);
         }
+    }
+    /* the resolution errors after every map's pair, so the pairs keep their places (HDUs 2k - 1
+     * and 2k) in files read by position as before they existed */
+    for (size_t k = 0; k < n && !status; k++) {
+        const fitsmap_t *m = &maps[k];
+        if (!m->S_res) continue;
+        long naxes[2] = {m->r, m->r};
+        fits_create_img(f, DOUBLE_IMG, 2, naxes, &status);
+        key_map(f, m, "S_RES", (int)k + 1, &status);
+        fits_write_img(f, TDOUBLE, 1, (LONGLONG)m->r * m->r, (void *)m->S_res, &status);
     }
     /* the file ends where the last HDU's padded data end */
     fits_flush_file(f, &status);

@@ -5,7 +5,9 @@
  * Layout (docs/api.md, "FITS"): a primary HDU without data holding what the file shares (ORIGIN,
  * CREATOR, DATE, NMAPS, sensor and pitch), then per map two IMAGE extensions of r x r doubles,
  * EXTNAME 'S' (the sensitivity, mean 1) and 'S_ERR' (its 1-sigma), both with EXTVER = the map's
- * number 1..n, so astropy reads map k as hdul['S', k] and hdul['S_ERR', k]. The data are the
+ * number 1..n, so astropy reads map k as hdul['S', k] and hdul['S_ERR', k]; after all the pairs,
+ * an extension 'S_RES' (EXTVER k) for each map whose resolution error is known (the primary's
+ * NRESMAPS counts them), so the pairs sit where they did before it existed. The data are the
  * stored arrays as they are: FITS axis 1 is x (sub-pixel column i), axis 2 is y (row j, row 0 at
  * the pixel's top edge, y downward as in docs/contracts.md), so data[j][i] = S[j*r + i].
  *
@@ -29,6 +31,8 @@
 typedef struct fitsmap {
     int r;                    /* the map is r x r, 1..256 */
     const double *S, *S_err;  /* r*r each, row-major y then x: S[j*r + i] */
+    const double *S_res;      /* r*r or NULL (not known): the resolution error (fit/shrink.h),
+                                 written as extension ('S_RES', k) after every map's pair */
     double pitch_um;          /* pixel pitch (PITCH); sub-pixel size SUBPIX = pitch / r */
     int pixel_col, pixel_row; /* sensor pixel (PIXCOL, PIXROW) */
     double wavelength_um, na, spot_radius_um; /* optics of the scan (WAVELEN, NA, SPOTRAD) */

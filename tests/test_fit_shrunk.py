@@ -139,6 +139,28 @@ with tempfile.TemporaryDirectory() as tmp:
                   "the FITS file holds the shrunk map and its S_err")
             check(h["S", 1].header.get("IPSMAP") == "shrunk",
                   "its header names the map: IPSMAP = 'shrunk'")
+            check(("S_RES", 1) in h and
+                  h["S_RES", 1].data.ravel().tolist() == sh["S_res"],
+                  "the FITS file holds the shrunk map's S_res as ('S_RES', 1)")
+    # the recommended map of the same document: its r is the shrunk map's, so it carries the
+    # same resolution error (fit/shrink.h: one per grid)
+    with open(doc_path) as f:
+        rec_r = json.load(f)["recommended_r"]
+    p = subprocess.run([IPS, "export", doc_path, "--pitch", "6", "-o", out], capture_output=True,
+                       text=True)
+    check(p.returncode == 0 and rec_r == sh["r"], "ips export of the recommended map: " +
+          p.stderr.strip())
+    if fits is not None and p.returncode == 0:
+        with fits.open(out) as h:
+            check(("S_RES", 1) in h and h["S_RES", 1].data.ravel().tolist() == sh["S_res"] and
+                  h[0].header.get("NRESMAPS") == 1,
+                  "the recommended map's file holds the shrunk map's S_res of its r")
+        p = subprocess.run([IPS, "export", doc_path, "--pitch", "6", "-o", out, "--r",
+                            str(rec_r - 1)], capture_output=True, text=True)
+        with fits.open(out) as h:
+            check(p.returncode == 0 and ("S_RES", 1) not in h and
+                  h[0].header.get("NRESMAPS") == 0,
+                  "another r's map has no S_RES (no resolution error known for its grid)")
     p = subprocess.run([IPS, "export", doc_path, "--pitch", "6", "-o", out, "--shrunk", "--r",
                         "3"], capture_output=True, text=True)
     check(p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--r" in p.stderr,

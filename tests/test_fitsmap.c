@@ -1,7 +1,8 @@
 /* test_fitsmap.c: the FITS files fitsmap_write builds in memory, read back by a minimal reader
  * written here (80-byte cards in 2880-byte blocks, FITS standard 4.0 sections 3-4; independent
- * of cfitsio): the HDU count is 1 + 2 x NMAPS, the extensions S and S_ERR alternate with EXTVER
- * 1..n, and each holds its map's values (big-endian float64). A regression test: a file written
+ * of cfitsio): the HDU count is 1 + 2 x NMAPS + NRESMAPS, the extensions S and S_ERR alternate
+ * with EXTVER 1..n, then S_RES of the maps that have one, and each holds its map's values
+ * (big-endian float64). A regression test: a file written
  * after another into reused heap memory once held an old extension (cfitsio's memory file took
  * a stale header left in the uninitialised buffer for an HDU of the new file; the API's
  * calibrations.fits showed it in one run of ten on a busy machine). */
@@ -55,7 +56,21 @@ static int walk(const unsigned char *buf, size_t len, const fitsmap_t *maps, int
         long n1 = naxis >= 1 && card(hdr, ncards, "NAXIS1", v, sizeof v) ? atol(v) : 0;
         long n2 = naxis >= 2 && card(hdr, ncards, "NAXIS2", v, sizeof v) ? atol(v) : 0;
         size_t dbytes = naxis > 0 ? ((size_t)n1 * (size_t)n2 * 8 + 2879) / 2880 * 2880 : 0;
-        if (hdus > 0) { /* extension k: S or S_ERR of map (k + 1) / 2 */
+        if (hdus > 2 * n) { /* after the pairs: S_RES of the maps that have one, in order */
+            int m = 0, seen = 0;
+            while (m < n && seen <= hdus - 2 * n - 1) seen += maps[m++].S_res != NULL;
+            char name[80] = "", word[80] = "";
+            card(hdr, ncards, "EXTNAME", name, sizeof name);
+            sscanf(name, "'%79[^' ]", word);
+            long ver = card(hdr, ncards, "EXTVER", v, sizeof v) ? atol(v) : 0;
+            CHECK(strcmp(word, "S_RES") == 0 && ver == m && m >= 1 && maps[m - 1].S_res);
+            if (m >= 1 && maps[m - 1].S_res && at + hbytes + (size_t)n1 * n2 * 8 <= len) {
+                const fitsmap_t *f = &maps[m - 1];
+                CHECK(n1 == f->r && n2 == f->r);
+                for (long q = 0; q < n1 * n2 && n1 == f->r && n2 == f->r; q++)
+                    CHECK(be_double(buf + at + hbytes + 8 * (size_t)q) == f->S_res[q]);
+            }
+        } else if (hdus > 0) { /* extension k: S or S_ERR of map (k + 1) / 2 */
             int m = (hdus + 1) / 2, err = hdus % 2 == 0;
             char name[80] = "", word[80] = "";
             card(hdr, ncards, "EXTNAME", name, sizeof name); /* 'S       ': quoted, padded */
@@ -72,6 +87,9 @@ static int walk(const unsigned char *buf, size_t len, const fitsmap_t *maps, int
         } else {
             long nmaps = card(hdr, ncards, "NMAPS", v, sizeof v) ? atol(v) : -1;
             CHECK(nmaps == n);
+            long nres = card(hdr, ncards, "NRESMAPS", v, sizeof v) ? atol(v) : -1, want = 0;
+            for (int m = 0; m < n; m++) want += maps[m].S_res != NULL;
+            CHECK(nres == want);
         }
         hdus++;
         at += hbytes + dbytes;
@@ -110,6 +128,23 @@ int main(void)
         int h = walk(buf, len, maps, N);
         if (h != 1 + 2 * N) fprintf(stderr, "round %d: %d HDUs, want %d\n", round, h, 1 + 2 * N);
         CHECK(h == 1 + 2 * N);
+        free(buf);
+    }
+    /* resolution errors on the first and the last map: two S_RES extensions after the three
+     * pairs, which keep their places */
+    {
+        double RS[N][R * R];
+        fitsmap_t wr[N];
+        for (int k = 0; k < N; k++) {
+            wr[k] = maps[k];
+            for (int j = 0; j < R * R; j++) RS[k][j] = 0.001 * (j + 1) * (k + 1);
+        }
+        wr[0].S_res = RS[0], wr[2].S_res = RS[2];
+        void *buf;
+        size_t len;
+        err_t err;
+        CHECK(fitsmap_write(&file, wr, N, &buf, &len, &err) == 0);
+        CHECK(walk(buf, len, wr, N) == 1 + 2 * N + 2);
         free(buf);
     }
     /* larger maps (r = 30: three data blocks each), so the file outgrows the first buffer and

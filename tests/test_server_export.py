@@ -86,6 +86,17 @@ def map_checks(c, hdul, k, cal, what):
     c.eq([float(v) for v in e.data.ravel()], cal["S_err"], what + ": S_err equal to the JSON")
     header_checks(c, s.header, cal, what + " S")
     header_checks(c, e.header, cal, what + " S_ERR")
+    # the resolution error, where the calibration knows it: an extension of its own after the
+    # pairs, the JSON's numbers exactly
+    if cal.get("S_res") is None:
+        c.ok(("S_RES", k) not in hdul, what + ": no S_RES where the calibration has none")
+    else:
+        c.ok(("S_RES", k) in hdul, what + ": S_RES for a calibration with S_res")
+        if ("S_RES", k) in hdul:
+            rs = hdul["S_RES", k]
+            c.eq([float(v) for v in rs.data.ravel()], cal["S_res"],
+                 what + ": S_res equal to the JSON")
+            header_checks(c, rs.header, cal, what + " S_RES")
     # the sampling, through astropy's WCS: sample (0, 0) is centred half a sub-pixel in
     w = WCS(s.header)
     x, y = w.wcs_pix2world([[0, 0], [r - 1, r - 1]], 0)[:, 0], None
@@ -140,7 +151,10 @@ def test(c, t, argv, daemons):
     c.ok("ipsd-calibration-%d.fits" % cal["id"] in (r.headers.get("Content-Disposition") or ""),
          "map.fits names the file")
     with read_fits(c, r.body, "map.fits") as h:
-        c.eq(len(h), 3, "map.fits: primary, S, S_ERR")
+        c.ok(cal.get("S_res") is not None, "the automatic fit's calibration has S_res")
+        c.eq(len(h), 3 + (cal.get("S_res") is not None), "map.fits: primary, S, S_ERR, S_RES")
+        c.eq(h[0].header.get("NRESMAPS"), int(cal.get("S_res") is not None),
+             "map.fits: NRESMAPS")
         c.eq((h[0].header.get("NMAPS"), h[0].header.get("ORIGIN"), h[0].header.get("SENSORID"),
               h[0].header.get("SENSMOD"), h[0].header.get("SENSSER")),
              (1, "ipsd", sensor, "IMX-F", "fits-1"), "map.fits: primary header")
@@ -159,7 +173,13 @@ def test(c, t, argv, daemons):
     c.status(r, 200, "calibrations.fits")
     with read_fits(c, r.body, "calibrations.fits") as h:
         c.eq(h[0].header.get("NMAPS"), 3, "calibrations.fits: NMAPS")
-        c.eq(len(h), 7, "calibrations.fits: primary and 3 x (S, S_ERR)")
+        n_res = sum(one.get("S_res") is not None for one in cals)
+        c.eq(len(h), 7 + n_res, "calibrations.fits: primary, 3 x (S, S_ERR), the S_RES known")
+        c.eq(h[0].header.get("NRESMAPS"), n_res, "calibrations.fits: NRESMAPS")
+        # the pairs where they were before S_RES existed: HDUs 2k - 1 and 2k
+        c.eq([(x.header.get("EXTNAME"), x.header.get("EXTVER")) for x in h[1:7]],
+             [(nm, k) for k in (1, 2, 3) for nm in ("S", "S_ERR")],
+             "calibrations.fits: the pairs first, in order")
         for k, one in enumerate(cals, 1):
             map_checks(c, h, k, one, "calibrations.fits map %d" % k)
 

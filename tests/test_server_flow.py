@@ -67,6 +67,17 @@ def compare_with_ips(scan, ips, cal, fit, csv_text, db):
         fails.append("CSV lines")
     near([float(r["S"]) for r in rows], [best["S"][int(r["j"]) * rec + int(r["i"])] for r in rows],
          "CSV S")
+    # S_res, the last column (an addition): ips fit's shrunk map's resolution error of that r
+    sh = ips.get("shrunk_map")
+    want_res = sh["S_res"] if sh and sh["r"] == rec else None
+    if rows and list(rows[0].keys())[-1] != "S_res":
+        fails.append("CSV: S_res is not the last column")
+    elif want_res is None:
+        if any(r["S_res"] != "" for r in rows):
+            fails.append("CSV S_res where ips fit has none")
+    else:
+        near([float(r["S_res"]) for r in rows],
+             [want_res[int(r["j"]) * rec + int(r["i"])] for r in rows], "CSV S_res")
     # the database, read by Python's sqlite3 (little-endian float64 BLOBs, docs/schema.md)
     r, s = db.one("SELECT r, s FROM calibrations WHERE pixel_col = 50 AND pixel_row = 60 "
                   "AND superseded_by IS NULL")
