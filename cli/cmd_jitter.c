@@ -20,6 +20,7 @@
 #include "mapfile.h"
 
 #define MAX_SAMPLES 10000000
+#define NOTE_EVALS 2e8 /* ipsd's default --max-jitter-evals: a few seconds (docs/operations.md) */
 
 static const char usage[] =
     "usage: ips jitter (--map FILE | --scene NAME) (--rms UM | --series FILE) [options]\n"
@@ -40,11 +41,14 @@ static const char usage[] =
     "                    with --seed S (1)\n"
     "  --series FILE     or the jitter series: lines 'dx dy [measured]' (um; '#' comments);\n"
     "                    a third column is corrected by the predicted response\n"
-    "  --samples-out     print every sample (dx, dy, rho, rel_err[, measured, corrected])\n";
+    "  --samples-out     print every sample (dx, dy, rho, rel_err[, measured, corrected])\n"
+    "  --max-evals N     refuse (exit 2) when the Airy integrals need more than N radial\n"
+    "                    evaluations (ipsd's --max-jitter-evals; default 0: no limit, but a\n"
+    "                    note on stderr above 2e8, a few seconds)\n";
 
 enum { OPT_MAP = 256, OPT_SCENE, OPT_R, OPT_PITCH, OPT_PSF, OPT_RADIUS, OPT_WAVELENGTH, OPT_NA,
        OPT_SIGMA, OPT_X, OPT_Y, OPT_RMS, OPT_SAMPLES, OPT_SEED, OPT_SERIES, OPT_SAMPLES_OUT,
-       OPT_HELP };
+       OPT_MAX_EVALS, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"map", required_argument, NULL, OPT_MAP},
@@ -63,13 +67,14 @@ static const struct option long_opts[] = {
     {"seed", required_argument, NULL, OPT_SEED},
     {"series", required_argument, NULL, OPT_SERIES},
     {"samples-out", no_argument, NULL, OPT_SAMPLES_OUT},
+    {"max-evals", required_argument, NULL, OPT_MAX_EVALS},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0}};
 
 struct jitter_args {
     const char *map, *scene, *series;
     int r, samples_out;
-    double pitch, radius, wavelength_nm, na, sigma, x, y, rms;
+    double pitch, radius, wavelength_nm, na, sigma, x, y, rms, max_evals;
     long long samples, seed;
     fit_psf_kind_t psf;
 };
@@ -94,6 +99,7 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
     case OPT_SAMPLES: return opts_int("samples", arg, 1, MAX_SAMPLES, &a->samples, err);
     case OPT_SEED: return opts_int("seed", arg, 0, 4294967295LL, &a->seed, err);
     case OPT_SAMPLES_OUT: a->samples_out = 1; return 0;
+    case OPT_MAX_EVALS: return opts_num("max-evals", arg, 0, 1e18, &a->max_evals, err);
     default: return err_set(err, -EINVAL, "unhandled option");
     }
 }
@@ -244,6 +250,25 @@ int cmd_jitter(int argc, char **argv)
                       : err_set(&err, -ENOMEM, "out of memory");
     }
     if (rc) goto fail;
+    /* the Airy integrals' cost (fit_jitter_cost): a tiny spot jittered far from the pixel
+     * crosses thousands of rings per sample; ipsd refuses such requests, here the user decides */
+    double evals = fit_jitter_cost(&s, dx, dy, n);
+    if ((a.max_evals > 0 && evals > a.max_evals) || evals > NOTE_EVALS) {
+        double reach = 0;
+        for (size_t k = 0; k < n; k++) reach = fmax(reach, hypot(dx[k], dy[k]));
+        if (a.max_evals > 0 && evals > a.max_evals) {
+            rc = err_set(&err, -EINVAL,
+                         "--max-evals %.3g: %zu samples reaching %.3g spot radii from the star's "
+                         "position need about %.3g radial evaluations",
+                         a.max_evals, n, reach / s.psf.width_um, evals);
+            goto fail;
+        }
+        fprintf(stderr,
+                "ips jitter: note: %zu samples reaching %.3g spot radii need about %.3g radial "
+                "evaluations (ipsd refuses more than 2e8 by default; this may take %.0f s or "
+                "more)\n",
+                n, reach / s.psf.width_um, evals, evals / NOTE_EVALS * 3);
+    }
     json_t *doc;
     rc = jitterjson_run(&s, dx, dy, n, meas, a.samples_out, &doc, &err);
     if (rc) goto fail;

@@ -301,6 +301,23 @@ def test(c, t, argv, daemons):
     c.error(far, 422, "jitter.samples", "a tiny spot jittered far: too many Airy rings")
     c.ok("spot radii" in far.text and "--max-jitter-evals" in far.text,
          "the refusal says how far the samples reach and which option bounds it: %s" % far.text)
+    # the same request on the command line: --max-evals refuses it before any integral, in one
+    # line naming the option; a bound above its cost lets a small one through (the map's mean)
+    flat = os.path.join(t, "flat2.json")
+    with open(flat, "w") as f:
+        json.dump({"r": 2, "S": [1, 1, 1, 1]}, f)
+    p = subprocess.run([ips, "jitter", "--map", flat, "--pitch", str(PITCH), "--wavelength", "5",
+                        "--na", "0.25", "--rms", "503", "--samples", "100", "--max-evals", "2e8"],
+                       capture_output=True, text=True)
+    c.ok(p.returncode == 2 and "--max-evals" in p.stderr and "spot radii" in p.stderr and
+         p.stderr.count("\n") == 1 and p.stdout == "",
+         "ips jitter --max-evals: exit 2, one line, nothing computed (%d %r)" %
+         (p.returncode, p.stderr))
+    p = subprocess.run([ips, "jitter", "--map", flat, "--pitch", str(PITCH), "--rms", "0.3",
+                        "--samples", "10", "--max-evals", "1e9"], capture_output=True, text=True)
+    c.ok(p.returncode == 0 and p.stderr == "" and
+         abs(json.loads(p.stdout)["rho_mean"] - 1) < 1e-12,
+         "ips jitter under its bound: a flat map's rho is 1 (%d %r)" % (p.returncode, p.stderr))
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
 
