@@ -775,7 +775,10 @@ static void assemble_row(struct work *wk, int k, double *row)
     for (int i = 0; i < n1; i++) { /* the vertical line's wedges, a row of them in vq */
         if (tu[i]) continue;          /* (a line through the spot has no row) */
         const double *w = wk->vq + (size_t)rv[i] * n1;
-        for (int j = 0; j < n1; j++) g[j * n1 + i] = w[j];
+        /* only the nodes this spot needs: the row's other entries may never have been
+         * evaluated (no other spot of the batch needed them) */
+        for (int j = 0; j < n1; j++)
+            if (need[j * n1 + i]) g[j * n1 + i] = w[j];
     }
     for (int j = 0; j < n1; j++) { /* plus the horizontal one's: the node's sum */
         /* (a line through the spot has no row: its nodes are on an axis) */
