@@ -157,15 +157,18 @@ export function renderCalibrations(root, params) {
 // ---- one pixel: current map, comparisons, history ----
 
 // The calibration cal as CSV: one line per sub-pixel with its centre in µm and the pitch (the
-// API's CSV has the indices only); numbers as JavaScript prints them (shortest exact form).
+// API's CSV has the indices only), and the resolution error S_res last (empty when not known);
+// numbers as JavaScript prints them (shortest exact form).
 export function calibrationCsv(cal, pitch) {
     const r = cal.r, w = pitch / r;
-    const lines = ['calibration_id,sensor_id,pixel_col,pixel_row,r,pitch_um,i,j,x_um,y_um,S,S_err'];
+    const lines = ['calibration_id,sensor_id,pixel_col,pixel_row,r,pitch_um,i,j,x_um,y_um,S,S_err,' +
+        'S_res'];
     for (let j = 0; j < r; j++) {
         for (let i = 0; i < r; i++) {
             const k = j * r + i;
             lines.push([cal.id, cal.sensor_id, cal.pixel.col, cal.pixel.row, r, pitch, i, j,
-                (i + 0.5) * w, (j + 0.5) * w, cal.S[k], cal.S_err ? cal.S_err[k] : '']
+                (i + 0.5) * w, (j + 0.5) * w, cal.S[k], cal.S_err ? cal.S_err[k] : '',
+                cal.S_res ? cal.S_res[k] : '']
                 .map((v) => (v === null || v === undefined ? '' : String(v))).join(','));
         }
     }

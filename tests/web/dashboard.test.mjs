@@ -836,11 +836,12 @@ async function run(base, page, api) {
     const valuesOk = rowsCsv.length === A.r * A.r && rowsCsv.every((c) => {
         const i = Number(c[col('i')]), j = Number(c[col('j')]), k = j * A.r + i;
         return Number(c[col('S')]) === A.S[k] && Number(c[col('S_err')]) === A.S_err[k] &&
+            (A.S_res ? Number(c[col('S_res')]) === A.S_res[k] : c[col('S_res')] === '') &&
             near(Number(c[col('x_um')]), (i + 0.5) * sensor.pitch_um / A.r, 1e-12) &&
             near(Number(c[col('y_um')]), (j + 0.5) * sensor.pitch_um / A.r, 1e-12);
     });
     check(dl.suggestedFilename().endsWith('.csv') && pitchOk && valuesOk,
-        'the CSV download has the API\'s S and S_err, positions in µm and the pitch',
+        'the CSV download has the API\'s S, S_err and S_res, positions in µm and the pitch',
         `${dl.suggestedFilename()}: ${csvText.slice(0, 2).join(' | ')}`);
     const [dj] = await Promise.all([page.waitForEvent('download'),
         page.locator('[data-testid="download-json"]').click()]);
