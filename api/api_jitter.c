@@ -314,9 +314,8 @@ void api_h_jitter(api_req_t *q)
                   r.n, work, MAX_WORK);
         goto out;
     }
-    /* the Airy integrals' own cost: it grows with the spot's rings between each sample and each
-     * pixel (a tiny spot jittered far from the pixel crosses thousands), which samples x cells
-     * does not see */
+    /* the Airy integrals' own cost: it grows with the spot's rings that the pixel's edge lines
+     * cross (a tiny spot: thousands), which samples x cells does not see */
     double evals = fit_jitter_cost(&r.s, r.dx, r.dy, r.n), cap = srv_config(q->srv)->max_jitter_evals;
     if (evals > cap) {
         double reach = 0;

@@ -436,6 +436,15 @@ static struct line_pair *sort_pairs(struct line_pair *p, struct line_pair *tmp, 
     return p;
 }
 
+/* One row of a run in wedge_pass: its targets tg[t0..t1), their least and largest E, and
+ * whether its line's needed nodes all lie on one side of the spot's foot (so the wedges' common
+ * prefix from the foot cancels: see sweep_offset_pays). */
+struct row_span {
+    size_t t0, t1;
+    double smin, smax;
+    int one_sided;
+};
+
 /* The distinct spot coordinates of a batch: an open-addressing table from the bits of a
  * coordinate to its number (spots_by_coordinate). */
 struct coord_slot {
@@ -459,6 +468,8 @@ struct work {
     double *axis;             /* [4 n1]: assemble_row's signs and on-axis marks per node line */
     struct target *tg;        /* the targets of one sweep */
     size_t tg_cap;
+    struct row_span *span;    /* [row - row0]: the run's rows' targets (wedge_pass) */
+    size_t span_cap;
     double *vq;               /* [row][m]: Q wedges of the batch's rows at node m of n1 */
     unsigned char *rneed;     /* [row][m]: what the row's pairs need there (1: Q, 2: Q and P) */
     double *ralong;           /* [row]: the spots' coordinate along the row's line */
@@ -634,6 +645,54 @@ static size_t spots_by_coordinate(struct work *wk, int nb)
     return nu;
 }
 
+/* An upper estimate of the segments of a sweep at w from E0 to E1 (each advances E by e^seg_ds
+ * or v = w (E + 1/E) / 2 by seg_dv: fit_design_cost's count). */
+static double sweep_segments(const fit_design_opts_t *o, double w, double E0, double E1)
+{
+    if (!(E1 > E0)) return 0;
+    return ceil(log(E1 / E0) / o->seg_ds) + ceil(w * 0.5 * ((E1 + 1 / E1) - (E0 + 1 / E0)) / o->seg_dv) + 1;
+}
+
+/* Whether the run's one-sided rows are cheaper each with a sweep of its own, from its least
+ * target, than all rows with one sweep from the foot (E = 1). Such a row's wedges then lack the
+ * same prefix (the sweep from 1 to its start), and that constant cancels in every cell: a cell
+ * not holding the spot is a mixed second difference of its corners' signed values, which for the
+ * two nodes of one line on the same side of the foot is a difference of that line's wedges with
+ * one sign (design.c's assemble_row; the row's nodes on the other side, or at the foot, or any
+ * corner of a cell holding the spot, which takes absolute values, make it not one-sided). For a
+ * small spot far from the pixel the sweep from the foot crosses thousands of Airy rings the pixel
+ * never sees (R = 0.012 um 500 um away: 33,000 segments for a 6 um pixel's 700); from its nodes
+ * it crosses only those between them, and its wedges no longer come as differences of two large
+ * prefixes (fewer digits lost). Estimates by sweep_segments; 1 when the one-sided rows' sweeps
+ * are fewer segments in all. */
+static int sweep_offset_pays(const fit_design_opts_t *o, double w, const struct row_span *sp,
+                             size_t nrows)
+{
+    double smax = 1, rest = 1, own = 0;
+    int any = 0;
+    for (size_t q = 0; q < nrows; q++) {
+        if (sp[q].t1 == sp[q].t0) continue;
+        smax = fmax(smax, sp[q].smax);
+        if (sp[q].one_sided) {
+            own += sweep_segments(o, w, sp[q].smin, sp[q].smax);
+            any = 1;
+        } else {
+            rest = fmax(rest, sp[q].smax);
+        }
+    }
+    return any && sweep_segments(o, w, 1, rest) + own < sweep_segments(o, w, 1, smax);
+}
+
+/* Q wedges of targets tg[0..nt) from sweep sw. */
+static void eval_targets(const struct sweep *sw, int m, const struct target *tg, size_t nt,
+                         double *vq)
+{
+    size_t t = 0;
+    for (; t + 8 <= nt; t += 8) sweep_eval8(sw, m, tg + t, vq);
+    for (; t + 4 <= nt; t += 4) sweep_eval4(sw, m, tg + t, vq);
+    for (; t < nt; t++) sweep_eval(sw, m, tg[t].s, &vq[tg[t].at], NULL);
+}
+
 /* All wedges of the batch, both directions at once. The pairs are grouped by line distance (one
  * sweep per w) and, inside a group, by the spot's coordinate along the line: pairs equal in both
  * have the same targets, so each such row of n1 wedges is evaluated once, and krow tells every
@@ -709,32 +768,79 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
             }
         }
         if (targets_reserve(wk, (nrow - row0) * (size_t)n1)) return -ENOMEM;
+        if (nrow - row0 > wk->span_cap) {
+            struct row_span *sp = realloc(wk->span, sizeof *sp * 2 * (nrow - row0));
+            if (!sp) return -ENOMEM;
+            wk->span = sp;
+            wk->span_cap = 2 * (nrow - row0);
+        }
+        int offsets = 0; /* any row that may start its own sweep */
         for (size_t row = row0; row < nrow; row++) { /* the targets of the run's rows */
             unsigned char *rn = wk->rneed + row * (size_t)n1;
+            struct row_span *sp = &wk->span[row - row0];
+            int below = 0, above = 0, foot = 0; /* needed nodes before, after, at the foot */
+            *sp = (struct row_span){.t0 = nt, .smin = INFINITY, .smax = 1};
             wk->rowp[row] = UINT32_MAX;
             for (int m = 0; m < n1; m++) {
-                double other = fabs(wk->e[m] - wk->ralong[row]);
+                double at = wk->e[m] - wk->ralong[row], other = fabs(at);
                 if (!rn[m] || wk->a * other < FIT_CORNER_TINY) {
+                    foot |= rn[m] != 0;
                     rn[m] = 0;
                     continue;
                 }
+                below |= at < 0, above |= at > 0;
                 double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
                 if (s > smax) smax = s;
+                sp->smin = fmin(sp->smin, s), sp->smax = fmax(sp->smax, s);
                 wk->tg[nt++] = (struct target){s, row * (size_t)n1 + (size_t)m, rn[m]};
                 if (rn[m] == 2 && wk->rowp[row] == UINT32_MAX) {
                     if (rows_reserve(wk, 0, nprow + 1)) return -ENOMEM;
                     wk->rowp[row] = (uint32_t)nprow++;
                 }
             }
+            sp->t1 = nt;
+            sp->one_sided = !foot && below != above && wk->rowp[row] == UINT32_MAX;
+            offsets |= sp->one_sided;
         }
-        if (smax > 1) { /* some targets */
+        if (smax > 1 && offsets && sweep_offset_pays(o, w, wk->span, nrow - row0)) {
+            /* the rows that straddle the foot share one sweep from it; each one-sided row has
+             * its own from its least target (sweep_offset_pays) */
+            double rest = 1;
+            for (size_t q = 0; q < nrow - row0; q++)
+                if (!wk->span[q].one_sided) rest = fmax(rest, wk->span[q].smax);
+            const struct sweep *sw = NULL;
+            if (rest > 1 && !(sw = sweep_get(o->cache, ch, o, &wk->sw, w, rest, evals)))
+                return -ENOMEM;
+            for (size_t q = 0; q < nrow - row0; q++) {
+                const struct row_span *sp = &wk->span[q];
+                if (sp->one_sided || sp->t1 == sp->t0) continue;
+                eval_targets(sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk->vq);
+                for (size_t t = sp->t0; t < sp->t1; t++) /* P at a cell holding the spot */
+                    if (wk->tg[t].need == 2) {
+                        size_t at = wk->tg[t].at, n = (size_t)n1;
+                        sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[at],
+                                   &wk->vp[(size_t)wk->rowp[at / n] * n + at % n]);
+                    }
+            }
+            for (size_t q = 0; q < nrow - row0; q++) { /* (the scratch sweep is free now) */
+                const struct row_span *sp = &wk->span[q];
+                if (!sp->one_sided || sp->t1 == sp->t0) continue;
+                if (!(sp->smax > sp->smin)) { /* one node: its wedge is all constant */
+                    for (size_t t = sp->t0; t < sp->t1; t++) wk->vq[wk->tg[t].at] = 0;
+                    continue;
+                }
+                sweep_reset(&wk->sw, w);
+                wk->sw.E = sp->smin; /* the prefix from here: the line's constant left out */
+                size_t ev = sweep_extend(ch, o, &wk->sw, sp->smax, NULL);
+                if (ev == (size_t)-1) return -ENOMEM;
+                *evals += ev;
+                eval_targets(&wk->sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk->vq);
+            }
+        } else if (smax > 1) { /* some targets: one sweep from the foot */
             const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, smax, evals);
             if (!sw) return -ENOMEM;
-            size_t t = 0;
-            for (; t + 8 <= nt; t += 8) sweep_eval8(sw, ch->m, wk->tg + t, wk->vq);
-            for (; t + 4 <= nt; t += 4) sweep_eval4(sw, ch->m, wk->tg + t, wk->vq);
-            for (; t < nt; t++) sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[wk->tg[t].at], NULL);
-            for (t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot (rare) */
+            eval_targets(sw, ch->m, wk->tg, nt, wk->vq);
+            for (size_t t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot */
                 if (wk->tg[t].need == 2) {
                     size_t at = wk->tg[t].at, n = (size_t)n1;
                     sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[at],
@@ -893,16 +999,23 @@ double fit_design_cost(double R_um, double pitch, int r, const double *x, const 
     for (size_t k = 0; k < n; k++)
         for (int dir = 0; dir < 2; dir++) {
             double across = dir ? y[k] : x[k], along = dir ? x[k] : y[k];
-            /* the farthest node along any line: one of the pixel's two edges */
-            double other = fmax(fabs(along), fabs(pitch - along));
+            /* the farthest node along any line: one of the pixel's two edges; when the spot is
+             * beyond one edge (every node on one side of its foot), the sweep may start at the
+             * nearest node instead of the foot (sweep_offset_pays): the build never takes more
+             * than this span or the foot's, whichever is less */
+            double other = fmax(fabs(along), fabs(pitch - along)),
+                   near = fmin(fabs(along), fabs(pitch - along));
+            int one_sided = (along < 0 || along > pitch) && a * near >= FIT_CORNER_TINY;
             for (int l = 0; l <= r; l++) {
                 double dist = fabs(pitch * l / r - across), w = a * dist;
                 if (w < FIT_CORNER_TINY) continue;
                 double E = (other + sqrt(other * other + dist * dist)) / dist;
                 if (!(E > 1)) continue;
-                double vend = w * (E + 1 / E) / 2; /* v = w cosh s from s = 0 up to here */
-                segs += ceil(log(E) / o.seg_ds) + ceil((vend - w) / o.seg_dv) + 1;
-                if (vend > RADIAL_Q_VMAX) far_segs += ceil((vend - fmax(w, RADIAL_Q_VMAX)) / o.seg_dv);
+                double E0 = one_sided ? (near + sqrt(near * near + dist * dist)) / dist : 1;
+                double v0 = w * (E0 + 1 / E0) / 2, vend = w * (E + 1 / E) / 2; /* v = w cosh s */
+                segs += one_sided ? sweep_segments(&o, w, E0, E) : sweep_segments(&o, w, 1, E);
+                if (vend > RADIAL_Q_VMAX)
+                    far_segs += ceil((vend - fmax(v0, RADIAL_Q_VMAX)) / o.seg_dv);
             }
         }
     if (far) *far = far_segs * o.order;
@@ -966,6 +1079,7 @@ out:
     free(wk.items);
     free(wk.ulist[0]);
     free(wk.tg);
+    free(wk.span);
     free(wk.vq);
     free(wk.vp);
     free(wk.rowp);

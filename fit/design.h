@@ -68,9 +68,11 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
 /* An upper estimate of the radial evaluations fit_design_build takes for these spots when no two
  * of them share a sweep (the case of scattered positions: a jitter series), without building
  * anything: per spot and line, the segments of a fresh sweep to the line's farthest node, each
- * of which advances E by e^seg_ds or a*rho by seg_dv (at most ln(E)/seg_ds + dv/seg_dv + 1),
- * times the order. It grows with a x the spots' distance from the pixel: a small spot far away
- * crosses thousands of Airy rings. *far (may be NULL) gets the part beyond the radial function's
+ * of which advances E by e^seg_ds or a*rho by seg_dv (at most ln(E/E0)/seg_ds + dv/seg_dv + 1),
+ * from the spot's foot on the line (E0 = 1) or, for a spot beyond the pixel's edge (every node
+ * on one side), from the nearest node (design.c's sweeps never take more), times the order. It
+ * grows with a x the pixel's size: a 0.012 um spot crosses ~2000 Airy rings along a 6 um edge
+ * line. *far (may be NULL) gets the part beyond the radial function's
  * table (a rho >= RADIAL_Q_VMAX, radial.h), evaluated by Hankel's expansion at about 2.5 times
  * the cost. Arguments as fit_design_build's; 0 for bad ones. */
 double fit_design_cost(double R_um, double pitch, int r, const double *x, const double *y,

@@ -292,12 +292,22 @@ def test(c, t, argv, daemons):
                                    "psf": {"kind": "gauss", "sigma_um": 1},
                                    "jitter": {"rms_um": 1, "samples": 100000}}), 422,
             "jitter.samples", "too much work for one request")
-    # a 0.012 um Airy spot (5 nm light) jittered 0.5 mm: few samples x cells, but each sample's
-    # cell integrals cross ~1e5 Airy rings (fit_jitter_cost ~7e8 evaluations, 10 s or more):
-    # refused before any is computed (the fuzzer found 20 such samples holding a thread 2 s)
+    # a 0.012 um Airy spot (5 nm light) jittered 0.5 mm: 100 samples' cell integrals cross the
+    # ~2000 Airy rings over the pixel each (~6e4 evaluations a sample; from the spot's foot they
+    # crossed ~1e5 rings, 20 such samples held a thread 2 s when the fuzzer found them): computed,
+    # a flat map's rho exactly 1
+    near = d.post("/api/jitter", {"map": {"r": 2, "S": [1, 1, 1, 1]}, "pitch_um": PITCH,
+                                  "psf": {"kind": "airy", "wavelength_nm": 5, "na": 0.25},
+                                  "jitter": {"rms_um": 503, "samples": 100}})
+    c.status(near, 200, "a tiny spot jittered far, 100 samples")
+    if near.status == 200:
+        c.ok(abs(near.json()["rho_mean"] - 1) < 1e-12 and near.json()["err_rms"] < 1e-12,
+             "a flat map's rho is 1 far from the spot too: %r" % near.json()["rho_mean"])
+    # 30000 of them: within samples x cells, but ~2e9 evaluations (fit_jitter_cost), a minute:
+    # refused before any is computed
     far = d.post("/api/jitter", {"map": {"r": 2, "S": [1, 1, 1, 1]}, "pitch_um": PITCH,
                                  "psf": {"kind": "airy", "wavelength_nm": 5, "na": 0.25},
-                                 "jitter": {"rms_um": 503, "samples": 100}})
+                                 "jitter": {"rms_um": 503, "samples": 30000}})
     c.error(far, 422, "jitter.samples", "a tiny spot jittered far: too many Airy rings")
     c.ok("spot radii" in far.text and "--max-jitter-evals" in far.text,
          "the refusal says how far the samples reach and which option bounds it: %s" % far.text)
@@ -307,7 +317,7 @@ def test(c, t, argv, daemons):
     with open(flat, "w") as f:
         json.dump({"r": 2, "S": [1, 1, 1, 1]}, f)
     p = subprocess.run([ips, "jitter", "--map", flat, "--pitch", str(PITCH), "--wavelength", "5",
-                        "--na", "0.25", "--rms", "503", "--samples", "100", "--max-evals", "2e8"],
+                        "--na", "0.25", "--rms", "503", "--samples", "30000", "--max-evals", "2e8"],
                        capture_output=True, text=True)
     c.ok(p.returncode == 2 and "--max-evals" in p.stderr and "spot radii" in p.stderr and
          p.stderr.count("\n") == 1 and p.stdout == "",
