@@ -119,6 +119,16 @@ static int check_setup(const fit_jitter_setup_t *s, err_t *err)
     return 0;
 }
 
+/* Positions x, y (n; relative to the star pixel's corner) into pixel px's frame: xs, ys. */
+static void pixel_frame(const fit_jitter_setup_t *s, const fit_jitter_pixel_t *px, const double *x,
+                        const double *y, size_t n, double *xs, double *ys)
+{
+    for (size_t k = 0; k < n; k++) {
+        xs[k] = x[k] - px->dcol * s->pitch_um;
+        ys[k] = y[k] - px->drow * s->pitch_um;
+    }
+}
+
 int fit_jitter_flux(const fit_jitter_setup_t *s, const double *x, const double *y, size_t n,
                     double *flux_map, double *flux_flat, err_t *err)
 {
@@ -135,10 +145,7 @@ int fit_jitter_flux(const fit_jitter_setup_t *s, const double *x, const double *
     memset(buf, 0, sizeof(double) * 2 * n);
     for (size_t p = 0; p < s->n_pixels && !ret; p++) {
         const fit_jitter_pixel_t *px = &s->pixels[p];
-        for (size_t k = 0; k < n; k++) {
-            xs[k] = x[k] - px->dcol * s->pitch_um;
-            ys[k] = y[k] - px->drow * s->pitch_um;
-        }
+        pixel_frame(s, px, x, y, n, xs, ys);
         if (s->psf.kind == FIT_PSF_GAUSS) {
             ret = gauss_pixel(px, s->pitch_um, s->psf.width_um, xs, ys, n, fm, ff);
             if (ret) err_set(err, ret, "out of memory for the Gaussian PSF");
@@ -157,21 +164,23 @@ int fit_jitter_flux(const fit_jitter_setup_t *s, const double *x, const double *
 double fit_jitter_cost(const fit_jitter_setup_t *s, const double *dx, const double *dy, size_t n)
 {
     if (check_setup(s, NULL) || s->psf.kind != FIT_PSF_AIRY) return 0;
-    double *xy = malloc(sizeof(double) * 2 * (n + 1)), cost = 0;
-    if (!xy) return INFINITY; /* cannot tell: as if too much */
+    /* the nominal position and the samples, then the same in one pixel's frame */
+    size_t m = n + 1;
+    double *x = malloc(sizeof(double) * 4 * m), *y = x + m, *xs = x + 2 * m, *ys = x + 3 * m;
+    double cost = 0;
+    if (!x) return INFINITY; /* cannot tell: as if too much */
+    x[0] = s->x0_um, y[0] = s->y0_um;
+    for (size_t k = 0; k < n; k++) x[k + 1] = s->x0_um + dx[k], y[k + 1] = s->y0_um + dy[k];
     fit_design_opts_t o = fit_design_opts_for_tol(DESIGN_TOL);
     for (size_t p = 0; p < s->n_pixels; p++) {
         const fit_jitter_pixel_t *px = &s->pixels[p];
-        double ox = s->x0_um - px->dcol * s->pitch_um, oy = s->y0_um - px->drow * s->pitch_um;
-        xy[0] = ox;
-        xy[n + 1] = oy;
-        for (size_t k = 0; k < n; k++) xy[k + 1] = ox + dx[k], xy[n + 2 + k] = oy + dy[k];
+        pixel_frame(s, px, x, y, m, xs, ys);
         double far;
-        cost += fit_design_cost(s->psf.width_um, s->pitch_um, px->S ? px->r : 1, xy, xy + n + 1,
-                                n + 1, &o, &far);
+        cost += fit_design_cost(s->psf.width_um, s->pitch_um, px->S ? px->r : 1, xs, ys, m, &o,
+                                &far);
         cost += 1.5 * far; /* Hankel's expansion: a sincos and its series, ~2.5 table lookups */
     }
-    free(xy);
+    free(x);
     return cost;
 }
 
