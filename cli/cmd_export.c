@@ -82,8 +82,8 @@ int cmd_export(int argc, char **argv)
     }
     for (size_t k = 0; k < mf.n; k++) {
         const mapfile_map_t *m = &mf.maps[k];
-        maps[k] = (fitsmap_t){.r = m->r, .S = m->S, .S_err = m->S_err, .S_res = m->S_res, .pitch_um = a.pitch,
-                              .pixel_col = m->col, .pixel_row = m->row,
+        maps[k] = (fitsmap_t){.r = m->r, .S = m->S, .S_err = m->S_err, .S_res = m->S_res,
+                              .pitch_um = a.pitch, .pixel_col = m->col, .pixel_row = m->row,
                               .wavelength_um = m->wavelength_um, .na = m->na,
                               .spot_radius_um = m->spot_radius_um, .I0 = m->I0,
                               .chi2_red = m->chi2_red, .status = m->status,

@@ -89,9 +89,9 @@ static void key_wcs(fitsfile *f, const fitsmap_t *m, int *status)
 static void key_map(fitsfile *f, const fitsmap_t *m, const char *extname, int extver, int *status)
 {
     char date[40];
-    const char *what = strcmp(extname, "S_ERR") == 0   ? "1-sigma uncertainty of S (noise)"
-                       : strcmp(extname, "S_RES") == 0 ? "resolution error of S, add to S_ERR in quadrature"
-                                                       : "relative sensitivity, mean 1";
+    const char *what = "relative sensitivity, mean 1";
+    if (strcmp(extname, "S_ERR") == 0) what = "1-sigma uncertainty of S (noise)";
+    if (strcmp(extname, "S_RES") == 0) what = "resolution error of S, add to S_ERR in quadrature";
     key_str(f, "EXTNAME", extname, what, status);
     key_int(f, "EXTVER", extver, "map number in this file", status);
     key_str(f, "BUNIT", "", "dimensionless: sensitivity relative to the pixel mean", status);

@@ -650,7 +650,8 @@ static size_t spots_by_coordinate(struct work *wk, int nb)
 static double sweep_segments(const fit_design_opts_t *o, double w, double E0, double E1)
 {
     if (!(E1 > E0)) return 0;
-    return ceil(log(E1 / E0) / o->seg_ds) + ceil(w * 0.5 * ((E1 + 1 / E1) - (E0 + 1 / E0)) / o->seg_dv) + 1;
+    double dv = w * 0.5 * ((E1 + 1 / E1) - (E0 + 1 / E0));
+    return ceil(log(E1 / E0) / o->seg_ds) + ceil(dv / o->seg_dv) + 1;
 }
 
 /* Whether the run's one-sided rows are cheaper each with a sweep of its own, from its least
@@ -1013,7 +1014,7 @@ double fit_design_cost(double R_um, double pitch, int r, const double *x, const 
                 if (!(E > 1)) continue;
                 double E0 = one_sided ? (near + sqrt(near * near + dist * dist)) / dist : 1;
                 double v0 = w * (E0 + 1 / E0) / 2, vend = w * (E + 1 / E) / 2; /* v = w cosh s */
-                segs += one_sided ? sweep_segments(&o, w, E0, E) : sweep_segments(&o, w, 1, E);
+                segs += sweep_segments(&o, w, E0, E);
                 if (vend > RADIAL_Q_VMAX)
                     far_segs += ceil((vend - fmax(v0, RADIAL_Q_VMAX)) / o.seg_dv);
             }
