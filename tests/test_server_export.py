@@ -303,6 +303,29 @@ def test(c, t, argv, daemons):
     if near.status == 200:
         c.ok(abs(near.json()["rho_mean"] - 1) < 1e-12 and near.json()["err_rms"] < 1e-12,
              "a flat map's rho is 1 far from the spot too: %r" % near.json()["rho_mean"])
+    # one sample 0.5 mm away on a graded map: rho is the map's mean weighted by the cells' Airy
+    # integrals, checked against `ips box` (the box path: polar angles about the spot, adaptive
+    # quadrature; not the design matrix the API uses): 5e-13 apart (sweeping from the spot's foot
+    # the design lost 7e-11 here)
+    S4, R5 = [0.5, 1.5, 1.2, 0.8], 1.22 * 0.005 / (2 * 0.25)
+    one = d.post("/api/jitter", {"map": {"r": 2, "S": S4}, "pitch_um": PITCH,
+                                 "psf": {"kind": "airy", "wavelength_nm": 5, "na": 0.25},
+                                 "position_um": {"x": PITCH / 2, "y": PITCH / 2},
+                                 "samples": True, "jitter": {"dx_um": [300.0], "dy_um": [-400.0]}})
+    c.status(one, 200, "one far sample on a graded map")
+    if one.status == 200:
+        cells = []
+        for cj in range(2):
+            for ci in range(2):
+                h2 = PITCH / 2
+                p = subprocess.run([ips, "box", repr(R5), repr(ci * h2), repr((ci + 1) * h2),
+                                    repr(cj * h2), repr((cj + 1) * h2), repr(PITCH / 2 + 300.0),
+                                    repr(PITCH / 2 - 400.0)], capture_output=True, text=True)
+                cells.append(float(p.stdout.split()[0]))
+        want = sum(a * b for a, b in zip(S4, cells)) / sum(cells)
+        got = one.json()["samples"][0]["rho"]
+        c.ok(abs(got - want) < 1e-11 * want and abs(want - 1) > 1e-4,
+             "far sample: rho %r, by ips box %r" % (got, want))
     # 30000 of them: within samples x cells, but ~2e9 evaluations (fit_jitter_cost), a minute:
     # refused before any is computed
     far = d.post("/api/jitter", {"map": {"r": 2, "S": [1, 1, 1, 1]}, "pitch_um": PITCH,
