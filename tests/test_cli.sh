@@ -29,13 +29,20 @@ rows = out["design"]
 for R, least in ((1.34, 6), (30.0, 2), (0.05, 2)):
     n = sum(1 for r in rows if r["R_um"] == R)
     if n < least: bad.append(f"{n} settings for R = {R}, want >= {least}")
+if sum(1 for r in rows if r.get("spots") == "far") < 4: bad.append("the far spots' table")
 for r in rows:
     # fit_design_opts_for_tol's claim: the row-relative error is within tol (as far as the
-    # adaptive-quadrature reference can resolve it)
-    if not r["max_row_rel_err"] <= max(r["tol"], r["ref_bound"]):
-        bad.append(f"R {r['R_um']} tol {r['tol']}: row error {r['max_row_rel_err']}")
+    # adaptive-quadrature reference can resolve it) at the reference positions; 16 spots 50-500
+    # um from the pixel: within 2e-10 where nothing is left out (a cell there is a second
+    # difference of nearly equal line integrals, docs/numerics.md), and where the leave-out rule
+    # drops entries its own bound applies (test_design), not the row-relative error
     if not (r["median_ms"] > 0 and r["radial_evals"] > 0 and r["runs"] >= 3):
         bad.append(f"R {r['R_um']} tol {r['tol']}: no measurement")
+    far = r.get("spots") == "far"
+    if far and r["skipped"] > 0:
+        continue
+    if not r["max_row_rel_err"] <= max(r["tol"], r["ref_bound"], 2e-10 if far else 0):
+        bad.append(f"R {r['R_um']} tol {r['tol']}: row error {r['max_row_rel_err']}")
 job = out["job"]
 wft = ref[6]["ftest_H0_top_left_bottom_edges"]
 if job["best_r_aic"] != min(ref, key=lambda f: f["aic"])["r"]: bad.append("best r")
