@@ -318,8 +318,7 @@ void api_h_jitter(api_req_t *q)
      * cross (a tiny spot: thousands), which samples x cells does not see */
     double evals = fit_jitter_cost(&r.s, r.dx, r.dy, r.n), cap = srv_config(q->srv)->max_jitter_evals;
     if (evals > cap) {
-        double reach = 0;
-        for (size_t k = 0; k < r.n; k++) reach = fmax(reach, hypot(r.dx[k], r.dy[k]));
+        double reach = fit_jitter_reach(r.dx, r.dy, r.n);
         api_error(q, 422, "out_of_range", "jitter.samples",
                   "%zu samples of an Airy spot of radius %.3g um reaching %.3g um (%.3g spot "
                   "radii) from the nominal position need about %.3g radial evaluations, more "

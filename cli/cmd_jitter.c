@@ -254,8 +254,7 @@ int cmd_jitter(int argc, char **argv)
      * crosses thousands of rings per sample; ipsd refuses such requests, here the user decides */
     double evals = fit_jitter_cost(&s, dx, dy, n);
     if ((a.max_evals > 0 && evals > a.max_evals) || evals > NOTE_EVALS) {
-        double reach = 0;
-        for (size_t k = 0; k < n; k++) reach = fmax(reach, hypot(dx[k], dy[k]));
+        double reach = fit_jitter_reach(dx, dy, n);
         if (a.max_evals > 0 && evals > a.max_evals) {
             rc = err_set(&err, -EINVAL,
                          "--max-evals %.3g: %zu samples reaching %.3g spot radii from the star's "

@@ -684,14 +684,21 @@ static int sweep_offset_pays(const fit_design_opts_t *o, double w, const struct 
     return any && sweep_segments(o, w, 1, rest) + own < sweep_segments(o, w, 1, smax);
 }
 
-/* Q wedges of targets tg[0..nt) from sweep sw. */
+/* The wedges of targets tg[0..nt) from sweep sw: Q into wk->vq, and P too (into wk->vp) at the
+ * corners of a cell holding the spot (need 2, rare). */
 static void eval_targets(const struct sweep *sw, int m, const struct target *tg, size_t nt,
-                         double *vq)
+                         struct work *wk)
 {
-    size_t t = 0;
-    for (; t + 8 <= nt; t += 8) sweep_eval8(sw, m, tg + t, vq);
-    for (; t + 4 <= nt; t += 4) sweep_eval4(sw, m, tg + t, vq);
-    for (; t < nt; t++) sweep_eval(sw, m, tg[t].s, &vq[tg[t].at], NULL);
+    size_t t = 0, n1 = (size_t)wk->n1;
+    for (; t + 8 <= nt; t += 8) sweep_eval8(sw, m, tg + t, wk->vq);
+    for (; t + 4 <= nt; t += 4) sweep_eval4(sw, m, tg + t, wk->vq);
+    for (; t < nt; t++) sweep_eval(sw, m, tg[t].s, &wk->vq[tg[t].at], NULL);
+    for (t = 0; t < nt; t++)
+        if (tg[t].need == 2) {
+            size_t at = tg[t].at;
+            sweep_eval(sw, m, tg[t].s, &wk->vq[at],
+                       &wk->vp[(size_t)wk->rowp[at / n1] * n1 + at % n1]);
+        }
 }
 
 /* All wedges of the batch, both directions at once. The pairs are grouped by line distance (one
@@ -815,13 +822,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
             for (size_t q = 0; q < nrow - row0; q++) {
                 const struct row_span *sp = &wk->span[q];
                 if (sp->one_sided || sp->t1 == sp->t0) continue;
-                eval_targets(sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk->vq);
-                for (size_t t = sp->t0; t < sp->t1; t++) /* P at a cell holding the spot */
-                    if (wk->tg[t].need == 2) {
-                        size_t at = wk->tg[t].at, n = (size_t)n1;
-                        sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[at],
-                                   &wk->vp[(size_t)wk->rowp[at / n] * n + at % n]);
-                    }
+                eval_targets(sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk);
             }
             for (size_t q = 0; q < nrow - row0; q++) { /* (the scratch sweep is free now) */
                 const struct row_span *sp = &wk->span[q];
@@ -835,18 +836,12 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 size_t ev = sweep_extend(ch, o, &wk->sw, sp->smax, NULL);
                 if (ev == (size_t)-1) return -ENOMEM;
                 *evals += ev;
-                eval_targets(&wk->sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk->vq);
+                eval_targets(&wk->sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk);
             }
         } else if (smax > 1) { /* some targets: one sweep from the foot */
             const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, smax, evals);
             if (!sw) return -ENOMEM;
-            eval_targets(sw, ch->m, wk->tg, nt, wk->vq);
-            for (size_t t = 0; t < nt; t++) /* P too at the corners of a cell holding the spot */
-                if (wk->tg[t].need == 2) {
-                    size_t at = wk->tg[t].at, n = (size_t)n1;
-                    sweep_eval(sw, ch->m, wk->tg[t].s, &wk->vq[at],
-                               &wk->vp[(size_t)wk->rowp[at / n] * n + at % n]);
-                }
+            eval_targets(sw, ch->m, wk->tg, nt, wk);
         }
         i0 = i1;
     }

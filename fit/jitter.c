@@ -161,14 +161,21 @@ int fit_jitter_flux(const fit_jitter_setup_t *s, const double *x, const double *
     return ret;
 }
 
+double fit_jitter_reach(const double *dx, const double *dy, size_t n)
+{
+    double reach = 0;
+    for (size_t k = 0; k < n; k++) reach = fmax(reach, hypot(dx[k], dy[k]));
+    return reach;
+}
+
 double fit_jitter_cost(const fit_jitter_setup_t *s, const double *dx, const double *dy, size_t n)
 {
     if (check_setup(s, NULL) || s->psf.kind != FIT_PSF_AIRY) return 0;
     /* the nominal position and the samples, then the same in one pixel's frame */
     size_t m = n + 1;
-    double *x = malloc(sizeof(double) * 4 * m), *y = x + m, *xs = x + 2 * m, *ys = x + 3 * m;
-    double cost = 0;
+    double *x = malloc(sizeof(double) * 4 * m), cost = 0;
     if (!x) return INFINITY; /* cannot tell: as if too much */
+    double *y = x + m, *xs = x + 2 * m, *ys = x + 3 * m;
     x[0] = s->x0_um, y[0] = s->y0_um;
     for (size_t k = 0; k < n; k++) x[k + 1] = s->x0_um + dx[k], y[k + 1] = s->y0_um + dy[k];
     fit_design_opts_t o = fit_design_opts_for_tol(DESIGN_TOL);

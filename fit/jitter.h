@@ -85,6 +85,10 @@ int fit_jitter_run(const fit_jitter_setup_t *s, const double *dx, const double *
  * seconds). 0 for the Gaussian PSF (closed form) or bad arguments. */
 double fit_jitter_cost(const fit_jitter_setup_t *s, const double *dx, const double *dy, size_t n);
 
+/* How far the samples reach from the nominal position: the largest hypot(dx, dy) (um), what a
+ * refusal by fit_jitter_cost's bound names. */
+double fit_jitter_reach(const double *dx, const double *dy, size_t n);
+
 /* n jitter offsets drawn from a circular Gaussian of rms rms_um per axis (GSL mt19937 seeded with
  * seed, gsl_ran_gaussian_ziggurat): the same seed gives the same series. */
 int fit_jitter_draw(double rms_um, size_t n, unsigned long seed, double *dx, double *dy,
