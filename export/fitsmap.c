@@ -138,12 +138,15 @@ static int check_map(const fitsmap_t *m, size_t k, err_t *err)
 /* ---- the file ---- */
 
 /* realloc for cfitsio's memory file that zeroes what it adds, for the reason below: the grown
- * part may be reused heap memory too (glibc's malloc_usable_size gives the old block's size) */
+ * part may be reused heap memory too (glibc's malloc_usable_size gives the old block's size).
+ * Zeroed up to the new block's usable size, not only the size asked for: the bytes between are
+ * copied into the next reallocation's block, inside what cfitsio may read there. */
 static void *realloc_zeroed(void *p, size_t n)
 {
     size_t old = p ? malloc_usable_size(p) : 0;
     void *q = realloc(p, n);
-    if (q && n > old) memset((char *)q + old, 0, n - old);
+    size_t now = q ? malloc_usable_size(q) : 0;
+    if (q && now > old) memset((char *)q + old, 0, now - old);
     return q;
 }
 

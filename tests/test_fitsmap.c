@@ -170,5 +170,44 @@ int main(void)
         CHECK(h == 1 + 2 * n);
         free(buf);
     }
+    /* the heap full of old FITS headers before each file: blocks of many sizes (below glibc's
+     * mmap threshold, so they stay in the heap) filled with copies of a written file, freed; then
+     * a file with S_RES extensions, whose growth takes several reallocations (each may land on
+     * such a block, and bytes past the size cfitsio asked for are still inside the next
+     * reallocation's copy) */
+    {
+        double RS[N][RB * RB];
+        fitsmap_t wr[N];
+        for (int k = 0; k < N; k++) {
+            wr[k] = bigs[k];
+            for (int j = 0; j < RB * RB; j++) RS[k][j] = 1e-3 * (j % 17 + 1);
+            wr[k].S_res = RS[k];
+        }
+        void *old;
+        size_t olen;
+        err_t err;
+        CHECK(fitsmap_write(&file, bigs, N, &old, &olen, &err) == 0);
+        for (int round = 0; round < 40; round++) {
+            void *junk[24];
+            for (int b = 0; b < 24; b++) {
+                size_t sz = 2880 * (size_t)(3 + (b * 7 + round) % 40);
+                junk[b] = malloc(sz);
+                for (size_t at = 0; junk[b] && at < sz; at += olen)
+                    memcpy((char *)junk[b] + at, old, sz - at < olen ? sz - at : olen);
+            }
+            for (int b = 0; b < 24; b += 2) free(junk[b]); /* holes between live blocks */
+            void *buf;
+            size_t len;
+            int n = 1 + round % N;
+            CHECK(fitsmap_write(&file, wr, (size_t)n, &buf, &len, &err) == 0);
+            int h = walk(buf, len, wr, n);
+            if (h != 1 + 3 * n)
+                fprintf(stderr, "dirty heap, round %d: %d HDUs, want %d\n", round, h, 1 + 3 * n);
+            CHECK(h == 1 + 3 * n);
+            free(buf);
+            for (int b = 1; b < 24; b += 2) free(junk[b]);
+        }
+        free(old);
+    }
     CHECK_DONE();
 }
