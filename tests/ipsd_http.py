@@ -408,5 +408,14 @@ def main(test, argv):
     finally:
         for d in daemons:
             d.cleanup()
+        if checks.fails:  # what ipsd said is the evidence of a failure: shown before it is removed
+            for log in sorted({d.log for d in daemons}):
+                try:
+                    with open(log, errors="replace") as f:
+                        tail = f.read()[-4000:]
+                except OSError:
+                    continue
+                print("---- ipsd's log (%s), last %d characters:\n%s" % (log, len(tail), tail),
+                      file=sys.stderr, flush=True)
         shutil.rmtree(tmp, ignore_errors=True)
     return checks.finish()
