@@ -452,8 +452,14 @@ static int http_start(srv_t *srv, void **handle, int *port, err_t *err)
         return err_set(err, -ENOMEM, "out of memory starting the calibration cache");
     }
     raise_fd_limit(cfg);
-    unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_AUTO | MHD_ALLOW_SUSPEND_RESUME |
-                     MHD_USE_ERROR_LOG | (ss.ss_family == AF_INET6 ? MHD_USE_IPv6 : 0);
+    /* poll(), not epoll (MHD_USE_AUTO's choice on Linux): MHD_quiesce_daemon on an epoll thread
+     * pool races the pool threads over removing the listening socket from their epoll sets, and
+     * the loser's epoll_ctl (ENOENT) ends in MHD_PANIC, an abort at SIGTERM (libmicrohttpd
+     * 0.9.75; docs/server.md, "Threads"). poll() is stateless: a quiesced pool thread just stops
+     * adding the socket, told by its inter-thread channel (MHD_USE_ITC). */
+    unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_POLL | MHD_USE_ITC |
+                     MHD_ALLOW_SUSPEND_RESUME | MHD_USE_ERROR_LOG |
+                     (ss.ss_family == AF_INET6 ? MHD_USE_IPv6 : 0);
     h->d = MHD_start_daemon(
         flags, (uint16_t)cfg->port, NULL, NULL, on_request, h,
         /* the logger must come first, or MHD logs the options before it on its own */

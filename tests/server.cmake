@@ -49,6 +49,17 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
             FIXTURES_SETUP api_records)
     endforeach()
+    # SIGTERM under a flood of connections, with epoll removals slowed by an LD_PRELOAD shim
+    # (test_server_quiesce.py: 30 starts and stops, ~10 s optimised)
+    add_library(shim_epoll_slowdel MODULE shim_epoll_slowdel.c)
+    target_link_libraries(shim_epoll_slowdel PRIVATE ${CMAKE_DL_LIBS})
+    add_test(NAME test_server_quiesce
+             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_server_quiesce.py
+                     $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> $<TARGET_FILE:shim_epoll_slowdel>
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+    set_tests_properties(test_server_quiesce PROPERTIES TIMEOUT 120
+        ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
+        FIXTURES_SETUP api_records)
 elseif(TARGET ipsapi)
     message(STATUS "server HTTP tests: python3 or the ips target missing, not registered")
 endif()
