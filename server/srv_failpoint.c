@@ -164,24 +164,30 @@ static int hold(srv_failpoints_t *fp, srv_worker_t *w, const char *name, long lo
     return ret;
 }
 
-/* Counts a hit of point name: the action that fires on it (FP_OFF: none) and its hit number. */
-static enum fp_action fire_of(srv_failpoints_t *fp, const char *name, long long *hit_out)
+/* Counts a hit of point name: the action that fires on it (FP_OFF: none), its hit number, and
+ * whether a hold fires on it too (held_too; may be NULL). */
+static enum fp_action fire_of(srv_failpoints_t *fp, const char *name, long long *hit_out,
+                              int *held_too)
 {
     enum fp_action fire = FP_OFF;
     long long hit = 0;
+    int hold_fires = 0;
     pthread_mutex_lock(&fp->mu);
     for (int i = 0; i < fp->n; i++) {
         struct fp_term *t = &fp->terms[i];
         if (strcmp(t->name, name) != 0) continue;
         t->hits++;
+        if (!(t->at == 0 || t->hits == t->at)) continue;
+        hold_fires |= t->action == FP_HOLD;
         /* of the terms that fire on this hit, a crash wins over an error, an error over a hold */
-        if ((t->at == 0 || t->hits == t->at) && t->action > fire) {
+        if (t->action > fire) {
             fire = t->action;
             hit = t->hits;
         }
     }
     pthread_mutex_unlock(&fp->mu);
     *hit_out = hit;
+    if (held_too) *held_too = hold_fires;
     return fire;
 }
 
@@ -190,7 +196,7 @@ int srv_failpoint_frame(void *ctx, unsigned long long frame)
     srv_t *srv = ctx;
     if (!srv->failpoints) return SIM_FRAME_OK;
     long long hit;
-    enum fp_action fire = fire_of(srv->failpoints, "camera.frame", &hit);
+    enum fp_action fire = fire_of(srv->failpoints, "camera.frame", &hit, NULL);
     if (fire == FP_OFF) return SIM_FRAME_OK;
     fprintf(stderr, "ipsd: failpoint camera.frame: the camera %s at its frame %llu (hit %lld)\n",
             fire == FP_HOLD ? "stops answering" : "fails", frame + 1, hit);
@@ -201,7 +207,16 @@ int srv_failpoint_eval(srv_worker_t *w, const char *name, err_t *err)
 {
     srv_failpoints_t *fp = w->srv->failpoints;
     long long hit = 0;
-    enum fp_action fire = fire_of(fp, name, &hit);
+    int held_too = 0;
+    enum fp_action fire = fire_of(fp, name, &hit, &held_too);
+    /* a crash armed with a hold on the same hit holds first and crashes when released, so a test
+     * can see the request that queued the job answered before ipsd dies (a crash at a fit's
+     * first step can otherwise come before the HTTP thread has sent the 202); a cancel or the
+     * shutdown ends such a hold without the crash */
+    if (fire == FP_CRASH && held_too) {
+        int ret = hold(fp, w, name, hit);
+        if (ret) return ret;
+    }
     if (fire == FP_CRASH) {
         /* a crash as kill -9 makes it: no cleanup, nothing flushed, no transaction ended (stderr
          * is unbuffered, so the line is out before) */

@@ -150,11 +150,14 @@ def test(c, t, argv, daemons):
          "not promoted: the scan's one calibration is still the automatic fit's")
 
     # ---- crash after 5 pixels, resume ----
-    d.start(failpoints="fit.pixel=crash@5")
+    # held after the 5th pixel first, crashing when released (the 202 comes before the crash)
+    d.start(failpoints="fit.pixel=hold@5;fit.pixel=crash@5")
     fits1 = db.val("SELECT max(id) FROM fits")
     r = d.post(url, {"pixels": "all", "r_max": 8, "promote": True, "by": "test"})
     c.status(r, 202, "fit every pixel, promoted (to crash)")
     job = r.json()["job"]["id"]
+    c.ok(d.wait_held("fit.pixel", job), "held after the 5th pixel")
+    d.release("fit.pixel", job)
     c.eq(d.wait_exit(), -9, "ipsd crashed after the 5th pixel")
     c.eq(db.one("SELECT state, points_done FROM jobs WHERE id = ?", job), ("running", 5),
          "the job is left running with 5 pixels done")

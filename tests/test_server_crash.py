@@ -16,7 +16,7 @@ import os
 import sys
 
 import ipsd_http
-from ipsd_http import Db, Ipsd
+from ipsd_http import Db, Ipsd, wait_for
 
 
 def upload_body(n, sensor, col, row):
@@ -76,10 +76,14 @@ def test(c, t, argv, daemons):
     # it finds the job done)
     cases = [("fit.step", 2), ("fit.before_store", 2), ("fit.after_store", 1)]
     for i, (point, attempts) in enumerate(cases):
-        d.start(failpoints="%s=crash@1" % point)
+        # held there first, crashing when released: the upload's 202 comes before the crash (a
+        # crash at the fit's first step could come before the HTTP thread had answered)
+        d.start(failpoints="%s=hold@1;%s=crash@1" % (point, point))
         r = d.post("/api/fits", upload_body(150, sensor, 10 + i, 20))
         c.status(r, 202, "upload a fit to crash at %s" % point)
         job = r.json()["job"]["id"]
+        c.ok(d.wait_held(point, job), "the fit is held at %s" % point)
+        d.release(point, job)
         wait_crash(c, d, point)
         if point == "fit.after_store":
             c.eq(db.val("SELECT state FROM jobs WHERE id = ?", job), "done",
@@ -93,11 +97,15 @@ def test(c, t, argv, daemons):
         c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
     # ---- the automatic fit of a finished scan, killed after its store ----
-    d.start(failpoints="fit.after_store=crash@1")
+    d.start(failpoints="fit.after_store=hold@1;fit.after_store=crash@1")
     r = d.post("/api/scans", {"sensor_id": sensor, "poi": {"col": 30, "row": 30},
                               "raster": {"area_px": 3, "step_um": 0.6, "sub_px": 3, "frames": 2}})
     c.status(r, 202, "submit a scan")
     scan, scan_job = r.json()["scan"]["id"], r.json()["job"]["id"]
+    auto = wait_for(lambda: db.val("SELECT id FROM jobs WHERE kind = 'fit' AND scan_id = ?", scan))
+    c.ok(auto and d.wait_held("fit.after_store", auto), "the automatic fit is held after its store")
+    if auto:
+        d.release("fit.after_store", auto)
     wait_crash(c, d, "fit.after_store")
     d.start()
     c.ok(d.wait_job(scan_job, "done"), "the scan's job is done")

@@ -43,7 +43,7 @@ def test(c, t, argv, daemons):
     ips = argv[2]
     d = Ipsd(argv[1], t)
     daemons.append(d)
-    d.start(failpoints="ptc.level=hold@2;ptc.after_store=crash@1")
+    d.start(failpoints="ptc.level=hold@2;ptc.after_store=hold@1;ptc.after_store=crash@1")
     db = Db(d.db)
     r = d.post("/api/sensors", {"model": "IMX-PTC", "serial": "ptc-1", "pitch_um": 6,
                                 "gain_e_per_dn": TRUE_GAIN, "read_noise_e": TRUE_NOISE})
@@ -116,7 +116,11 @@ def test(c, t, argv, daemons):
     r = d.post("/api/sensors/%d/ptc" % sensor, ptc_body())
     c.status(r, 202, "queue a second measurement")
     job2 = r.json()["job"]["id"]
-    c.eq(d.wait_exit(ipsd_http.DEADLINE_S * 2), -9, "ipsd crashed at ptc.after_store")
+    # held after the store first, crashing when released: the 202 above came before the crash
+    c.ok(d.wait_held("ptc.after_store", job2, ipsd_http.DEADLINE_S * 2),
+         "the second measurement is held after its store")
+    d.release("ptc.after_store", job2)
+    c.eq(d.wait_exit(), -9, "ipsd crashed at ptc.after_store")
     d.start(failpoints="ptc.before_store=crash@1")
     c.eq(db.one("SELECT state, attempts FROM jobs WHERE id = ?", job2), ("done", 1),
          "after the crash past its store the job is done (claimed once)")

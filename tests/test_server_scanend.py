@@ -61,10 +61,14 @@ def test(c, t, argv, daemons):
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
     # a crash at the scan's end: nothing of the end is stored; the next start finishes it once
-    d.start("--workers", "1", failpoints="scan.finish=crash")
+    # held at the end first, crashing when released (the 202 comes before the crash)
+    d.start("--workers", "1", failpoints="scan.finish=hold;scan.finish=crash")
     r = d.post("/api/scans", {"sensor_id": sensor, "poi": {"col": 12, "row": 12},
                               "raster": RASTER})
+    c.status(r, 202, "submit a scan (to crash at its end)")
     scan2, job2 = r.json()["scan"]["id"], r.json()["job"]["id"]
+    c.ok(d.wait_held("scan.finish", job2), "the scan is held at its end")
+    d.release("scan.finish", job2)
     c.ok(ipsd_http.wait_for(lambda: d.proc.poll() is not None), "ipsd crashed at the end")
     d.proc = None
     c.eq(db.one("SELECT s.state, j.state FROM scans s JOIN jobs j ON j.scan_id = s.id "
