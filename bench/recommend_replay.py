@@ -20,7 +20,8 @@ RASTERS = ["9x9 @0.6", "13x13 @0.42", "19x19 @0.3", "51x51 full"]
 # model.h: FIT_UNDERDETERMINED | FIT_UNCONSTRAINED | FIT_ILL_CONDITIONED | FIT_NO_SIGNAL |
 # FIT_NO_POINTS, the flags recommend.c's UNTRUSTED names
 UNTRUSTED = 1 | 2 | 4 | 32 | 256
-DEFAULT = dict(ntc=0.25, w=2, coarse=1.5, esc=1.7, esc_ntc=0.5, esc_ratio=2, near=1.15, one_se=1)
+DEFAULT = dict(ntc=0.25, w=2, coarse=1.5, esc=1.7, esc_ntc=0.5, esc_ratio=2, near=1.15, one_se=1,
+               nested=1)
 
 
 def load(path):
@@ -135,7 +136,8 @@ def recommend(c, o=DEFAULT, scale_fn=scatter_min, info=None):
         for r in range(rmin, rcv):
             f = fits[r]
             if (admissible(f, o, s) and f["cv_chi2"] <= f0["cv_chi2"] + o["one_se"] * se and
-                    f["chi2_red"] <= o["coarse"] * s * s):
+                    (f["chi2_red"] <= o["coarse"] * s * s or
+                     (o.get("nested", 0) and r > 1 and rcv % r == 0))):
                 base = r
                 break
     f0, rb = fits[base], base
@@ -295,6 +297,7 @@ def candidates(with_sim):
     c["leave-one-out alone"] = lambda k: pick_min(k, lambda f: f["cv_chi2"])
     c["GCV alone"] = lambda k: pick_min(k, gcv)
     c["without the one-SE step"] = lambda k: recommend(k, dict(DEFAULT, one_se=0))
+    c["one-SE guard kept for divisors"] = lambda k: recommend(k, dict(DEFAULT, nested=0))
     for ref in ("next", "max"):
         for w in (1, 2):
             c[f"risk vs richer map ({ref}), w={w}"] = (

@@ -10,7 +10,7 @@ fit_recommend_opts_t fit_recommend_opts_default(void)
     return (fit_recommend_opts_t){.noise_to_contrast = 0.25, .noise_weight = 2,
                                   .coarse_misfit = 1.5, .escape_misfit = 1.7,
                                   .escape_noise_to_contrast = 0.5, .escape_error_ratio = 2,
-                                  .coarse_near = 1.15, .one_se = 1};
+                                  .coarse_near = 1.15, .one_se = 1, .one_se_nested = 1};
 }
 
 void fit_map_noise_contrast(const fit_result_t *f, double *noise, double *contrast)
@@ -163,7 +163,8 @@ double fit_loo_se(const fit_result_t *f)
 
 /* Step 2's one-standard-error rule (recommend.h): the smallest admissible r below r_cv whose
  * leave-one-out chi2 is within one_se standard errors of r_cv's and whose reduced chi2 is within
- * coarse_misfit of the data's scatter; r_cv when there is none. */
+ * coarse_misfit of the data's scatter, or whose grid r_cv's refines (one_se_nested); r_cv when
+ * there is none. */
 static int one_se(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double scale, int r_cv)
 {
     const fit_result_t *f0 = &sw->fits[r_cv - sw->r_min];
@@ -172,7 +173,8 @@ static int one_se(const fit_sweep_t *sw, const fit_recommend_opts_t *o, double s
     for (int r = sw->r_min; r < r_cv; r++) {
         const fit_result_t *f = &sw->fits[r - sw->r_min];
         if (admissible(f, o, scale) && f->cv_chi2 <= f0->cv_chi2 + o->one_se * se &&
-            f->chi2_red <= o->coarse_misfit * scale * scale)
+            (f->chi2_red <= o->coarse_misfit * scale * scale ||
+             (o->one_se_nested && r > 1 && r_cv % r == 0)))
             return r;
     }
     return r_cv;
@@ -238,6 +240,14 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                      "against %.2g)",
                      out->r, f->cv_chi2 / (double)f->n_used, o.noise_to_contrast, noise * scale,
                      contrast);
+    else if (out->r == base && !(f->chi2_red <= o.coarse_misfit * scale * scale))
+        n = snprintf(out->reason, sizeof out->reason,
+                     "r = %d is the smallest r whose leave-one-out chi2/N (%.3g) is within one "
+                     "standard error (%.2g) of the best predictor's, r = %d (%.3g), and whose grid "
+                     "r = %d refines: the same map with fewer parameters",
+                     out->r, f->cv_chi2 / (double)f->n_used,
+                     fit_loo_se(fc) / (double)fc->n_used, r_cv, fc->cv_chi2 / (double)fc->n_used,
+                     r_cv);
     else if (out->r == base)
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d is the smallest r whose leave-one-out chi2/N (%.3g) is within one "

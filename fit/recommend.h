@@ -15,7 +15,11 @@
  *      Statistical Learning, 7.10): r_se, the smallest admissible r whose leave-one-out chi2 is
  *      within one standard error (fit_loo_se) of r_cv's, provided its reduced chi2 is at most
  *      coarse_misfit times the data's scatter (the guard of step 3: a coarser map that misfits
- *      the points has an error the data can see); r_cv when there is none. The leave-one-out
+ *      the points has an error the data can see) or r divides r_cv (one_se_nested: r's grid is
+ *      one of r_cv's, and the scatter, read from the finest fits, is biased low against it: a
+ *      dead third at the procedure's raster, seed 37, r = 3 exact at reduced chi2 1.107 against
+ *      r = 6's 0.717, leave-one-out chi2 0.19 apart with a standard error of 15.5); r_cv when
+ *      there is none. The leave-one-out
  *      curve is flat within its noise between a map that already represents the pixel and the
  *      finer ones that only fit noise (a dead corner at 9 x 9, seed 13: r = 3 exact, rms 0.001,
  *      and r = 6, 0.005, leave-one-out chi2/N 0.956 and 0.918 +- 0.175);
@@ -67,6 +71,8 @@ typedef struct fit_recommend_opts {
                                   (1.15): it misfits hardly more than r_cv does; <= 0: never */
     double one_se;             /* step 2's one-standard-error rule: the leave-one-out chi2 may
                                   exceed r_cv's by this many standard errors (1); <= 0: off */
+    int one_se_nested;         /* step 2's misfit guard waived for an r dividing r_cv (its grid
+                                  is one of r_cv's: the same map with fewer parameters) (1) */
 } fit_recommend_opts_t;
 
 fit_recommend_opts_t fit_recommend_opts_default(void);

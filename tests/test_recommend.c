@@ -304,7 +304,10 @@ static void test_loo_se(void)
  * points best (leave-one-out chi2 250: residuals 0.5 and 1.5 on half the points each, chi2 125,
  * terms 0.5 and 4.5, standard error sqrt(100 x 4 x 100 / 99) = 20.1); r = 2's 260 is within one
  * standard error and its reduced chi2 150 / 95 within 1.5 times the scatter (r = 4's 125 / 83):
- * r = 2. At 280, or misfitting the points (reduced chi2 3.5), or with the rule off, r = 4. */
+ * r = 2. At 280, or with the rule off, r = 4. Misfitting the points (reduced chi2 2.5, above 1.5
+ * x 1.506), r = 2 is still taken, its grid being one of r = 4's (one_se_nested; not with it
+ * off); r = 3, whose grid is not, is not taken when it misfits so (leave-one-out chi2 262 and
+ * reduced chi2 2.4), and is when it fits within 1.5 x the scatter (2.2). */
 static void test_one_se(void)
 {
     fit_result_t f[4];
@@ -338,11 +341,24 @@ static void test_one_se(void)
     f[1].cv_chi2 = 280;
     fit_recommend(&sw, NULL, &rec);
     CHECK(rec.r == 4 && rec.r_se == 4);
-    f[1].cv_chi2 = 260, f[1].chi2_red = 3.5, f[1].chi2 = 3.5 * 95;
-    fit_recommend(&sw, NULL, &rec);
-    CHECK(rec.r == 4 && rec.r_se == 4);
-    f[1].chi2_red = 150 / 95.0, f[1].chi2 = 150;
     fit_recommend_opts_t o = fit_recommend_opts_default();
+    f[1].cv_chi2 = 260, f[1].chi2_red = 2.5, f[1].chi2 = 2.5 * 95;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r == 2 && rec.r_se == 2 && rec.step == 2);
+    CHECK(strstr(rec.reason, "whose grid r = 4 refines") != NULL);
+    o.one_se_nested = 0;
+    fit_recommend(&sw, &o, &rec);
+    CHECK(rec.r == 4 && rec.r_se == 4);
+    o.one_se_nested = 1;
+    f[1].cv_chi2 = 280;                              /* r = 2 beyond one standard error */
+    f[2].cv_chi2 = 262, f[2].chi2 = 2.4 * 90, f[2].chi2_red = 2.4; /* r = 3: 100 - 10 dof */
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r_se == 4);
+    f[2].chi2 = 2.2 * 90, f[2].chi2_red = 2.2;
+    fit_recommend(&sw, NULL, &rec);
+    CHECK(rec.r_se == 3);
+    f[1].cv_chi2 = 260, f[1].chi2_red = 150 / 95.0, f[1].chi2 = 150;
+    f[2].cv_chi2 = 500, f[2].chi2 = 400, f[2].chi2_red = 400 / 90.0;
     o.one_se = 0;
     fit_recommend(&sw, &o, &rec);
     CHECK(rec.r == 4 && rec.r_se == 4);
