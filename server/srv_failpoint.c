@@ -116,19 +116,25 @@ void srv_failpoints_close(srv_failpoints_t *fp)
     free(fp);
 }
 
-/* Creates the held file (written under a temporary name, then renamed: a reader never sees it
- * half-written). Returns 0 or -errno; path is "" when there is no directory. */
-static int make_held_file(const srv_failpoints_t *fp, const char *name, long long job,
-                          long long hit, char *path, size_t size)
+/* The held file's path for job at point name ("" when there is no directory). */
+static void held_file_path(const srv_failpoints_t *fp, const char *name, long long job,
+                           char *path, size_t size)
 {
     path[0] = '\0';
-    if (!fp->dir[0]) return 0;
+    if (fp->dir[0]) snprintf(path, size, "%s/%s.%lld.held", fp->dir, name, job);
+}
+
+/* Creates the held file at path (written under a temporary name, then renamed: a reader never
+ * sees it half-written). Returns 0 or -errno; path becomes "" when it cannot be created. */
+static int make_held_file(const char *name, long long job, long long hit, char *path)
+{
+    if (!path[0]) return 0;
     char tmp[PATH_MAX];
-    snprintf(path, size, "%s/%s.%lld.held", fp->dir, name, job);
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
     FILE *f = fopen(tmp, "w");
-    if (!f || fprintf(f, "job %lld hit %lld\n", job, hit) < 0 || fclose(f) != 0 ||
-        rename(tmp, path) != 0) {
+    int written = f && fprintf(f, "job %lld hit %lld\n", job, hit) >= 0;
+    if (f && fclose(f) != 0) written = 0;
+    if (!written || rename(tmp, path) != 0) {
         int e = errno;
         fprintf(stderr, "ipsd: failpoint %s: cannot create %s: %s\n", name, path, strerror(e));
         path[0] = '\0';
@@ -142,9 +148,11 @@ static int hold(srv_failpoints_t *fp, srv_worker_t *w, const char *name, long lo
 {
     long long job = atomic_load(&w->job);
     char path[PATH_MAX];
-    make_held_file(fp, name, job, hit, path, sizeof path);
+    held_file_path(fp, name, job, path, sizeof path);
+    /* the line first: a test that sees the held file finds it in the log (stderr is unbuffered) */
     fprintf(stderr, "ipsd: failpoint %s: holding job %lld at hit %lld%s%s\n", name, job, hit,
             path[0] ? " until removed: " : "", path);
+    make_held_file(name, job, hit, path);
     struct timespec pause = {0, HOLD_POLL_MS * 1000000L};
     int ret;
     for (;;) {
