@@ -240,23 +240,21 @@ void fit_recommend(const fit_sweep_t *sw, const fit_recommend_opts_t *opts,
                      "against %.2g)",
                      out->r, f->cv_chi2 / (double)f->n_used, o.noise_to_contrast, noise * scale,
                      contrast);
-    else if (out->r == base && !(f->chi2_red <= o.coarse_misfit * scale * scale))
+    else if (out->r == base) {
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d is the smallest r whose leave-one-out chi2/N (%.3g) is within one "
-                     "standard error (%.2g) of the best predictor's, r = %d (%.3g), and whose grid "
-                     "r = %d refines: the same map with fewer parameters",
+                     "standard error (%.2g) of the best predictor's, r = %d (%.3g), and whose ",
                      out->r, f->cv_chi2 / (double)f->n_used,
-                     fit_loo_se(fc) / (double)fc->n_used, r_cv, fc->cv_chi2 / (double)fc->n_used,
-                     r_cv);
-    else if (out->r == base)
-        n = snprintf(out->reason, sizeof out->reason,
-                     "r = %d is the smallest r whose leave-one-out chi2/N (%.3g) is within one "
-                     "standard error (%.2g) of the best predictor's, r = %d (%.3g), and whose "
-                     "reduced chi2 (%.3g) is within %gx the data's scatter (%.3g)",
-                     out->r, f->cv_chi2 / (double)f->n_used,
-                     fit_loo_se(fc) / (double)fc->n_used, r_cv, fc->cv_chi2 / (double)fc->n_used,
-                     f->chi2_red, o.coarse_misfit, scale * scale);
-    else {
+                     fit_loo_se(fc) / (double)fc->n_used, r_cv, fc->cv_chi2 / (double)fc->n_used);
+        size_t at = n > 0 && (size_t)n < sizeof out->reason ? (size_t)n : 0;
+        if (at && f->chi2_red <= o.coarse_misfit * scale * scale)
+            n += snprintf(out->reason + at, sizeof out->reason - at,
+                          "reduced chi2 (%.3g) is within %gx the data's scatter (%.3g)",
+                          f->chi2_red, o.coarse_misfit, scale * scale);
+        else if (at) /* step 2's guard waived: one_se_nested */
+            n += snprintf(out->reason + at, sizeof out->reason - at,
+                          "grid r = %d refines: the same map with fewer parameters", r_cv);
+    } else {
         fit_map_expected_error(f, scale, o.noise_weight, &noise, &res);
         n = snprintf(out->reason, sizeof out->reason,
                      "r = %d has the smallest expected map error (noise %.2g, sub-pixel "
