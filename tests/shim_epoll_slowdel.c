@@ -13,16 +13,19 @@
 
 typedef int (*epoll_ctl_fn)(int, int, int, struct epoll_event *);
 
+static epoll_ctl_fn real; /* libc's, found when the shim is loaded, before any thread exists */
+
+__attribute__((constructor)) static void find_real(void)
+{
+    void *sym = dlsym(RTLD_NEXT, "epoll_ctl");
+    if (sym) *(void **)&real = sym; /* POSIX: dlsym's object pointer converted to a function's */
+}
+
 int epoll_ctl(int epfd, int op, int fd, struct epoll_event *event)
 {
-    static epoll_ctl_fn real;
     if (!real) {
-        void *sym = dlsym(RTLD_NEXT, "epoll_ctl");
-        if (!sym) {
-            errno = ENOSYS;
-            return -1;
-        }
-        *(void **)&real = sym; /* POSIX: dlsym's object pointer converted to a function's */
+        errno = ENOSYS;
+        return -1;
     }
     if (op == EPOLL_CTL_DEL) {
         struct timespec wait = {0, 3000000};

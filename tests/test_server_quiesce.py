@@ -60,7 +60,8 @@ def test(c, t, argv, daemons):
         if rc != 0:
             c.eq(rc, 0, "round %d: SIGTERM under a flood of connections: exit status" % k)
     c.eq(codes.count(0), ROUNDS, "SIGTERM during a flood: exit 0 in every round (%r)" % codes)
-    log = open(d.log, errors="replace").read()
+    with open(d.log, errors="replace") as f:
+        log = f.read()
     c.eq(log.count("ipsd: stopped"), ROUNDS, "every round's ipsd logged 'stopped'")
     c.ok("Fatal error in GNU libmicrohttpd" not in log, "no libmicrohttpd panic in the log")
 
