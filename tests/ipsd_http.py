@@ -346,6 +346,14 @@ class Ipsd:
     def release(self, name, job):
         os.remove(self.held_path(name, job))
 
+    def release_when_held(self, name, job, timeout=DEADLINE_S):
+        """Until the worker holds job at name, then releases it (a hold armed with a crash
+        crashes there); whether it was held."""
+        held = self.wait_held(name, job, timeout)
+        if held:
+            self.release(name, job)
+        return held
+
     def wait_hold_ended(self, name, job, timeout=DEADLINE_S):
         """Until the worker left the hold (it removes the held file when a cancel or the
         shutdown ends it, before it goes on)."""

@@ -156,8 +156,7 @@ def test(c, t, argv, daemons):
     r = d.post(url, {"pixels": "all", "r_max": 8, "promote": True, "by": "test"})
     c.status(r, 202, "fit every pixel, promoted (to crash)")
     job = r.json()["job"]["id"]
-    c.ok(d.wait_held("fit.pixel", job), "held after the 5th pixel")
-    d.release("fit.pixel", job)
+    c.ok(d.release_when_held("fit.pixel", job), "held after the 5th pixel")
     c.eq(d.wait_exit(), -9, "ipsd crashed after the 5th pixel")
     c.eq(db.one("SELECT state, points_done FROM jobs WHERE id = ?", job), ("running", 5),
          "the job is left running with 5 pixels done")

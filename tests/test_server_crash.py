@@ -82,8 +82,7 @@ def test(c, t, argv, daemons):
         r = d.post("/api/fits", upload_body(150, sensor, 10 + i, 20))
         c.status(r, 202, "upload a fit to crash at %s" % point)
         job = r.json()["job"]["id"]
-        c.ok(d.wait_held(point, job), "the fit is held at %s" % point)
-        d.release(point, job)
+        c.ok(d.release_when_held(point, job), "the fit is held at %s" % point)
         wait_crash(c, d, point)
         if point == "fit.after_store":
             c.eq(db.val("SELECT state FROM jobs WHERE id = ?", job), "done",
@@ -103,9 +102,8 @@ def test(c, t, argv, daemons):
     c.status(r, 202, "submit a scan")
     scan, scan_job = r.json()["scan"]["id"], r.json()["job"]["id"]
     auto = wait_for(lambda: db.val("SELECT id FROM jobs WHERE kind = 'fit' AND scan_id = ?", scan))
-    c.ok(auto and d.wait_held("fit.after_store", auto), "the automatic fit is held after its store")
-    if auto:
-        d.release("fit.after_store", auto)
+    c.ok(auto and d.release_when_held("fit.after_store", auto),
+         "the automatic fit is held after its store")
     wait_crash(c, d, "fit.after_store")
     d.start()
     c.ok(d.wait_job(scan_job, "done"), "the scan's job is done")

@@ -67,8 +67,7 @@ def test(c, t, argv, daemons):
                               "raster": RASTER})
     c.status(r, 202, "submit a scan (to crash at its end)")
     scan2, job2 = r.json()["scan"]["id"], r.json()["job"]["id"]
-    c.ok(d.wait_held("scan.finish", job2), "the scan is held at its end")
-    d.release("scan.finish", job2)
+    c.ok(d.release_when_held("scan.finish", job2), "the scan is held at its end")
     c.ok(ipsd_http.wait_for(lambda: d.proc.poll() is not None), "ipsd crashed at the end")
     d.proc = None
     c.eq(db.one("SELECT s.state, j.state FROM scans s JOIN jobs j ON j.scan_id = s.id "
