@@ -416,8 +416,8 @@ static void print_table(const struct design_row *rows, int n, const struct job_t
     }
     printf("(\"reference-limited\": the error is within the reference's own bound, so the\n"
            " comparison cannot resolve the setting's accuracy. Far from the pixel a cell is a\n"
-           " second difference of nearly equal wedge integrals: the error grows about as the\n"
-           " square of the distance over the sub-pixel size, docs/numerics.md)\n");
+           " second difference of nearly equal wedge integrals: what the sweeps' offsets and\n"
+           " short segments near their origin leave grows with the distance, docs/numerics.md)\n");
     printf("\nFull job on the reference scan (%zu points): sweep r = 1..8 (linear, paper sigma, "
            "design tol 1e-12),\nF-test at r = %d (top,left,bottom), Wiener; %d runs, one core\n",
            bench_scan.n, BENCH_R, jt->runs);

@@ -67,6 +67,8 @@ fit_design_opts_t fit_design_opts_for_tol(double tol)
 
 struct cheb {
     int m;
+    int near_foot; /* sweeps start with segments that grow from a*dv = seg_dv along the line
+                      (sweep_extend): on when any spot of the build is outside the pixel */
     double t[MAX_ORDER];                /* Chebyshev points of the first kind on [-1, 1] */
     double cosm[MAX_ORDER][MAX_ORDER];  /* cos(pi j (k + 1/2) / m): the DCT */
 };
@@ -84,7 +86,7 @@ struct cheb {
  * never cut short at the farthest target: a sweep's segments depend only on w and the options,
  * so extending a cached sweep gives exactly the segments a fresh one would have. */
 struct sweep {
-    double w, E, cq, cp;
+    double w, E0, E, cq, cp; /* E0 the origin (1: the foot), E the end so far less E0 */
     int nseg, cap;
     double *seg;
 };
@@ -92,6 +94,7 @@ struct sweep {
 /* The cross-call cache (design.h): sweeps by w in an open-addressing table. */
 struct fit_design_cache {
     int order;              /* the options the cached sweeps were built with (order 0: none yet) */
+    int near_foot;
     double seg_dv, seg_ds;
     size_t bytes, budget;   /* segment memory held, and the most it may hold */
     size_t n, cap;          /* sweeps held */
@@ -120,26 +123,36 @@ static void antiderivative(const double *c, int m, double h, double *C)
 static void sweep_reset(struct sweep *sw, double w)
 {
     sw->w = w;
-    sw->E = 1;
+    sw->E0 = 1;
+    sw->E = 0;
     sw->cq = sw->cp = 0;
     sw->nseg = 0;
 }
 
-/* Appends segments to sw until they cover E up to emax. *added_bytes (may be NULL) grows by the
- * memory newly allocated. Returns the number of radial evaluations, or (size_t)-1 when out of
- * memory. */
+/* Appends segments to sw until they cover E - E0 up to emax. Segments and targets are offsets
+ * from the origin E0, not E itself: far from a spot its line's nodes lie at E = 1 + O(1e-3) and
+ * their spacing would otherwise be a few hundred ulps of E. With ch->near_foot the segments
+ * near the origin are no longer than the larger of seg_dv / w (a * dv <= seg_dv along the line,
+ * for E near 1) and (e^seg_ds - 1) times the offset (growing geometrically, O(log w) more
+ * segments), so that nodes a few cells apart near the foot of a far line are not points of one
+ * long segment whose Clenshaw sum loses digits in proportion to its length over their spacing.
+ * *added_bytes (may be NULL) grows by the memory newly allocated. Returns the number of radial
+ * evaluations, or (size_t)-1 when out of memory. */
 static size_t sweep_extend(const struct cheb *ch, const fit_design_opts_t *o, struct sweep *sw,
                            double emax, size_t *added_bytes)
 {
     int m = ch->m, stride = SEG_STRIDE(m);
     size_t evals = 0;
-    double w = sw->w, E = sw->E, cq = sw->cq, cp = sw->cp, ratio = exp(o->seg_ds);
-    while (E < emax) {
-        double next = E * ratio;
+    double w = sw->w, E0 = sw->E0, d = sw->E, cq = sw->cq, cp = sw->cp, ratio = exp(o->seg_ds);
+    while (d < emax) {
+        double E = E0 + d, next = E * ratio;
         /* v = w (E + 1/E)/2 may grow by at most seg_dv: solve E' + 1/E' = 2 vnext / w */
         double vnext = w * 0.5 * (E + 1 / E) + o->seg_dv, c = vnext / w;
         if (w * 0.5 * (next + 1 / next) > vnext) next = c + sqrt((c - 1) * (c + 1));
-        if (!(next > E)) next = E * ratio > E ? E * ratio : emax; /* rounding guard */
+        double span = next - E;
+        if (ch->near_foot) span = fmin(span, fmax((ratio - 1) * d, o->seg_dv / w));
+        double dnext = d + span;
+        if (!(dnext > d)) dnext = emax; /* rounding guard */
         if (sw->nseg == sw->cap) {
             int cap = sw->cap ? 2 * sw->cap : 16;
             double *ns = realloc(sw->seg, sizeof(double) * (size_t)stride * (size_t)cap);
@@ -149,9 +162,9 @@ static size_t sweep_extend(const struct cheb *ch, const fit_design_opts_t *o, st
             sw->cap = cap;
         }
         double *g = sw->seg + (size_t)stride * (size_t)sw->nseg++;
-        double mid = 0.5 * (next + E), h = 0.5 * (next - E), fq[MAX_ORDER], fp[MAX_ORDER];
+        double mid = 0.5 * (dnext + d), h = 0.5 * (dnext - d), fq[MAX_ORDER], fp[MAX_ORDER];
         for (int k = 0; k < m; k++) {
-            double x = mid + h * ch->t[k], x2 = x * x + 1.0, q, p;
+            double x = E0 + (mid + h * ch->t[k]), x2 = x * x + 1.0, q, p;
             radial_eval(w * 0.5 * x2 / x, &q, &p); /* v = w cosh s = w (x + 1/x) / 2 */
             fq[k] = q * 2.0 / x2;                  /* dT/dE = 2 / (1 + E^2) */
             fp[k] = p * 2.0 / x2;
@@ -172,24 +185,24 @@ static size_t sweep_extend(const struct cheb *ch, const fit_design_opts_t *o, st
         double *Cq = g + SEG_CQ, *Cp = g + SEG_CP(m);
         antiderivative(c1, m, h, Cq);
         antiderivative(c2, m, h, Cp);
-        g[0] = E;
-        g[1] = next;
+        g[0] = d;
+        g[1] = dnext;
         g[2] = cq;
         g[3] = cp;
         for (int j = 0; j <= m; j++) { /* T_j(1) = 1 */
             cq += Cq[j];
             cp += Cp[j];
         }
-        E = next;
+        d = dnext;
     }
-    sw->E = E;
+    sw->E = d;
     sw->cq = cq;
     sw->cp = cp;
     return evals;
 }
 
-/* The segment holding E = s (the last one with sa <= s: branch-free halving) and s's place in
- * it, t in [-1, 1]. */
+/* The segment holding offset s (the last one with sa <= s: branch-free halving) and s's place
+ * in it, t in [-1, 1]. */
 static const double *sweep_find(const struct sweep *sw, int stride, double s, double *t)
 {
     const double *g = sw->seg;
@@ -203,7 +216,8 @@ static const double *sweep_find(const struct sweep *sw, int stride, double s, do
     return g;
 }
 
-/* Prefix integrals of Q (and of P when wp is not NULL) up to E = s (1 <= s <= the sweep's end). */
+/* Prefix integrals of Q (and of P when wp is not NULL) up to offset s (0 <= s <= the sweep's
+ * end) from the sweep's origin. */
 static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, double *wp)
 {
     double t;
@@ -212,7 +226,9 @@ static void sweep_eval(const struct sweep *sw, int m, double s, double *wq, doub
     if (wp) *wp = g[3] + radial_clenshaw(g + SEG_CP(m), m, t);
 }
 
-/* One target of a sweep: E = s, the node's place in the wedge arrays, what it needs (need[]). */
+/* One target of a sweep: its offset s from the sweep's origin (E - 1 on a sweep from the foot;
+ * on a one-sided row, E less its least target's), the node's place in the wedge arrays, what it
+ * needs (need[]). */
 struct target {
     double s;
     size_t at;
@@ -344,7 +360,8 @@ static const struct sweep *sweep_get(fit_design_cache_t *c, const struct cheb *c
                                      double emax, size_t *evals)
 {
     struct sweep *sw = NULL;
-    if (c && c->order == ch->m && c->seg_dv == o->seg_dv && c->seg_ds == o->seg_ds) {
+    if (c && c->order == ch->m && c->near_foot == ch->near_foot && c->seg_dv == o->seg_dv &&
+        c->seg_ds == o->seg_ds) {
         size_t i = cache_slot(c, w);
         if (c->slot[i]) {
             sw = &c->sw[c->slot[i] - 1];
@@ -381,12 +398,13 @@ static const struct sweep *sweep_get(fit_design_cache_t *c, const struct cheb *c
 }
 
 /* Makes the cache serve these options when it serves none yet (it keeps its first options'). */
-static void cache_claim(fit_design_cache_t *c, const fit_design_opts_t *o)
+static void cache_claim(fit_design_cache_t *c, const struct cheb *ch, const fit_design_opts_t *o)
 {
     if (c && c->order == 0 && cache_grow(c) == 0) {
         c->order = o->order;
         c->seg_dv = o->seg_dv;
         c->seg_ds = o->seg_ds;
+        c->near_foot = ch->near_foot;
     }
 }
 
@@ -442,6 +460,10 @@ static struct line_pair *sort_pairs(struct line_pair *p, struct line_pair *tmp, 
 struct row_span {
     size_t t0, t1;
     double smin, smax;
+    double dmax;           /* the largest target's E - 1 */
+    double omin, hmin, d0; /* the least target's distance from the foot along the line, from
+                              the spot, and its E - 1 */
+    int m0;                /* the least target's node */
     int one_sided;
 };
 
@@ -646,12 +668,25 @@ static size_t spots_by_coordinate(struct work *wk, int nb)
 }
 
 /* An upper estimate of the segments of a sweep at w from E0 to E1 (each advances E by e^seg_ds
- * or v = w (E + 1/E) / 2 by seg_dv: fit_design_cost's count). */
-static double sweep_segments(const fit_design_opts_t *o, double w, double E0, double E1)
+ * or v = w (E + 1/E) / 2 by seg_dv, and with near_foot the offset from E0 by seg_dv / w twice,
+ * then by e^seg_ds: sweep_extend; fit_design_cost's count). */
+static double sweep_segments(const fit_design_opts_t *o, int near_foot, double w, double E0,
+                             double E1)
 {
     if (!(E1 > E0)) return 0;
-    double dv = w * 0.5 * ((E1 + 1 / E1) - (E0 + 1 / E0));
-    return ceil(log(E1 / E0) / o->seg_ds) + ceil(dv / o->seg_dv) + 1;
+    double dv = w * 0.5 * ((E1 + 1 / E1) - (E0 + 1 / E0)), grow = exp(o->seg_ds) - 1;
+    double near = near_foot ? 2 + ceil(log(fmax(1, grow * w * (E1 - E0) / o->seg_dv)) / o->seg_ds)
+                            : 0;
+    return ceil(log(E1 / E0) / o->seg_ds) + ceil(dv / o->seg_dv) + 1 + near;
+}
+
+/* Whether any spot lies outside the pixel [0, pitch]^2 (cells then come as small differences of
+ * wedges: the sweeps start near_foot). */
+static int any_outside(double pitch, const double *x, const double *y, size_t n)
+{
+    for (size_t k = 0; k < n; k++)
+        if (!(x[k] >= 0 && x[k] <= pitch && y[k] >= 0 && y[k] <= pitch)) return 1;
+    return 0;
 }
 
 /* Whether the run's one-sided rows are cheaper each with a sweep of its own, from its least
@@ -666,8 +701,8 @@ static double sweep_segments(const fit_design_opts_t *o, double w, double E0, do
  * it crosses only those between them, and its wedges no longer come as differences of two large
  * prefixes (fewer digits lost). Estimates by sweep_segments; 1 when the one-sided rows' sweeps
  * are fewer segments in all. */
-static int sweep_offset_pays(const fit_design_opts_t *o, double w, const struct row_span *sp,
-                             size_t nrows)
+static int sweep_offset_pays(const fit_design_opts_t *o, int near_foot, double w,
+                             const struct row_span *sp, size_t nrows)
 {
     double smax = 1, rest = 1, own = 0;
     int any = 0;
@@ -675,13 +710,14 @@ static int sweep_offset_pays(const fit_design_opts_t *o, double w, const struct 
         if (sp[q].t1 == sp[q].t0) continue;
         smax = fmax(smax, sp[q].smax);
         if (sp[q].one_sided) {
-            own += sweep_segments(o, w, sp[q].smin, sp[q].smax);
+            own += sweep_segments(o, near_foot, w, sp[q].smin, sp[q].smax);
             any = 1;
         } else {
             rest = fmax(rest, sp[q].smax);
         }
     }
-    return any && sweep_segments(o, w, 1, rest) + own < sweep_segments(o, w, 1, smax);
+    return any && sweep_segments(o, near_foot, w, 1, rest) + own <
+                      sweep_segments(o, near_foot, w, 1, smax);
 }
 
 /* The wedges of targets tg[0..nt) from sweep sw: Q into wk->vq, and P too (into wk->vp) at the
@@ -699,6 +735,49 @@ static void eval_targets(const struct sweep *sw, int m, const struct target *tg,
             sweep_eval(sw, m, tg[t].s, &wk->vq[at],
                        &wk->vp[(size_t)wk->rowp[at / n1] * n1 + at % n1]);
         }
+}
+
+/* A one-sided row's targets as E less the least target's E, from the nodes' distance along the
+ * line (exact) rather than as the difference of two E, each rounded to ulp(E) (far from the
+ * pixel the nodes of a line are ~1e-3 apart in E, and a cell is a second difference of them):
+ * E - E0 = ((o - o0) + (h - h0)) / dist, h - h0 = (o - o0)(o + o0) / (h + h0), with o the
+ * distance of a node from the foot along the line and h its distance from the spot. */
+static void one_sided_offsets(struct work *wk, const struct row_span *sp, size_t row, double dist)
+{
+    size_t n1 = (size_t)wk->n1;
+    for (size_t t = sp->t0; t < sp->t1; t++) {
+        int m = (int)(wk->tg[t].at % n1);
+        double o = fabs(wk->e[m] - wk->ralong[row]), h = sqrt(o * o + dist * dist),
+               dd = fabs(wk->e[m] - wk->e[sp->m0]);
+        wk->tg[t].s = dd * (1 + (o + sp->omin) / (h + sp->hmin)) / dist;
+    }
+}
+
+/* The wedges of a one-sided row's targets from a sweep that starts below them, each less the
+ * wedge at the row's least target (a constant that cancels in its cells): summed from the
+ * segments between them rather than as a difference of two prefixes from the foot, which for a
+ * line far from its spot's foot are nearly equal and large (the whole wedge's flux) against
+ * the cells. */
+static void eval_row_from(const struct sweep *sw, int m, const struct target *tg, size_t nt,
+                          double *vq, double d0)
+{
+    int stride = SEG_STRIDE(m);
+    double t0;
+    const double *ga = sweep_find(sw, stride, d0, &t0);
+    t0 = (d0 - 0.5 * (ga[0] + ga[1])) / (0.5 * (ga[1] - ga[0]));
+    double pa = radial_clenshaw(ga + SEG_CQ, m, t0);
+    for (size_t t = 0; t < nt; t++) {
+        double tt;
+        const double *gb = sweep_find(sw, stride, d0 + tg[t].s, &tt);
+        tt = ((d0 - 0.5 * (gb[0] + gb[1])) + tg[t].s) / (0.5 * (gb[1] - gb[0]));
+        double sum = radial_clenshaw(gb + SEG_CQ, m, tt) - pa;
+        for (const double *g = ga; g < gb; g += stride) { /* the whole segments between */
+            double tot = 0;
+            for (int j = 0; j <= m; j++) tot += g[SEG_CQ + j];
+            sum += tot;
+        }
+        vq[tg[t].at] = sum;
+    }
 }
 
 /* All wedges of the batch, both directions at once. The pairs are grouped by line distance (one
@@ -733,7 +812,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
     uint32_t stamp = 0; /* rstamp: 0 none, else the run that made the row */
     size_t nrow = 0, nprow = 0; /* rows of the batch so far, and those with P */
     for (size_t i0 = 0; i0 < ni;) { /* runs of equal dist (inside runs of equal w) */
-        double dist = it[i0].dist, w = wk->a * dist, smax = 0;
+        double dist = it[i0].dist, w = wk->a * dist, smax = 0, dmax = 0;
         size_t i1 = i0, nt = 0, row0 = nrow, np = 0;
         while (i1 < ni && it[i1].dist == dist) i1++;
         for (size_t i = i0; i < i1; i++) { /* the run's pairs: its items' spots */
@@ -797,10 +876,14 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                     continue;
                 }
                 below |= at < 0, above |= at > 0;
-                double s = (other + sqrt(other * other + dist * dist)) / dist; /* E */
+                /* E, and the target E - 1 without the cancellation of 1 + 0.001 - 1 */
+                double hy = sqrt(other * other + dist * dist), s = (other + hy) / dist,
+                       df = (other + other * other / (hy + dist)) / dist;
                 if (s > smax) smax = s;
+                if (s < sp->smin) sp->omin = other, sp->hmin = hy, sp->d0 = df, sp->m0 = m;
                 sp->smin = fmin(sp->smin, s), sp->smax = fmax(sp->smax, s);
-                wk->tg[nt++] = (struct target){s, row * (size_t)n1 + (size_t)m, rn[m]};
+                sp->dmax = fmax(sp->dmax, df);
+                wk->tg[nt++] = (struct target){df, row * (size_t)n1 + (size_t)m, rn[m]};
                 if (rn[m] == 2 && wk->rowp[row] == UINT32_MAX) {
                     if (rows_reserve(wk, 0, nprow + 1)) return -ENOMEM;
                     wk->rowp[row] = (uint32_t)nprow++;
@@ -809,15 +892,17 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
             sp->t1 = nt;
             sp->one_sided = !foot && below != above && wk->rowp[row] == UINT32_MAX;
             offsets |= sp->one_sided;
+            dmax = fmax(dmax, sp->dmax);
+            if (sp->one_sided) one_sided_offsets(wk, sp, row, dist);
         }
-        if (smax > 1 && offsets && sweep_offset_pays(o, w, wk->span, nrow - row0)) {
+        if (smax > 1 && offsets && sweep_offset_pays(o, ch->near_foot, w, wk->span, nrow - row0)) {
             /* the rows that straddle the foot share one sweep from it; each one-sided row has
              * its own from its least target (sweep_offset_pays) */
-            double rest = 1;
+            double rest = 0;
             for (size_t q = 0; q < nrow - row0; q++)
-                if (!wk->span[q].one_sided) rest = fmax(rest, wk->span[q].smax);
+                if (!wk->span[q].one_sided) rest = fmax(rest, wk->span[q].dmax);
             const struct sweep *sw = NULL;
-            if (rest > 1 && !(sw = sweep_get(o->cache, ch, o, &wk->sw, w, rest, evals)))
+            if (rest > 0 && !(sw = sweep_get(o->cache, ch, o, &wk->sw, w, rest, evals)))
                 return -ENOMEM;
             for (size_t q = 0; q < nrow - row0; q++) {
                 const struct row_span *sp = &wk->span[q];
@@ -832,16 +917,26 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                     continue;
                 }
                 sweep_reset(&wk->sw, w);
-                wk->sw.E = sp->smin; /* the prefix from here: the line's constant left out */
-                size_t ev = sweep_extend(ch, o, &wk->sw, sp->smax, NULL);
+                wk->sw.E0 = sp->smin; /* the prefix from here: the line's constant left out */
+                double dm = 0;
+                for (size_t t = sp->t0; t < sp->t1; t++) dm = fmax(dm, wk->tg[t].s);
+                size_t ev = sweep_extend(ch, o, &wk->sw, dm, NULL);
                 if (ev == (size_t)-1) return -ENOMEM;
                 *evals += ev;
                 eval_targets(&wk->sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk);
             }
         } else if (smax > 1) { /* some targets: one sweep from the foot */
-            const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, smax, evals);
+            const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, dmax, evals);
             if (!sw) return -ENOMEM;
-            eval_targets(sw, ch->m, wk->tg, nt, wk);
+            if (!offsets) eval_targets(sw, ch->m, wk->tg, nt, wk); /* eight at a time */
+            for (size_t q = 0; offsets && q < nrow - row0; q++) {
+                const struct row_span *sp = &wk->span[q];
+                if (sp->t1 == sp->t0) continue;
+                if (sp->one_sided) /* from its least target, as its own sweep would be */
+                    eval_row_from(sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk->vq, sp->d0);
+                else
+                    eval_targets(sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk);
+            }
         }
         i0 = i1;
     }
@@ -992,6 +1087,7 @@ double fit_design_cost(double R_um, double pitch, int r, const double *x, const 
     if (far) *far = 0;
     if (check_args(R_um, pitch, r, x, y, n, &o, NULL)) return 0;
     double a = fit_airy_a(R_um), segs = 0, far_segs = 0;
+    int near_foot = any_outside(pitch, x, y, n);
     for (size_t k = 0; k < n; k++)
         for (int dir = 0; dir < 2; dir++) {
             double across = dir ? y[k] : x[k], along = dir ? x[k] : y[k];
@@ -1009,7 +1105,7 @@ double fit_design_cost(double R_um, double pitch, int r, const double *x, const 
                 if (!(E > 1)) continue;
                 double E0 = one_sided ? (near + sqrt(near * near + dist * dist)) / dist : 1;
                 double v0 = w * (E0 + 1 / E0) / 2, vend = w * (E + 1 / E) / 2; /* v = w cosh s */
-                segs += sweep_segments(&o, w, E0, E);
+                segs += sweep_segments(&o, near_foot, w, E0, E);
                 if (vend > RADIAL_Q_VMAX)
                     far_segs += ceil((vend - fmax(v0, RADIAL_Q_VMAX)) / o.seg_dv);
             }
@@ -1046,7 +1142,8 @@ int fit_design_build(double R_um, double pitch, int r, const double *x, const do
         goto out;
     }
     cheb_init(ch, o.order);
-    cache_claim(o.cache, &o);
+    ch->near_foot = any_outside(pitch, x, y, n);
+    cache_claim(o.cache, ch, &o);
     for (int i = 0; i <= r; i++) e[i] = pitch * i / r; /* exact at 0 and at pitch */
     wk.near2 = near_distance2(&o, wk.a, e, r);
     for (size_t k0 = 0; k0 < n; k0 += batch) {

@@ -55,10 +55,30 @@ int main(void)
     double xe[4] = {0, 3, 6, 1.5}, ye[4] = {0, 3, 1.5, 6};
     CHECK(design_error(1.34, 4, xe, ye, 4, 1e-12, &st) < 1e-12);
     CHECK(design_error(0.3, 4, xe, ye, 4, 1e-12, &st) < 1e-12);
-    /* spots outside the pixel: every entry is a difference of tail fluxes, a little less
-     * precise relative to the (small) row */
+    /* spots outside the pixel: every entry is a small difference of tail fluxes, and still
+     * within the setting's tolerance of the row's largest */
     double xo[3] = {-2, 8, 3}, yo[3] = {7, -1, -0.75};
-    CHECK(design_error(1.34, 4, xo, yo, 3, 1e-12, &st) < 1e-11);
+    CHECK(design_error(1.34, 4, xo, yo, 3, 1e-12, &st) < 1e-12);
+    /* the raster of a fit of the whole scan (`--region all`): spots up to 12 um (18 cells) from
+     * the pixel beside it and across its corners, in one batch: lines at the same distance share
+     * a sweep from the foot, or, beyond an edge, have their own from the nearest node. Before
+     * sweeps were kept as offsets from their origin, with short segments near it (design.c's
+     * sweep_extend), these rows lost up to 9e-11 (R = 1.34 and 5, r = 7: now 5e-14 and 3e-13)
+     * and 4e-8 at the 1e-9 setting (R = 0.3: now 6e-11) */
+    {
+        enum { NO = 24 };
+        double xa[NO * NO], ya[NO * NO];
+        int na = 0;
+        for (int q = 0; q < NO * NO; q++) {
+            double xq = -12 + 1.3 * (q % NO), yq = -12 + 1.3 * (q / NO);
+            if (xq >= 0 && xq <= 6 && yq >= 0 && yq <= 6) continue; /* outside only */
+            xa[na] = xq, ya[na++] = yq;
+        }
+        CHECK(design_error(1.34, 3, xa, ya, na, 1e-12, &st) < 1e-12);
+        CHECK(design_error(1.34, 7, xa, ya, na, 1e-12, &st) < 1e-12);
+        CHECK(design_error(5.0, 7, xa, ya, na, 1e-12, &st) < 1e-12);
+        CHECK(design_error(0.3, 7, xa, ya, na, 1e-9, &st) < 1e-9);
+    }
 
     /* conservation: each row sums to the box integral of the whole pixel */
     double A[81 * 64];
@@ -206,12 +226,13 @@ int main(void)
         /* a 0.012 um spot 0.5 mm away, about 1e5 Airy rings between it and the pixel: its sweeps
          * cross only the rings between each line's nodes, a twentieth of those from the foot
          * (counted here from the segment rule: e^0.5 in E or 2 in a rho per segment, 16 points
-         * each at 1e-12), and its entries are within 1e-10 of the box integral (from the foot,
-         * 2.8e6 evaluations, they lost 2e-10 to 2e-9: each a difference of two large prefixes) */
+         * each at 1e-12), and its entries are within 1e-11 of the box integral (5e-12 at r = 4;
+         * 5e-11 before the sweeps were kept as offsets from their origin; from the foot, 2.8e6
+         * evaluations, they lost 2e-10 to 2e-9: each a difference of two large prefixes) */
         double xf = 500, yf = 300, a = fit_airy_a(0.0122), foot = 0;
         for (int r = 2; r <= 4; r += 2) {
             fit_design_stats_t sf;
-            CHECK(design_error(0.0122, r, &xf, &yf, 1, 1e-12, &sf) < 1e-10);
+            CHECK(design_error(0.0122, r, &xf, &yf, 1, 1e-12, &sf) < 1e-11);
             foot = 0;
             for (int dir = 0; dir < 2; dir++) {
                 double ac = dir ? yf : xf, al = dir ? xf : yf, other = fmax(fabs(al), fabs(6 - al));
