@@ -73,13 +73,15 @@ struct cheb {
     double cosm[MAX_ORDER][MAX_ORDER];  /* cos(pi j (k + 1/2) / m): the DCT */
 };
 
-/* A sweep's segments are stored flat, SEG_STRIDE(m) doubles each: [sa, sb, cq, cp, Cq[0..m],
- * Cp[0..m]]: the ends in E, the prefix integrals of Q and P at sa, and the antiderivative
- * coefficients (in E units). Flat and sized by the order in use, so that a cached sweep costs
- * 38 doubles per segment at order 16, not MAX_ORDER's. */
-#define SEG_STRIDE(m) (4 + 2 * ((m) + 1))
-#define SEG_CQ 4
-#define SEG_CP(m) (5 + (m))
+/* A sweep's segments are stored flat, SEG_STRIDE(m) doubles each: [sa, sb, cq, cp, tq, Cq[0..m],
+ * Cp[0..m]]: the ends (offsets from the sweep's origin), the prefix integrals of Q and P at sa,
+ * the integral of Q over the segment, and the antiderivative coefficients (in E units). Flat and
+ * sized by the order in use, so that a cached sweep costs 39 doubles per segment at order 16,
+ * not MAX_ORDER's. */
+#define SEG_STRIDE(m) (5 + 2 * ((m) + 1))
+#define SEG_TQ 4
+#define SEG_CQ 5
+#define SEG_CP(m) (6 + (m))
 
 /* One sweep: the segments built so far for the line at scaled distance w, and where the next one
  * starts (E, with the prefix integrals cq, cp there), so that it can be extended. Segments are
@@ -189,9 +191,11 @@ static size_t sweep_extend(const struct cheb *ch, const fit_design_opts_t *o, st
         g[1] = dnext;
         g[2] = cq;
         g[3] = cp;
+        g[SEG_TQ] = 0;
         for (int j = 0; j <= m; j++) { /* T_j(1) = 1 */
             cq += Cq[j];
             cp += Cp[j];
+            g[SEG_TQ] += Cq[j];
         }
         d = dnext;
     }
@@ -233,6 +237,7 @@ struct target {
     double s;
     size_t at;
     unsigned char need;
+    double o, h; /* its distance from the foot along the line and from the spot (wedge_pass) */
 };
 
 /* sweep_eval's Q part for four targets at once: the four Clenshaw recurrences are independent,
@@ -257,20 +262,15 @@ static void sweep_eval4(const struct sweep *sw, int m, const struct target *tg, 
     for (int l = 0; l < 4; l++) wq[tg[l].at] = base[l] + (t[l] * b1[l] + (c[l][0] - b2[l]));
 }
 
-/* sweep_eval4 for eight targets, two to an SSE2 register (x86-64's baseline): with four
+/* The Clenshaw sums of eight series c[l] at t[l] (sweep_eval4's recurrence for eight targets),
+ * two to an SSE2 register (x86-64's baseline): with four
  * recurrences in flight a step still waited on the multiply-add of the one before, eight fill the
  * pipeline. Packed multiplies, adds and subtractions round exactly as the scalar ones (no fused
  * multiply-add: ISO C mode does not contract), so each lane is still sweep_eval's arithmetic. */
-static void sweep_eval8(const struct sweep *sw, int m, const struct target *tg, double *wq)
+static void clenshaw8(const double *const c[8], const double t[8], int m, double out[8])
 {
 #if defined(__SSE2__)
-    const double *c[8];
-    double t[8], base[8], b1s[8], b2s[8];
-    for (int l = 0; l < 8; l++) {
-        const double *g = sweep_find(sw, SEG_STRIDE(m), tg[l].s, &t[l]);
-        c[l] = g + SEG_CQ;
-        base[l] = g[2];
-    }
+    double b1s[8], b2s[8];
     __m128d t2[4], b1[4], b2[4];
     for (int v = 0; v < 4; v++) {
         t2[v] = _mm_set_pd(2 * t[2 * v + 1], 2 * t[2 * v]);
@@ -287,11 +287,23 @@ static void sweep_eval8(const struct sweep *sw, int m, const struct target *tg, 
         _mm_storeu_pd(b1s + 2 * v, b1[v]);
         _mm_storeu_pd(b2s + 2 * v, b2[v]);
     }
-    for (int l = 0; l < 8; l++) wq[tg[l].at] = base[l] + (t[l] * b1s[l] + (c[l][0] - b2s[l]));
+    for (int l = 0; l < 8; l++) out[l] = t[l] * b1s[l] + (c[l][0] - b2s[l]);
 #else
-    sweep_eval4(sw, m, tg, wq);
-    sweep_eval4(sw, m, tg + 4, wq);
+    for (int l = 0; l < 8; l++) out[l] = radial_clenshaw(c[l], m, t[l]);
 #endif
+}
+
+static void sweep_eval8(const struct sweep *sw, int m, const struct target *tg, double *wq)
+{
+    const double *c[8];
+    double t[8], base[8], out[8];
+    for (int l = 0; l < 8; l++) {
+        const double *g = sweep_find(sw, SEG_STRIDE(m), tg[l].s, &t[l]);
+        c[l] = g + SEG_CQ;
+        base[l] = g[2];
+    }
+    clenshaw8(c, t, m, out);
+    for (int l = 0; l < 8; l++) wq[tg[l].at] = base[l] + out[l];
 }
 
 /* ---- the cross-call sweep cache ---- */
@@ -742,14 +754,13 @@ static void eval_targets(const struct sweep *sw, int m, const struct target *tg,
  * pixel the nodes of a line are ~1e-3 apart in E, and a cell is a second difference of them):
  * E - E0 = ((o - o0) + (h - h0)) / dist, h - h0 = (o - o0)(o + o0) / (h + h0), with o the
  * distance of a node from the foot along the line and h its distance from the spot. */
-static void one_sided_offsets(struct work *wk, const struct row_span *sp, size_t row, double dist)
+static void one_sided_offsets(struct work *wk, const struct row_span *sp, double dist)
 {
     size_t n1 = (size_t)wk->n1;
     for (size_t t = sp->t0; t < sp->t1; t++) {
-        int m = (int)(wk->tg[t].at % n1);
-        double o = fabs(wk->e[m] - wk->ralong[row]), h = sqrt(o * o + dist * dist),
-               dd = fabs(wk->e[m] - wk->e[sp->m0]);
-        wk->tg[t].s = dd * (1 + (o + sp->omin) / (h + sp->hmin)) / dist;
+        struct target *p = &wk->tg[t];
+        double dd = fabs(wk->e[p->at % n1] - wk->e[sp->m0]);
+        p->s = dd * (1 + (p->o + sp->omin) / (p->h + sp->hmin)) / dist;
     }
 }
 
@@ -762,21 +773,36 @@ static void eval_row_from(const struct sweep *sw, int m, const struct target *tg
                           double *vq, double d0)
 {
     int stride = SEG_STRIDE(m);
-    double t0;
-    const double *ga = sweep_find(sw, stride, d0, &t0);
-    t0 = (d0 - 0.5 * (ga[0] + ga[1])) / (0.5 * (ga[1] - ga[0]));
-    double pa = radial_clenshaw(ga + SEG_CQ, m, t0);
-    for (size_t t = 0; t < nt; t++) {
-        double tt;
-        const double *gb = sweep_find(sw, stride, d0 + tg[t].s, &tt);
-        tt = ((d0 - 0.5 * (gb[0] + gb[1])) + tg[t].s) / (0.5 * (gb[1] - gb[0]));
-        double sum = radial_clenshaw(gb + SEG_CQ, m, tt) - pa;
-        for (const double *g = ga; g < gb; g += stride) { /* the whole segments between */
-            double tot = 0;
-            for (int j = 0; j <= m; j++) tot += g[SEG_CQ + j];
-            sum += tot;
+    double ta, unused;
+    const double *ga = sweep_find(sw, stride, d0, &ta);
+    ta = (d0 - 0.5 * (ga[0] + ga[1])) / (0.5 * (ga[1] - ga[0]));
+    double pa = radial_clenshaw(ga + SEG_CQ, m, ta);
+    /* each target's integral from its segment's start, eight at a time (a short chunk repeats
+     * its last target; the offset is added to d0 - mid, not d0 to it, so that it keeps its
+     * digits), plus the whole segments from the least target's to its own, summed once along
+     * the row in order of offset (a one-sided row's nodes are in order along the line; any
+     * other order would only start the sum again) */
+    int back = nt > 1 && tg[nt - 1].s < tg[0].s;
+    const double *g = ga;
+    double run = 0;
+    for (size_t q0 = 0; q0 < nt; q0 += 8) {
+        const double *c[8];
+        const struct target *p[8];
+        double tt[8], out[8];
+        for (int l = 0; l < 8; l++) {
+            size_t q = q0 + (size_t)l < nt ? q0 + (size_t)l : nt - 1;
+            p[l] = &tg[back ? nt - 1 - q : q];
+            const double *gb = sweep_find(sw, stride, d0 + p[l]->s, &unused);
+            tt[l] = ((d0 - 0.5 * (gb[0] + gb[1])) + p[l]->s) / (0.5 * (gb[1] - gb[0]));
+            c[l] = gb + SEG_CQ;
         }
-        vq[tg[t].at] = sum;
+        clenshaw8(c, tt, m, out);
+        for (size_t l = 0; l < 8 && q0 + l < nt; l++) {
+            const double *gb = c[l] - SEG_CQ;
+            if (gb < g) g = ga, run = 0;
+            for (; g < gb; g += stride) run += g[SEG_TQ];
+            vq[p[l]->at] = (out[l] - pa) + run;
+        }
     }
 }
 
@@ -883,7 +909,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 if (s < sp->smin) sp->omin = other, sp->hmin = hy, sp->d0 = df, sp->m0 = m;
                 sp->smin = fmin(sp->smin, s), sp->smax = fmax(sp->smax, s);
                 sp->dmax = fmax(sp->dmax, df);
-                wk->tg[nt++] = (struct target){df, row * (size_t)n1 + (size_t)m, rn[m]};
+                wk->tg[nt++] = (struct target){df, row * (size_t)n1 + (size_t)m, rn[m], other, hy};
                 if (rn[m] == 2 && wk->rowp[row] == UINT32_MAX) {
                     if (rows_reserve(wk, 0, nprow + 1)) return -ENOMEM;
                     wk->rowp[row] = (uint32_t)nprow++;
@@ -893,7 +919,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
             sp->one_sided = !foot && below != above && wk->rowp[row] == UINT32_MAX;
             offsets |= sp->one_sided;
             dmax = fmax(dmax, sp->dmax);
-            if (sp->one_sided) one_sided_offsets(wk, sp, row, dist);
+            if (sp->one_sided) one_sided_offsets(wk, sp, dist);
         }
         if (smax > 1 && offsets && sweep_offset_pays(o, ch->near_foot, w, wk->span, nrow - row0)) {
             /* the rows that straddle the foot share one sweep from it; each one-sided row has
