@@ -237,7 +237,8 @@ struct target {
     double s;
     size_t at;
     unsigned char need;
-    double o, h; /* its distance from the foot along the line and from the spot (wedge_pass) */
+    uint32_t seg; /* a one-sided row's target on the foot's sweep: its segment (eval_from_foot) */
+    double o, h;  /* its distance from the foot along the line and from the spot (wedge_pass) */
 };
 
 /* sweep_eval's Q part for four targets at once: the four Clenshaw recurrences are independent,
@@ -764,44 +765,63 @@ static void one_sided_offsets(struct work *wk, const struct row_span *sp, double
     }
 }
 
-/* The wedges of a one-sided row's targets from a sweep that starts below them, each less the
- * wedge at the row's least target (a constant that cancels in its cells): summed from the
- * segments between them rather than as a difference of two prefixes from the foot, which for a
- * line far from its spot's foot are nearly equal and large (the whole wedge's flux) against
- * the cells. */
-static void eval_row_from(const struct sweep *sw, int m, const struct target *tg, size_t nt,
-                          double *vq, double d0)
+/* The wedges of the run's rows from the foot's sweep, the targets eight at a time across rows.
+ * A one-sided row's wedges are each less the wedge at the row's least target (a constant that
+ * cancels in its cells), summed from the segments between them rather than taken as a
+ * difference of two prefixes from the foot, which for a line far from its spot's foot are nearly
+ * equal and large (the flux of the whole wedge) against the cells: first each target's integral
+ * from its segment's start (its offset added to d0 - mid, not d0 to it, so that it keeps its
+ * digits), then, row by row in order of offset (a one-sided row's nodes are in order along the
+ * line; any other order would only start the sum again), the whole segments up to it, each
+ * segment's stored integral once. */
+static void eval_from_foot(const struct sweep *sw, int m, struct work *wk,
+                           const struct row_span *span, size_t nrows)
 {
     int stride = SEG_STRIDE(m);
-    double ta, unused;
-    const double *ga = sweep_find(sw, stride, d0, &ta);
-    ta = (d0 - 0.5 * (ga[0] + ga[1])) / (0.5 * (ga[1] - ga[0]));
-    double pa = radial_clenshaw(ga + SEG_CQ, m, ta);
-    /* each target's integral from its segment's start, eight at a time (a short chunk repeats
-     * its last target; the offset is added to d0 - mid, not d0 to it, so that it keeps its
-     * digits), plus the whole segments from the least target's to its own, summed once along
-     * the row in order of offset (a one-sided row's nodes are in order along the line; any
-     * other order would only start the sum again) */
-    int back = nt > 1 && tg[nt - 1].s < tg[0].s;
-    const double *g = ga;
-    double run = 0;
-    for (size_t q0 = 0; q0 < nt; q0 += 8) {
-        const double *c[8];
-        const struct target *p[8];
-        double tt[8], out[8];
-        for (int l = 0; l < 8; l++) {
-            size_t q = q0 + (size_t)l < nt ? q0 + (size_t)l : nt - 1;
-            p[l] = &tg[back ? nt - 1 - q : q];
-            const double *gb = sweep_find(sw, stride, d0 + p[l]->s, &unused);
-            tt[l] = ((d0 - 0.5 * (gb[0] + gb[1])) + p[l]->s) / (0.5 * (gb[1] - gb[0]));
-            c[l] = gb + SEG_CQ;
+    struct target plain[8];
+    struct target *side[8];
+    const double *c[8];
+    double tt[8], out[8], unused;
+    int np = 0, ns = 0;
+    for (size_t q = 0; q < nrows; q++) {
+        const struct row_span *sp = &span[q];
+        for (size_t t = sp->t0; t < sp->t1; t++) {
+            struct target *p = &wk->tg[t];
+            if (!sp->one_sided) {
+                plain[np++] = *p;
+                if (np == 8) eval_targets(sw, m, plain, 8, wk), np = 0;
+                continue;
+            }
+            const double *g = sweep_find(sw, stride, sp->d0 + p->s, &unused);
+            tt[ns] = ((sp->d0 - 0.5 * (g[0] + g[1])) + p->s) / (0.5 * (g[1] - g[0]));
+            c[ns] = g + SEG_CQ;
+            p->seg = (uint32_t)((g - sw->seg) / stride);
+            side[ns++] = p;
+            if (ns == 8) {
+                clenshaw8(c, tt, m, out);
+                for (int l = 0; l < 8; l++) wk->vq[side[l]->at] = out[l];
+                ns = 0;
+            }
         }
-        clenshaw8(c, tt, m, out);
-        for (size_t l = 0; l < 8 && q0 + l < nt; l++) {
-            const double *gb = c[l] - SEG_CQ;
+    }
+    if (np) eval_targets(sw, m, plain, (size_t)np, wk);
+    for (int l = 0; l < ns; l++) wk->vq[side[l]->at] = radial_clenshaw(c[l], m, tt[l]);
+    for (size_t q = 0; q < nrows; q++) {
+        const struct row_span *sp = &span[q];
+        if (!sp->one_sided || sp->t1 == sp->t0) continue;
+        double ta, run = 0;
+        const double *ga = sweep_find(sw, stride, sp->d0, &ta), *g = ga;
+        ta = (sp->d0 - 0.5 * (ga[0] + ga[1])) / (0.5 * (ga[1] - ga[0]));
+        double pa = radial_clenshaw(ga + SEG_CQ, m, ta);
+        size_t nt = sp->t1 - sp->t0;
+        const struct target *tg = wk->tg + sp->t0;
+        int back = nt > 1 && tg[nt - 1].s < tg[0].s;
+        for (size_t k = 0; k < nt; k++) {
+            const struct target *p = &tg[back ? nt - 1 - k : k];
+            const double *gb = sw->seg + (size_t)p->seg * stride;
             if (gb < g) g = ga, run = 0;
             for (; g < gb; g += stride) run += g[SEG_TQ];
-            vq[p[l]->at] = (out[l] - pa) + run;
+            wk->vq[p->at] = (wk->vq[p->at] - pa) + run;
         }
     }
 }
@@ -909,7 +929,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 if (s < sp->smin) sp->omin = other, sp->hmin = hy, sp->d0 = df, sp->m0 = m;
                 sp->smin = fmin(sp->smin, s), sp->smax = fmax(sp->smax, s);
                 sp->dmax = fmax(sp->dmax, df);
-                wk->tg[nt++] = (struct target){df, row * (size_t)n1 + (size_t)m, rn[m], other, hy};
+                wk->tg[nt++] = (struct target){df, row * (size_t)n1 + (size_t)m, rn[m], 0, other, hy};
                 if (rn[m] == 2 && wk->rowp[row] == UINT32_MAX) {
                     if (rows_reserve(wk, 0, nprow + 1)) return -ENOMEM;
                     wk->rowp[row] = (uint32_t)nprow++;
@@ -955,14 +975,7 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
             const struct sweep *sw = sweep_get(o->cache, ch, o, &wk->sw, w, dmax, evals);
             if (!sw) return -ENOMEM;
             if (!offsets) eval_targets(sw, ch->m, wk->tg, nt, wk); /* eight at a time */
-            for (size_t q = 0; offsets && q < nrow - row0; q++) {
-                const struct row_span *sp = &wk->span[q];
-                if (sp->t1 == sp->t0) continue;
-                if (sp->one_sided) /* from its least target, as its own sweep would be */
-                    eval_row_from(sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk->vq, sp->d0);
-                else
-                    eval_targets(sw, ch->m, wk->tg + sp->t0, sp->t1 - sp->t0, wk);
-            }
+            else eval_from_foot(sw, ch->m, wk, wk->span, nrow - row0);
         }
         i0 = i1;
     }
