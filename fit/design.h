@@ -19,14 +19,14 @@
 #include "base/err.h"
 #include "fit/stop.h"
 
-/* Sweeps kept across calls (design.c): a sweep depends only on the line's scaled distance
+/* Sweeps kept across calls (wedge_sweep.c): a sweep depends only on the line's scaled distance
  * w = a |e - x| and the options, so fits that share spot positions and edge lines (every r of a
  * sweep over r has the lines 0 and pitch, r = 4 has r = 2's, the F-test refits an r of the sweep,
  * a square raster has the same offsets across as along) build each distinct w once. Results are
  * the same with or without a cache (segments never depend on which targets asked for them). Not
  * thread-safe: one cache per thread of work; it serves the options of its first call, and the
- * sweeps' shape (design.c: short segments near the foot when any spot is outside the pixel), and
- * is bypassed by calls with others; it stops growing at 64 MB. */
+ * sweeps' shape (wedge_sweep.c: short segments near the foot when any spot is outside the
+ * pixel), and is bypassed by calls with others; it stops growing at 64 MB. */
 typedef struct fit_design_cache fit_design_cache_t;
 
 typedef struct fit_design_cache_stats {

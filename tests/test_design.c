@@ -62,7 +62,7 @@ int main(void)
     /* the raster of a fit of the whole scan (`--region all`): spots up to 12 um (18 cells) from
      * the pixel beside it and across its corners, in one batch: lines at the same distance share
      * a sweep from the foot, or, beyond an edge, have their own from the nearest node. Before
-     * sweeps were kept as offsets from their origin, with short segments near it (design.c's
+     * sweeps were kept as offsets from their origin, with short segments near it (wedge_sweep.c's
      * sweep_extend), these rows lost up to 9e-11 (R = 1.34 and 5, r = 7: now 5e-14 and 3e-13)
      * and 4e-8 at the 1e-9 setting (R = 0.3: now 6e-11) */
     {
