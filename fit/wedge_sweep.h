@@ -2,7 +2,7 @@
  * cosh s ds (f = Q or P) along an edge line at scaled distance w from a spot, in the variable
  * E = e^s, as Chebyshev segments that any target evaluates by one Clenshaw sum; and the
  * cross-call cache of sweeps (design.h). Internal to fit/: design.c builds the matrix from
- * these. Not thread-safe per sweep or cache; no I/O. */
+ * these. A sweep or a cache belongs to one thread at a time; no I/O. */
 #ifndef IPSD_FIT_WEDGE_SWEEP_H
 #define IPSD_FIT_WEDGE_SWEEP_H
 
@@ -13,6 +13,7 @@
 
 #define MAX_ORDER 64
 
+/* The Chebyshev rule of a build's sweeps (cheb_init), and their shape. */
 struct cheb {
     int m;
     int near_foot;       /* sweeps start with segments that grow from a*dv = seg_dv along the line
