@@ -59,20 +59,22 @@ static const struct {
                 {1e-11, 14}, {1e-13, 16}, {1e-15, 20}};
 #define N_SETTINGS (sizeof settings / sizeof settings[0])
 
-/* The spot positions of a table: the reference scan's, or FAR_N spots around the pixel at
- * 50-500 um in every direction (a small spot's jitter far from its pixel, POST /api/jitter:
- * each line's sweep starts at its nearest node, design.c). */
-enum { SET_REF, SET_FAR, FAR_N = 16 };
+/* The spot positions of a table: the reference scan's; AROUND_N spots of a 15 x 15 raster at
+ * 2.5 um steps around the pixel, 0.5-14.5 um beyond its edges (the raster of `--region all`, in
+ * one batch: lines at equal distances share sweeps); or FAR_N spots around the pixel at 50-500
+ * um in every direction (a small spot's jitter far from its pixel, POST /api/jitter: each line's
+ * sweep starts at its nearest node, design.c). */
+enum { SET_REF, SET_AROUND, SET_FAR, AROUND_N = 15 * 15 - 9, FAR_N = 16 };
 
 /* Spot radii: the paper's, and two extremes at a few settings (indices into settings); then a
  * 0.0122 um spot (5 nm light) and a 0.05 um one far from the pixel. */
 static const struct {
     double R;
     int first, step, set;
-} radii[] = {{1.34, 0, 1, SET_REF}, {30.0, 1, 2, SET_REF}, {0.05, 1, 2, SET_REF},
-             {0.0122, 1, 2, SET_FAR}, {0.05, 1, 2, SET_FAR}};
+} radii[] = {{1.34, 0, 1, SET_REF},    {30.0, 1, 2, SET_REF},   {0.05, 1, 2, SET_REF},
+             {1.34, 1, 2, SET_AROUND}, {0.0122, 1, 2, SET_FAR}, {0.05, 1, 2, SET_FAR}};
 
-/* The positions of set (n of them) into x, y (room for FAR_N or the reference scan's). */
+/* The positions of set (n of them) into x, y (room for the largest set's). */
 static size_t spot_set(int set, double *x, double *y)
 {
     const fit_scan_t *s = &bench_scan;
@@ -80,6 +82,15 @@ static size_t spot_set(int set, double *x, double *y)
         memcpy(x, s->x_um, sizeof(double) * s->n);
         memcpy(y, s->y_um, sizeof(double) * s->n);
         return s->n;
+    }
+    if (set == SET_AROUND) {
+        size_t n = 0;
+        for (int q = 0; q < 15 * 15; q++) {
+            double xq = -14.5 + 2.5 * (q % 15), yq = -14.5 + 2.5 * (q / 15);
+            if (xq >= 0 && xq <= s->pitch_um && yq >= 0 && yq <= s->pitch_um) continue;
+            x[n] = xq, y[n++] = yq;
+        }
+        return n;
     }
     for (int k = 0; k < FAR_N; k++) { /* distances 50..500 um, angles 22.5 deg + 0.3 rad apart */
         double d = 50 + 450.0 * k / (FAR_N - 1), t = 0.3 + k * (M_PI / 8 + 0.3);
@@ -205,7 +216,7 @@ static int time_design(const double *x, const double *y, size_t n, const double 
 /* Fills rows (room for N_SETTINGS per radius) and sets *n_rows. */
 static int bench_design(int quick, struct design_row *rows, int *n_rows, err_t *err)
 {
-    size_t ns = bench_scan.n > FAR_N ? bench_scan.n : FAR_N, nm = ns * BENCH_R * BENCH_R;
+    size_t ns = bench_scan.n > AROUND_N ? bench_scan.n : AROUND_N, nm = ns * BENCH_R * BENCH_R;
     double *ref = malloc(sizeof(double) * nm), *A = malloc(sizeof(double) * nm);
     double *times = malloc(sizeof(double) * MAX_RUNS), *x = malloc(sizeof(double) * 2 * ns);
     double *y = x ? x + ns : NULL;
@@ -411,6 +422,9 @@ static void print_table(const struct design_row *rows, int n, const struct job_t
            "radial evals", "skipped", "ref bound", "row err vs tol");
     for (int i = 0; i < n; i++) {
         const struct design_row *r = &rows[i];
+        if (r->set == SET_AROUND && (i == 0 || rows[i - 1].set != SET_AROUND))
+            printf("Spots around the pixel: %d of a 15 x 15 raster at 2.5 um steps, 0.5-14.5 um "
+                   "beyond its edges (the raster of --region all), r = %d:\n", AROUND_N, BENCH_R);
         if (r->set == SET_FAR && (i == 0 || rows[i - 1].set != SET_FAR))
             printf("Spots far from the pixel: %d at 50-500 um from its centre in all directions "
                    "(a small spot's jitter, POST /api/jitter), r = %d:\n", FAR_N, BENCH_R);
@@ -478,7 +492,9 @@ static json_t *bench_json(const struct design_row *rows, int n, const struct job
                       "skipped", (json_int_t)r->st.skipped, "ref_bound",
                       fitjson_num(r->ref_bound)));
         json_object_set_new(json_array_get(design, (size_t)i), "spots",
-                            json_string(r->set == SET_FAR ? "far" : "reference"));
+                            json_string(r->set == SET_FAR      ? "far"
+                                        : r->set == SET_AROUND ? "around"
+                                                               : "reference"));
         json_object_set_new(json_array_get(design, (size_t)i), "rows_left_out",
                             json_integer(r->rows_out));
         json_object_set_new(json_array_get(design, (size_t)i), "left_out_max_um2",
