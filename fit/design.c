@@ -422,7 +422,7 @@ static void eval_from_foot(const struct sweep *sw, int m, struct work *wk,
     struct target plain[8];
     struct target *side[8];
     const double *c[8];
-    double tt[8], out[8], unused;
+    double tt[8], out[8];
     int np = 0, ns = 0;
     for (size_t q = 0; q < nrows; q++) {
         const struct row_span *sp = &span[q];
@@ -433,8 +433,7 @@ static void eval_from_foot(const struct sweep *sw, int m, struct work *wk,
                 if (np == 8) eval_targets(sw, m, plain, 8, wk), np = 0;
                 continue;
             }
-            const double *g = sweep_find(sw, stride, sp->d0 + p->s, &unused);
-            tt[ns] = ((sp->d0 - 0.5 * (g[0] + g[1])) + p->s) / (0.5 * (g[1] - g[0]));
+            const double *g = sweep_find_from(sw, stride, sp->d0, p->s, &tt[ns]);
             c[ns] = g + SEG_CQ;
             p->seg = (uint32_t)((g - sw->seg) / stride);
             side[ns++] = p;
@@ -451,8 +450,7 @@ static void eval_from_foot(const struct sweep *sw, int m, struct work *wk,
         const struct row_span *sp = &span[q];
         if (!sp->one_sided || sp->t1 == sp->t0) continue;
         double ta, run = 0;
-        const double *ga = sweep_find(sw, stride, sp->d0, &ta), *g = ga;
-        ta = (sp->d0 - 0.5 * (ga[0] + ga[1])) / (0.5 * (ga[1] - ga[0]));
+        const double *ga = sweep_find_from(sw, stride, sp->d0, 0, &ta), *g = ga;
         double pa = radial_clenshaw(ga + SEG_CQ, m, ta);
         size_t nt = sp->t1 - sp->t0;
         const struct target *tg = wk->tg + sp->t0;
@@ -564,8 +562,8 @@ static int wedge_pass(const struct cheb *ch, const fit_design_opts_t *o, struct 
                 }
                 below |= at < 0, above |= at > 0;
                 /* E, and the target E - 1 without the cancellation of 1 + 0.001 - 1 */
-                double hy = sqrt(other * other + dist * dist), s = (other + hy) / dist,
-                       df = (other + other * other / (hy + dist)) / dist;
+                double hy = sqrt(other * other + dist * dist),
+                       df = (other + other * other / (hy + dist)) / dist, s = 1 + df;
                 if (s > smax) smax = s;
                 if (s < sp->smin) sp->omin = other, sp->hmin = hy, sp->d0 = df, sp->m0 = m;
                 sp->smin = fmin(sp->smin, s), sp->smax = fmax(sp->smax, s);

@@ -68,6 +68,18 @@ static inline const double *sweep_find(const struct sweep *sw, int stride, doubl
     return g;
 }
 
+/* The segment holding offset d0 + s and its place in it, t = ((d0 - mid) + s) / half-length:
+ * the small offset s of a one-sided row's node from its least target (at d0 on a sweep from the
+ * foot) is added to d0 - mid, not to d0, so that it keeps its digits. */
+static inline const double *sweep_find_from(const struct sweep *sw, int stride, double d0,
+                                            double s, double *t)
+{
+    double unused;
+    const double *g = sweep_find(sw, stride, d0 + s, &unused);
+    *t = ((d0 - 0.5 * (g[0] + g[1])) + s) / (0.5 * (g[1] - g[0]));
+    return g;
+}
+
 /* Starts sw afresh for the line at scaled distance w > 0, origin E0 = 1 (keeps its buffer). */
 void sweep_reset(struct sweep *sw, double w);
 /* Appends segments to sw until they cover E - E0 up to emax (wedge_sweep.c has the rules). */
