@@ -15,6 +15,7 @@
 #include "fit/gslerr.h"
 #include "gemm.h"
 #include "lm.h"
+#include "points.h"
 #include "wls.h"
 
 #define COND_LIMIT 1e8     /* beyond: near-collinear columns, the map is noise-dominated */
@@ -67,57 +68,6 @@ int fit_scan_check(const fit_scan_t *scan, err_t *err)
     return 0;
 }
 
-/* The usable points of a scan: finite, below full scale. */
-struct points {
-    size_t n, *idx;
-    double *x, *y, *d, *sigma, *w; /* position, signal - bias, uncertainty, 1/sigma^2 */
-};
-
-static void points_free(struct points *p)
-{
-    free(p->idx);
-    free(p->x);
-    free(p->sigma);
-}
-
-static int points_select(const fit_scan_t *scan, fit_noise_t noise, struct points *p,
-                         fit_result_t *res)
-{
-    size_t n = scan->n ? scan->n : 1;
-    memset(p, 0, sizeof *p);
-    p->idx = malloc(sizeof(size_t) * n);
-    p->x = malloc(sizeof(double) * 3 * n);
-    p->sigma = malloc(sizeof(double) * 2 * n);
-    if (!p->idx || !p->x || !p->sigma) return -ENOMEM;
-    p->y = p->x + n;
-    p->d = p->y + n;
-    p->w = p->sigma + n;
-    /* sigma floor: the rounding of each frame to whole DN, variance 1/12 DN^2 (only reached
-     * with zero read noise at zero signal, where the models give 0) */
-    double floor = sqrt(1.0 / 12 / scan->frames);
-    for (size_t k = 0; k < scan->n; k++) {
-        double x = scan->x_um[k], y = scan->y_um[k], s = scan->signal_dn[k];
-        if (!isfinite(x) || !isfinite(y) || !isfinite(s)) {
-            res->n_nonfinite++;
-            continue;
-        }
-        if (scan->full_scale_dn > 0 && s >= scan->full_scale_dn) {
-            res->n_saturated++;
-            continue;
-        }
-        size_t q = p->n++;
-        p->idx[q] = k;
-        p->x[q] = x;
-        p->y[q] = y;
-        p->d[q] = s - scan->bias_dn;
-        p->sigma[q] = fmax(fit_noise_sigma(noise, scan, s), floor);
-        p->w[q] = 1 / (p->sigma[q] * p->sigma[q]);
-    }
-    if (res->n_nonfinite) res->flags |= FIT_NONFINITE;
-    if (res->n_saturated) res->flags |= FIT_SATURATED;
-    return 0;
-}
-
 /* S = T / mean(T) and its covariance through J = (I - S 1^T / m) / mean(T): the scale that LM
  * cannot see (I0 against S) is fixed by the normalisation. */
 static void normalise(const double *T, const double *covT, size_t m, fit_result_t *res)
@@ -144,7 +94,7 @@ static void normalise(const double *T, const double *covT, size_t m, fit_result_
 }
 
 /* The paper's LM from S = 1 (method lm/both); I0 starts at the best constant-map amplitude. */
-static int run_lm(const double *A, const struct points *p, size_t m, const fit_options_t *opts,
+static int run_lm(const double *A, const fit_points_t *p, size_t m, const fit_options_t *opts,
                   double *T, fit_result_t *res)
 {
     double *S = malloc(sizeof(double) * m), num = 0, den = 0;
@@ -182,7 +132,7 @@ static int run_lm(const double *A, const struct points *p, size_t m, const fit_o
  * (wls.h: the squared row norms of the thin Q, exact to rounding, not A C A^T, which loses
  * cond^2 times the rounding). A point that alone determines a parameter (h_kk -> 1) makes it
  * infinite. */
-static double loo_chi2(const double *A, const struct points *p, size_t m, const double *T,
+static double loo_chi2(const double *A, const fit_points_t *p, size_t m, const double *T,
                        const double *hat)
 {
     double sum = 0;
@@ -198,7 +148,7 @@ static double loo_chi2(const double *A, const struct points *p, size_t m, const 
 }
 
 /* Solves for T = I0 S on the selected points and fills the result's statistics and map. */
-static int solve(const double *A, const struct points *p, int r, const fit_options_t *opts,
+static int solve(const double *A, const fit_points_t *p, int r, const fit_options_t *opts,
                  fit_result_t *res)
 {
     size_t m = (size_t)r * r, n = p->n;
@@ -258,7 +208,7 @@ out:
 
 /* model_dn: M_k + bias for every input point that was used, NaN for the others; resid: the
  * normalised residuals (signal - M_k - bias) / sigma_k of the same points. */
-static int fill_model(const fit_scan_t *scan, const double *A, const struct points *p, int r,
+static int fill_model(const fit_scan_t *scan, const double *A, const fit_points_t *p, int r,
                       fit_result_t *res)
 {
     size_t m = (size_t)r * r, nn = scan->n ? scan->n : 1;
@@ -291,9 +241,12 @@ int fit_map(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_result
     if (r < 1 || r > 32) return err_set(err, -EINVAL, "r must be between 1 and 32 (got %d)", r);
     int rc = fit_scan_check(scan, err);
     if (rc) return rc;
-    struct points p;
+    fit_points_t p;
     double *A = NULL, t0 = clock_mono_ms();
-    if ((rc = points_select(scan, o.noise, &p, out))) goto out;
+    if ((rc = fit_points_select(scan, o.noise, &p, &out->n_nonfinite, &out->n_saturated)))
+        goto out;
+    if (out->n_nonfinite) out->flags |= FIT_NONFINITE;
+    if (out->n_saturated) out->flags |= FIT_SATURATED;
     if (p.n == 0) out->flags |= FIT_NO_POINTS;
     else if ((size_t)out->params > p.n) out->flags |= FIT_UNDERDETERMINED;
     out->n_used = p.n;
@@ -320,7 +273,7 @@ out:
     else if (rc == -EDOM) err_set(err, rc, "the linear algebra failed for r = %d", r);
     else if (rc == -ECANCELED) err_set(err, rc, "fit stopped (r = %d)", r);
     if (rc) fit_result_free(out);
-    points_free(&p);
+    fit_points_free(&p);
     free(A);
     return rc;
 }
@@ -330,7 +283,7 @@ struct joint_part {
     double *A, *T, *cov;
 };
 
-static int joint_part(const fit_scan_t *scan, const struct points *p, int r, const fit_options_t *o,
+static int joint_part(const fit_scan_t *scan, const fit_points_t *p, int r, const fit_options_t *o,
                       struct joint_part *j, err_t *err)
 {
     size_t m = (size_t)r * r;
@@ -372,12 +325,11 @@ int fit_map_joint_cov(const fit_scan_t *scan, int r1, int r2, const fit_options_
     int rc = fit_scan_check(scan, err);
     if (rc) return rc;
     size_t m1 = (size_t)r1 * r1, m2 = (size_t)r2 * r2;
-    struct points p;
-    fit_result_t dummy;
-    memset(&dummy, 0, sizeof dummy);
+    fit_points_t p;
+    size_t n_nonfinite, n_saturated;
     struct joint_part a = {0}, b = {0};
     double *G = NULL, *J1 = NULL, *J2 = NULL, *X = NULL, *Y = NULL;
-    if ((rc = points_select(scan, o.noise, &p, &dummy))) {
+    if ((rc = fit_points_select(scan, o.noise, &p, &n_nonfinite, &n_saturated))) {
         rc = err_set(err, rc, "out of memory");
         goto out;
     }
@@ -413,7 +365,7 @@ int fit_map_joint_cov(const fit_scan_t *scan, int r1, int r2, const fit_options_
 out:
     free(a.A), free(a.T), free(a.cov), free(b.A), free(b.T), free(b.cov);
     free(G), free(J1), free(J2), free(X), free(Y);
-    points_free(&p);
+    fit_points_free(&p);
     return rc;
 }
 
