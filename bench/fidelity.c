@@ -13,7 +13,8 @@
  * every case for studying rules offline; --explain prints, under every case whose recommendation
  * misses the best r by more than 1.1x, the criteria the rule weighed for each r: reduced chi2,
  * leave-one-out chi2 per point, noise, contrast, resolution error and expected error; --simcheck
- * scores the simulation-based check of the rule's pick, docs/numerics.md's fifth round). */
+ * scores the simulation-based check of the rule's pick, docs/numerics.md's fifth round; --krige
+ * scores the kriged map, fit/krige.h). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -85,7 +86,7 @@ struct run {
     int quick, tune, r_max, seeds, first_seed, raster; /* raster: index + 1, 0 all */
     const char *scene;                                  /* NULL: every family */
     FILE *dump;
-    int explain, simcheck;
+    int explain, simcheck, krige;
     fit_noise_t noise;
     fit_recommend_opts_t rules[FID_MAX_RULES];
     int n_rules;
@@ -99,6 +100,7 @@ static int parse(int argc, char **argv, struct run *u)
         else if (strcmp(argv[i], "--tune") == 0) u->tune = 1;
         else if (strcmp(argv[i], "--explain") == 0) u->explain = 1;
         else if (strcmp(argv[i], "--simcheck") == 0) u->simcheck = 1;
+        else if (strcmp(argv[i], "--krige") == 0) u->krige = 1;
         else if (strcmp(argv[i], "--sigma") == 0 && i + 1 < argc &&
                  fit_noise_parse(argv[i + 1], &u->noise) == 0)
             i++;
@@ -123,11 +125,11 @@ static int parse(int argc, char **argv, struct run *u)
         else {
             fprintf(stderr, "usage: ipsd-bench-fidelity [--quick] [--tune] [--r-max 1..%d] "
                             "[--seeds N] [--first-seed S] [--raster 1..%zu] [--scene NAME] "
-                            "[--sigma paper|shot+read] [--dump FILE] [--explain] [--simcheck]\n"
+                            "[--sigma paper|shot+read] [--dump FILE] [--explain] [--simcheck] [--krige]\n"
                             "  seeds S..S+N-1 (default 1..3); --raster: 9x9, 13x13, 19x19, "
                             "51x51 full; --dump: every fit's map, S_err and chi2 and the "
                             "case's rms by r, as text, for studying rules offline; --explain: "
-                            "the rule's criteria by r under every case it misses\n",
+                            "the rule's criteria by r under every case it misses; --krige: the kriged map too\n",
                     FID_R_MAX, N_RASTERS);
             return 2;
         }
@@ -342,6 +344,43 @@ static void tally_case(struct tally *k, const fid_result_t *f, int n_rules)
     k->z2_rec_res += f->z2_rec_res, k->z2_shrunk_res += f->z2_shrunk_res;
 }
 
+/* The kriged map (--krige, fit/krige.h) over a set of cases: within 1.1x of the best r, its
+ * mean ratio beside the shrunk map's, S_err's honesty, cost. */
+struct ktally {
+    int n, ok, smooth;
+    double worst, sum, sum_shrunk, ms_sum, ms_max, z2;
+    long z_n, z_in2;
+};
+
+static double ratio_kriged(const fid_result_t *f)
+{
+    return f->r_best > 0 && isfinite(f->rms_kriged)
+               ? f->rms_kriged / fmax(f->rms[f->r_best], 1e-3)
+               : INFINITY;
+}
+
+static void ktally_add(struct ktally *k, const fid_result_t *f)
+{
+    double q = ratio_kriged(f);
+    k->n++;
+    k->ok += q <= OK_RATIO;
+    k->worst = fmax(k->worst, q);
+    k->sum += q;
+    k->sum_shrunk += ratio_shrunk(f);
+    k->smooth += f->kriged_smooth;
+    if (isfinite(f->kriged_ms)) k->ms_sum += f->kriged_ms, k->ms_max = fmax(k->ms_max, f->kriged_ms);
+    k->z2 += f->z2_kriged, k->z_n += f->z_n_kriged, k->z_in2 += f->z_in2_kriged;
+}
+
+static void ktally_print(const char *name, const struct ktally *k)
+{
+    if (!k->n) return;
+    printf("  %-12s %5d | %4d/%-4d %7.2f   %6.3f   %6.3f | %4d | %6.3f %5.1f%% | %8.1f %8.1f\n",
+           name, k->n, k->ok, k->n, k->worst, k->sum / k->n, k->sum_shrunk / k->n, k->smooth,
+           k->z_n ? sqrt(k->z2 / (double)k->z_n) : NAN,
+           k->z_n ? 100.0 * (double)k->z_in2 / (double)k->z_n : NAN, k->ms_sum / k->n, k->ms_max);
+}
+
 /* Adds tally k into sum. */
 static void tally_sum(struct tally *sum, const struct tally *k)
 {
@@ -507,6 +546,8 @@ int main(int argc, char **argv)
     struct sweep_ctx sctx = {.dump = u.dump, .explain = u.explain ? &ex : NULL,
                              .simcheck = u.simcheck};
     struct tally sim_all = {0};
+    struct ktally kt[N_SCENES + 1];
+    memset(kt, 0, sizeof kt);
     struct conf_tally ct = {0};
     double t0 = clock_mono_s();
     printf("map rms error against the simulator's truth (mean-1 maps, 240 x 240 samples)\n");
@@ -528,7 +569,7 @@ int main(int argc, char **argv)
                                     .n_rules = u.n_rules,
                                     .on_sweep = u.dump || u.explain || u.simcheck ? on_sweep
                                                                                   : NULL,
-                                    .on_sweep_ctx = &sctx};
+                                    .on_sweep_ctx = &sctx, .krige = u.krige};
                     fid_result_t f;
                     err_t err;
                     if (fid_run(&c, u.r_max, &f, &err)) {
@@ -551,6 +592,13 @@ int main(int argc, char **argv)
                     tally_case(&t[ri], &f, u.n_rules);
                     tally_case(&ts[si], &f, u.n_rules);
                     conf_add(&conf, &f);
+                    if (u.krige) {
+                        ktally_add(&kt[si], &f);
+                        ktally_add(&kt[N_SCENES], &f);
+                        if (ratio_kriged(&f) > OK_RATIO)
+                            printf("  ^ kriged map %.2fx the best r = %d (rms %.5f)\n",
+                                   ratio_kriged(&f), f.r_best, f.rms_kriged);
+                    }
                     if (ratio(&f, f.r_rec[0]) > OK_RATIO) {
                         printf("  ^ recommended r = %d is %.2fx the best r = %d\n", f.r_rec[0],
                                ratio(&f, f.r_rec[0]), f.r_best);
@@ -563,6 +611,14 @@ int main(int argc, char **argv)
                 conf_close(&conf, u.r_max, name, &ct);
             }
     print_summary(t, ts, &ct, &u);
+    if (u.krige) {
+        printf("\nkriged map (fit/krige.h) against the best r in hindsight: cases within %.1fx, "
+               "worst; mean ratio of the kriged and of the shrunk map; cases with the smooth part; "
+               "S_err against the truth's fine-cell means (rms z, within 2 sigma); ms mean, max\n",
+               OK_RATIO);
+        for (size_t si = 0; si < N_SCENES; si++) ktally_print(scenes[si], &kt[si]);
+        ktally_print("all", &kt[N_SCENES]);
+    }
     if (u.simcheck) {
         static const char *const names[N_SIM] = {"down", "up", "down, else up"};
         printf("\nsimulation-based check of the recommended r (cases within %.1fx, worst):\n",

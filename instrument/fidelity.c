@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "base/clock.h"
+#include "fit/krige.h"
 #include "fit/model.h"
 #include "fit/shrink.h"
 #include "fit/wiener.h"
@@ -94,6 +95,34 @@ out:
     free(tc);
 }
 
+/* The kriged map of the recommended r (fit/krige.h): its error and S_err's honesty against the
+ * truth's mean over each fine cell (both mean 1). */
+static void kriged(const fit_scan_t *scan, const fit_options_t *o, int r, const double *T, int m,
+                   fid_result_t *out)
+{
+    fit_kriged_t k;
+    err_t e;
+    if (r < 1 || fit_krige(scan, r, o, &k, &e)) return;
+    int F = k.grid;
+    double *tc = malloc(sizeof(double) * F * F), mean = 0;
+    out->rms_kriged = fid_map_rms(k.S, F, T, m, SAMPLES);
+    out->kriged_grid = F;
+    out->kriged_smooth = k.smooth;
+    out->kriged_ms = k.ms;
+    if (tc && fit_grid_average(T, m, F, tc) == 0) {
+        for (int q = 0; q < F * F; q++) mean += tc[q] / (F * F);
+        for (int q = 0; q < F * F; q++) {
+            if (!(k.S_err[q] > 0)) continue; /* a flat map without freedom: exactly 1 */
+            double z = (k.S[q] - tc[q] / mean) / k.S_err[q];
+            out->z_n_kriged++;
+            out->z2_kriged += z * z;
+            out->z_in2_kriged += fabs(z) <= 2;
+        }
+    }
+    free(tc);
+    fit_kriged_free(&k);
+}
+
 /* Simulates the case's scan into *sf. */
 static int simulate(const fid_case_t *c, sim_t *sim, scanfile_t *sf, err_t *err)
 {
@@ -132,6 +161,7 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
     for (int r = 0; r <= FID_R_MAX; r++)
         out->rms[r] = out->chi2_red[r] = out->cv_chi2[r] = out->serr_rms[r] = NAN;
     out->rms_wiener = out->rms_wiener_whole = out->rms_shrunk = out->shrunk_factor = NAN;
+    out->rms_kriged = out->kriged_ms = NAN;
     for (int r = 0; r <= FID_R_MAX; r++) out->serr_edge[r] = out->serr_inner[r] = NAN;
     sim_config_t sc = sim_config_default();
     sc.scene = c->scene;
@@ -193,6 +223,7 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
         fit_recommend(&sw, c->rules ? &c->rules[k] : NULL, &rec);
         out->r_rec[k] = rec.r;
         if (k == 0 && sw.shrunk) z_scores(&sw, rec.noise_scale, T, m, out);
+        if (k == 0 && c->krige) kriged(&fitted.scan, &o, rec.r, T, m, out);
     }
     fit_wiener_t w;
     err_t we;

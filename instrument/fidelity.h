@@ -39,6 +39,7 @@ typedef struct fid_case {
     void (*on_sweep)(const fit_scan_t *scan, const fit_options_t *opts, const fit_sweep_t *sw,
                      void *ctx);
     void *on_sweep_ctx;
+    int krige;           /* also estimate the kriged map (fit/krige.h) of the recommended r */
 } fid_case_t;
 
 typedef struct fid_result {
@@ -69,6 +70,11 @@ typedef struct fid_result {
     /* the same with the resolution error added, sqrt(S_err^2 x scatter^2 + S_res^2) */
     double z2_rec_res, z2_shrunk_res;
     int z_in2_rec_res, z_in2_shrunk_res;
+    double rms_kriged;         /* the kriged map's error (NaN: none, not asked or failed) */
+    int kriged_grid, kriged_smooth; /* its F and whether its smooth part was kept */
+    double kriged_ms;          /* its cost */
+    int z_n_kriged, z_in2_kriged; /* its S_err against the truth's mean over each fine cell */
+    double z2_kriged;
     size_t n_raster;           /* the points of the whole raster */
     double sim_ms, fit_ms;     /* cost of the simulated scan and of the whole sweep */
 } fid_result_t;

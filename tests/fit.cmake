@@ -9,6 +9,8 @@ ipsd_add_test(test_pipeline ipsfit PkgConfig::JANSSON)
 ipsd_add_test(test_recommend ipsfit PkgConfig::JANSSON)
 set_tests_properties(test_recommend PROPERTIES TIMEOUT 120) # 162 refits with box integrals
 ipsd_add_test(test_shrink ipsfit) # the shrunk map against analytic cases
+ipsd_add_test(test_krige ipsfit) # the kriged map on box-integral scans of known truths
+set_tests_properties(test_krige PROPERTIES TIMEOUT 120) # 24 x 24 box integrals per point
 ipsd_add_test(test_geometry ipsfit)
 set_tests_properties(test_geometry PROPERTIES TIMEOUT 60) # busy, optimised: 3.5 s; ASan ~4x
 ipsd_add_test(test_ptc ipsfit) # photon transfer (EMVA 1288) against analytic cases

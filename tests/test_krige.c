@@ -1,0 +1,212 @@
+/* test_krige.c: the kriged map (fit/krige.h) on synthetic 9 x 9 scans whose data come from the
+ * accurate box integral (fit/box.h, not the design matrix the kriged map uses) of a known truth,
+ * with deterministic noise: a flat pixel without noise is exactly flat and keeps no smooth part;
+ * a pixel piecewise on the 3 x 3 grid (a dead corner) is recovered from the r = 3 prior within
+ * its error bars and without the smooth part (its likelihood ratio below FIT_KRIGE_LR); a tilted
+ * pixel keeps the smooth part and comes closer to the truth than the r = 6 fit's map; bad
+ * arguments and a stop request are refused. The fidelity against the simulator over many scenes
+ * is bench/fidelity.c --krige and test_fidelity. */
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+
+#include "check.h"
+#include "fit/box.h"
+#include "fit/krige.h"
+#include "fit/noise.h"
+
+#define P 6.0   /* pitch, um */
+#define RAD 1.34 /* spot radius, um */
+#define N 81
+#define BIAS 100.0
+#define GAIN 3.153
+#define READ 5.67
+#define FRAMES 12
+#define PEAK 3000.0 /* DN per unit-peak Airy flux (um^-2) */
+
+/* A deterministic standard normal (splitmix64 and Box-Muller): the tests' noise, fixed by seed. */
+static double gauss(unsigned long long *s)
+{
+    double u[2];
+    for (int i = 0; i < 2; i++) {
+        unsigned long long z = (*s += 0x9E3779B97F4A7C15ULL);
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+        z ^= z >> 31;
+        u[i] = ((double)(z >> 11) + 0.5) / 9007199254740992.0;
+    }
+    return sqrt(-2 * log(u[0])) * cos(2 * M_PI * u[1]);
+}
+
+/* The truth's value on a g x g partition of the pixel (row-major, y then x). */
+typedef double (*truth_fn)(double u, double v); /* u, v: fractions of the pitch */
+
+/* A 9 x 9 scan at 0.6 um steps centred on the pixel: signal = bias + PEAK x the integral of the
+ * Airy spot times the truth (constant on each cell of a g x g partition, the truth at the cell's
+ * centre), by the box integral, plus the noise model's noise times noise (0: none). */
+static void make_scan(truth_fn t, int g, double noise, unsigned long long seed, double *x, double *y,
+                      double *sig, fit_scan_t *sc)
+{
+    *sc = (fit_scan_t){N, x, y, sig, P, RAD, BIAS, GAIN, READ, FRAMES, FIT_FULL_SCALE_DEFAULT};
+    for (int k = 0; k < N; k++) {
+        x[k] = P / 2 + 0.6 * (k % 9 - 4);
+        y[k] = P / 2 + 0.6 * (k / 9 - 4);
+        double s = 0;
+        for (int j = 0; j < g; j++)
+            for (int i = 0; i < g; i++) {
+                fit_rect_t r = {P * i / g, P * (i + 1) / g, P * j / g, P * (j + 1) / g};
+                double v, eb;
+                err_t e;
+                CHECK(fit_box_integral(RAD, &r, x[k], y[k], 1e-12, &v, &eb, &e) == 0);
+                s += v * t((i + 0.5) / g, (j + 0.5) / g);
+            }
+        sig[k] = BIAS + PEAK * s;
+    }
+    for (int k = 0; k < N && noise > 0; k++)
+        sig[k] += noise * fit_noise_sigma(FIT_NOISE_SHOT_READ, sc, sig[k]) * gauss(&seed);
+}
+
+static double flat(double u, double v)
+{
+    (void)u, (void)v;
+    return 1;
+}
+
+static double dead_corner(double u, double v) /* the top-left ninth dead */
+{
+    return u < 1.0 / 3 && v < 1.0 / 3 ? 0 : 1;
+}
+
+static double tilt(double u, double v) /* 30 % across the pixel in x, 10 % in y */
+{
+    return 1 + 0.3 * (u - 0.5) + 0.1 * (v - 0.5);
+}
+
+/* rms over a 120 x 120 sampling of the pixel between a piecewise map (c x c, mean 1) and the
+ * truth scaled to mean 1 on the same samples. */
+static double map_rms(const double *S, int c, truth_fn t)
+{
+    double acc = 0, mt = 0;
+    for (int j = 0; j < 120; j++)
+        for (int i = 0; i < 120; i++) mt += t((i + 0.5) / 120, (j + 0.5) / 120) / (120.0 * 120);
+    for (int j = 0; j < 120; j++)
+        for (int i = 0; i < 120; i++) {
+            double d = S[(j * c / 120) * c + i * c / 120] - t((i + 0.5) / 120, (j + 0.5) / 120) / mt;
+            acc += d * d;
+        }
+    return sqrt(acc / (120.0 * 120));
+}
+
+static fit_options_t shot_read(void)
+{
+    fit_options_t o = fit_options_default();
+    o.noise = FIT_NOISE_SHOT_READ;
+    return o;
+}
+
+static void flat_pixel(void)
+{
+    double x[N], y[N], sig[N];
+    fit_scan_t sc;
+    make_scan(flat, 1, 0, 1, x, y, sig, &sc);
+    fit_options_t o = shot_read();
+    fit_kriged_t k;
+    err_t e;
+    for (int r = 1; r <= 2; r++) { /* no prior part, and the 2 x 2 grid's */
+        CHECK(fit_krige(&sc, r, &o, &k, &e) == 0);
+        CHECK(k.grid == 24 && k.r == r && k.smooth == 0 && k.n_levels == (r == 2));
+        CHECK(k.lr >= 0 && k.lr < FIT_KRIGE_LR);
+        CHECK(isnan(k.length_um) && k.amplitude == 0);
+        double worst = 0; /* data exactly a flat map's: the posterior is the mean itself */
+        for (int c = 0; c < 24 * 24; c++) worst = fmax(worst, fabs(k.S[c] - 1));
+        CHECK(worst < 1e-9);
+        fit_kriged_free(&k);
+        CHECK(k.S == NULL && k.grid == 0);
+    }
+}
+
+static void piecewise_pixel(void)
+{
+    double x[N], y[N], sig[N];
+    fit_scan_t sc;
+    make_scan(dead_corner, 3, 1, 7, x, y, sig, &sc);
+    fit_options_t o = shot_read();
+    fit_kriged_t k;
+    err_t e;
+    CHECK(fit_krige(&sc, 3, &o, &k, &e) == 0);
+    CHECK(k.grid == 24 && k.n_levels == 1 && k.level_q[0] == 3);
+    fprintf(stderr, "dead corner: LR %.2f, rms %.5f\n", k.lr, map_rms(k.S, 24, dead_corner));
+    CHECK(k.smooth == 0 && k.lr < FIT_KRIGE_LR);
+    /* the dead ninth is 0 and the rest 9/8 (mean 1): every fine cell within 4 of its S_err */
+    int bad = 0;
+    for (int j = 0; j < 24; j++)
+        for (int i = 0; i < 24; i++) {
+            double want = i < 8 && j < 8 ? 0 : 9.0 / 8, s = k.S[j * 24 + i];
+            bad += !(fabs(s - want) <= 4 * k.S_err[j * 24 + i]) || !(k.S_err[j * 24 + i] < 0.05);
+        }
+    CHECK(bad == 0);
+    CHECK(map_rms(k.S, 24, dead_corner) < 0.01);
+    fit_kriged_free(&k);
+}
+
+static void tilted_pixel(void)
+{
+    double x[N], y[N], sig[N];
+    fit_scan_t sc;
+    make_scan(tilt, 24, 1, 11, x, y, sig, &sc);
+    fit_options_t o = shot_read();
+    fit_kriged_t k;
+    fit_result_t f;
+    err_t e;
+    CHECK(fit_krige(&sc, 6, &o, &k, &e) == 0);
+    CHECK(fit_map(&sc, 6, &o, &f, &e) == 0);
+    CHECK(k.smooth == 1 && k.lr >= FIT_KRIGE_LR);
+    CHECK(k.length_um > 0 && k.amplitude > 0 && k.evaluations > 0);
+    double rk = map_rms(k.S, 24, tilt), rf = map_rms(f.S, 6, tilt);
+    fprintf(stderr, "tilted pixel: kriged map rms %.5f (smooth part: sd %.3g, length %.3g um, "
+                    "LR %.1f, %d evaluations, %.1f ms), r = 6 fit %.5f\n",
+            rk, k.amplitude, k.length_um, k.lr, k.evaluations, k.ms, rf);
+    /* the r = 6 map is a staircase of a 30 % tilt: 0.3 / 6 / sqrt(12) = 0.014 at the least */
+    CHECK(rf > 0.3 / 6 / sqrt(12));
+    CHECK(rk < 0.7 * rf);
+    fit_result_free(&f);
+    fit_kriged_free(&k);
+}
+
+static int stop_now(void *arg)
+{
+    (void)arg;
+    return 1;
+}
+
+static void refusals(void)
+{
+    double x[N], y[N], sig[N];
+    fit_scan_t sc;
+    make_scan(flat, 1, 0, 1, x, y, sig, &sc);
+    fit_options_t o = shot_read();
+    fit_kriged_t k;
+    err_t e;
+    CHECK(fit_krige(&sc, 0, &o, &k, &e) == -EINVAL && k.S == NULL);
+    CHECK(fit_krige(&sc, 33, &o, &k, &e) == -EINVAL);
+    fit_scan_t two = sc;
+    two.n = 2;
+    CHECK(fit_krige(&two, 3, &o, &k, &e) == -EINVAL && k.S == NULL);
+    fit_scan_t dark = sc;
+    double zero[N];
+    for (int i = 0; i < N; i++) zero[i] = BIAS;
+    dark.signal_dn = zero;
+    CHECK(fit_krige(&dark, 3, &o, &k, &e) == -EINVAL && k.S == NULL);
+    o.stop.poll = stop_now;
+    make_scan(tilt, 6, 1, 3, x, y, sig, &sc);
+    CHECK(fit_krige(&sc, 3, &o, &k, &e) == -ECANCELED && k.S == NULL);
+}
+
+int main(void)
+{
+    flat_pixel();
+    piecewise_pixel();
+    tilted_pixel();
+    refusals();
+    CHECK_DONE();
+}
