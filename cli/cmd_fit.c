@@ -53,6 +53,9 @@ static const char usage[] =
     "  --fit-geometry      fit the spot radius and the scan-grid offset first (at --geometry-r)\n"
     "                      and fit the maps with them\n"
     "  --geometry-r N      r of the geometry fit (1..32, default " GEOMETRY_R_TEXT ")\n"
+    "  --krige             add the kriged map: a Gaussian-process estimate of the sensitivity\n"
+    "                      on a fine grid, with the recommended r's grids in its prior\n"
+    "                      (kriged_map; docs/numerics.md \"The kriged map\")\n"
     "  --threads N         fit the r of the sweep on N threads (1..64; default: the CPUs this\n"
     "                      process may run on, at most " STR(THREADS_DEFAULT_MAX) "); the results do not depend on N\n"
     "  --table             print a report for people instead of JSON\n"
@@ -60,6 +63,7 @@ static const char usage[] =
     "                      each with these options (ips simulate --write-subframe,\n"
     "                      GET /api/scans/{id}/scanfile); prints sub_px, covered, pixels[]\n"
     "Prints one JSON document: N, sigma, fits[], best_r, ftest, wiener, interp, geometry,\n"
+    "kriged_map, "
     "timing_ms.\n";
 
 struct fit_args {
@@ -77,11 +81,12 @@ struct fit_args {
     fit_wiener_nsr_t wiener_method;
     double wiener_nsr; /* --wiener-nsr X */
     int threads;       /* --threads N */
+    int krige;         /* --krige */
 };
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
        OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
-       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_THREADS, OPT_HELP };
+       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_THREADS, OPT_KRIGE, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -103,6 +108,7 @@ static const struct option long_opts[] = {
     {"geometry-r", required_argument, NULL, OPT_GEOMETRY_R},
     {"pixels", required_argument, NULL, OPT_PIXELS},
     {"threads", required_argument, NULL, OPT_THREADS},
+    {"krige", no_argument, NULL, OPT_KRIGE},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -185,6 +191,7 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
     case OPT_NONNEG: a->opts.nonneg = 1; return 0;
     case OPT_TABLE: a->table = 1; return 0;
     case OPT_FIT_GEOMETRY: a->fit_geometry = 1; return 0;
+    case OPT_KRIGE: a->krige = 1; return 0;
     case OPT_GEOMETRY_R: return opts_int32("geometry-r", arg, 1, R_LIMIT, &a->geometry_r, err);
     case OPT_THREADS: return opts_int32("threads", arg, 1, THREADS_LIMIT, &a->threads, err);
     case OPT_PIXELS:
@@ -298,7 +305,8 @@ static int run_pipeline(const struct fit_args *a, const fit_scan_t *scan, fit_pi
                               .wiener = a->wiener, .interp_n = a->interp_n,
                               .region = a->region, .wiener_method = a->wiener_method,
                               .wiener_nsr = a->wiener_nsr, .fit_geometry = a->fit_geometry,
-                              .geometry_r = a->geometry_r, .threads = a->threads};
+                              .geometry_r = a->geometry_r, .threads = a->threads,
+                              .krige = a->krige};
     if ((rc = fit_pipeline_run(scan, &po, NULL, pl, err))) return rc;
     const fit_part_t *parts[] = {&pl->geometry_part, &pl->ftest_part, &pl->wiener_part,
                                  &pl->interp_part};
@@ -331,6 +339,13 @@ static json_t *result_json(const struct fit_args *a, const fit_pipeline_t *pl,
     if (pl->interp_part.asked) json_object_set_new(root, "interp", interp_json(pl));
     if (pl->geometry_part.asked)
         json_object_set_new(root, "geometry", fitjson_geometry(&pl->geometry));
+    if (a->krige)
+        json_object_set_new(root, "kriged_map",
+                            fitjson_kriged(pl->sweep.kriged, pl->sweep.kriged
+                                                                 ? NULL
+                                                                 : pl->kriged_error[0]
+                                                                       ? pl->kriged_error
+                                                                       : "no recommended r"));
     json_object_set_new(root, "timing_ms",
                         json_pack("{s:o, s:o, s:o, s:o, s:o, s:o}", "read",
                                   fitjson_num(ms_read), "sweep", fitjson_num(pl->sweep_ms),

@@ -115,6 +115,8 @@ typedef struct fit_sweep {
                                   0 if none; its map is the one a calibration stores */
     int range_edge;            /* AIC or BIC picked r_max or the largest r the points determine */
     char recommended_reason[320];
+    struct fit_kriged *kriged; /* the kriged map of the recommended r (krige.h) when the pipeline
+                                  was asked for it (fit_pipeline_opts_t.krige), else NULL */
     struct fit_shrunk *shrunk; /* the recommended map shrunk toward the next coarser fit's
                                   (shrink.h); NULL when there is none (r = 1, no coarser map) */
 } fit_sweep_t;

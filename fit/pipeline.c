@@ -10,6 +10,7 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -17,6 +18,7 @@
 #include "fit/interp.h"
 #include "fit/gslerr.h"
 #include "fit/recommend.h"
+#include "fit/krige.h"
 #include "fit/shrink.h"
 #include "parfor.h"
 
@@ -289,6 +291,26 @@ static int keep_shrunk(struct run *rn, fit_sweep_t *sw, double noise_scale, err_
     return 0;
 }
 
+/* The kriged map of the recommended r (krige.h) into sw->kriged; a scan it cannot serve (too
+ * many points, no signal) leaves it NULL with the reason in rn->out->kriged_error. */
+static int keep_kriged(struct run *rn, fit_sweep_t *sw, err_t *err)
+{
+    fit_kriged_t k;
+    err_t e;
+    int rc = fit_krige(rn->scan, sw->recommended_r, &rn->o->fit, &k, &e);
+    if (rc == -EINVAL || rc == -EDOM) {
+        snprintf(rn->out->kriged_error, sizeof rn->out->kriged_error, "%s", e.msg);
+        return 0;
+    }
+    if (rc) return err_set(err, rc, "%s", e.msg);
+    if (!(sw->kriged = malloc(sizeof *sw->kriged))) {
+        fit_kriged_free(&k);
+        return err_set(err, -ENOMEM, "out of memory");
+    }
+    *sw->kriged = k;
+    return 0;
+}
+
 static int run_steps(struct run *rn, err_t *err)
 {
     const fit_pipeline_opts_t *o = rn->o;
@@ -324,6 +346,7 @@ static int run_steps(struct run *rn, err_t *err)
     sw->range_edge = rec.range_edge;
     memcpy(sw->recommended_reason, rec.reason, sizeof sw->recommended_reason);
     int rc = keep_shrunk(rn, sw, rec.noise_scale, err);
+    if (rc == 0 && o->krige && rec.r > 0) rc = keep_kriged(rn, sw, err);
     if (rc) return rc;
     if (o->ftest_edges)
         rc = part_step(rn, FIT_STEP_FTEST, o->ftest_r, &out->ftest_part, ftest_step, err);

@@ -56,6 +56,9 @@ typedef struct fit_pipeline_opts {
                               caller's only (0). The results are the same bit for bit: each r is
                               its own fit, and every thread's design cache gives the values a
                               fresh build would (design.h) */
+    int krige;             /* also estimate the kriged map of the recommended r (krige.h) into
+                              sweep.kriged (0); where it cannot be had (too many points, no
+                              signal) sweep.kriged stays NULL and kriged_error says why */
 } fit_pipeline_opts_t;
 
 /* The r the geometry is fitted at unless asked (docs/numerics.md, "Geometry fit": measured). */
@@ -123,6 +126,7 @@ typedef struct fit_pipeline {
                                  flags is a failed part (rc -EDOM) and the later steps use the
                                  written geometry */
     fit_geometry_t geometry;
+    char kriged_error[256]; /* why sweep.kriged is NULL although asked ("" otherwise) */
 } fit_pipeline_t;
 
 /* Runs the steps opts asks for on scan. Returns 0 (check the parts), -EINVAL for a bad scan or

@@ -5,6 +5,7 @@
 
 #include "fit/model.h"
 #include "fit/pipeline.h"
+#include "fit/krige.h"
 #include "fit/shrink.h"
 
 int fit_sweep_run(const fit_scan_t *scan, int r_min, int r_max, const fit_options_t *opts,
@@ -28,6 +29,9 @@ void fit_sweep_free(fit_sweep_t *sw)
     fit_shrunk_free(sw->shrunk);
     free(sw->shrunk);
     sw->shrunk = NULL;
+    fit_kriged_free(sw->kriged);
+    free(sw->kriged);
+    sw->kriged = NULL;
     if (!sw->fits) return;
     for (int r = sw->r_min; r <= sw->r_max; r++) fit_result_free(&sw->fits[r - sw->r_min]);
     free(sw->fits);

@@ -173,6 +173,22 @@ json_t *fitjson_shrunk(const fit_shrunk_t *s)
                      fitjson_array(s->S_err, m), "S_res", fitjson_array(s->S_res, m));
 }
 
+json_t *fitjson_kriged(const fit_kriged_t *k, const char *why_not)
+{
+    if (!k || k->grid < 1) return why_not ? json_pack("{s:s}", "error", why_not) : json_null();
+    size_t m = (size_t)k->grid * k->grid;
+    json_t *levels = json_array();
+    for (int i = 0; levels && i < k->n_levels; i++)
+        json_array_append_new(levels, json_pack("{s:i, s:o}", "q", k->level_q[i], "sd",
+                                                fitjson_num(k->level_sd[i])));
+    return json_pack("{s:i, s:i, s:b, s:o, s:o, s:o, s:o, s:o, s:i, s:o, s:o}", "grid", k->grid,
+                     "r", k->r, "smooth", k->smooth, "likelihood_ratio", fitjson_num(k->lr),
+                     "amplitude", fitjson_num(k->amplitude), "length_um",
+                     fitjson_num(k->length_um), "levels", levels, "log_likelihood",
+                     fitjson_num(k->log_lik), "evaluations", k->evaluations, "S",
+                     fitjson_array(k->S, m), "S_err", fitjson_array(k->S_err, m));
+}
+
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,
                       double full_scale_dn)
 {

@@ -12,6 +12,7 @@
 #include <jansson.h>
 
 #include "fit/geometry.h"
+#include "fit/krige.h"
 #include "fit/model.h"
 #include "fit/region.h"
 #include "fit/shrink.h"
@@ -57,6 +58,11 @@ json_t *fitjson_geometry(const fit_geometry_t *g);
 /* The shrunk map (fit/shrink.h): r, toward_r, factor, detail_rms, noise_rms, tau, S, S_err; null
  * without one. */
 json_t *fitjson_shrunk(const fit_shrunk_t *s);
+
+/* The kriged map (fit/krige.h): grid, r, smooth, likelihood_ratio, amplitude, length_um (null
+ * without the smooth part), levels [{q, sd}], log_likelihood, evaluations, S, S_err (grid^2
+ * each, row-major y then x); with k NULL, {"error": why_not} (why_not NULL: null). */
+json_t *fitjson_kriged(const fit_kriged_t *k, const char *why_not);
 
 /* The root document of a sweep: N, n_points, sigma, method, nonneg, design_tol, full_scale_dn,
  * fits[], best_r {aic, bic}, recommended_r, recommended_reason, range_edge, shrunk_map. The caller adds

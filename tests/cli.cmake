@@ -38,6 +38,15 @@ if(TARGET ips AND Python3_Interpreter_FOUND)
              WORKING_DIRECTORY ${IPSD_TEST_DATA})
 endif()
 
+# `ips fit --krige`: the kriged map against the simulator's truth and the recommended map (~5 s)
+if(TARGET ips AND Python3_Interpreter_FOUND)
+    add_test(NAME test_fit_kriged
+             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_fit_kriged.py
+                     $<TARGET_FILE:ips>
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+    set_tests_properties(test_fit_kriged PROPERTIES TIMEOUT 300)
+endif()
+
 # `ips ptc --sim`: gain and read noise against the simulator's truth, bad input (~3 s optimised)
 if(TARGET ips)
     add_test(NAME test_cli_ptc

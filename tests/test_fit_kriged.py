@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""test_fit_kriged.py IPS: `ips fit --krige` (fit/krige.h; docs/contracts.md), end to end through
+the ips binary, against the simulator's truth (`ips simulate --truth`): on graded pixels at the
+bench's light and a tenth of it the kriged map keeps its smooth part and is closer to the truth
+than the recommended r's map on every scan, by at least a quarter over all; its grid is the
+smallest multiple of the recommended r with at least 24 cells, S has mean 1 and positive S_err;
+a flat pixel (recommended r = 1) gets a flat kriged map without the smooth part; without
+--krige the document has no kriged_map; --table is not needed for it."""
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+IPS = sys.argv[1]
+CASES = [(scene, seed, peak) for scene in ("softedge:10", "gradient:10", "dip:10", "paperlike:10")
+         for seed, peak in ((5, 2150), (3, 21500))]
+fails = 0
+
+
+def check(cond, msg):
+    global fails
+    print(("ok   " if cond else "FAIL ") + msg)
+    fails += 0 if cond else 1
+
+
+def rms_vs_truth(S, r, T, m, g=240):
+    """rms over the pixel of two mean-1 piecewise-constant maps sampled on a g x g grid."""
+    ms, mt = sum(S) / len(S), sum(T) / len(T)
+    acc = 0.0
+    for j in range(g):
+        for i in range(g):
+            u, v = (i + 0.5) / g, (j + 0.5) / g
+            d = S[int(v * r) * r + int(u * r)] / ms - T[int(v * m) * m + int(u * m)] / mt
+            acc += d * d
+    return math.sqrt(acc / (g * g))
+
+
+def fit(path, *opts):
+    out = subprocess.run([IPS, "fit", path, "--sigma", "shot+read", *opts], capture_output=True,
+                         text=True, check=True)
+    return json.loads(out.stdout)
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    err_rec = err_kr = 0.0
+    scan, truth = os.path.join(tmp, "scan.json"), os.path.join(tmp, "truth.json")
+    for scene, seed, peak in CASES:
+        subprocess.run([IPS, "simulate", "--scene", scene, "--seed", str(seed), "--grid", "9",
+                        "--step", "0.6", "--peak-e", str(peak), "--truth", truth, "-o", scan],
+                       check=True, capture_output=True)
+        doc = fit(scan, "--r-max", "8", "--krige")
+        kr, r = doc.get("kriged_map"), doc["recommended_r"]
+        name = "%s seed %d, %d e-" % (scene, seed, peak)
+        F = r * -(-24 // r)
+        check(kr is not None and kr.get("grid") == F and kr.get("r") == r,
+              "%s: kriged_map on the %d x %d grid (recommended r = %d)" % (name, F, F, r))
+        if not kr or kr.get("grid") != F:
+            continue
+        check(len(kr["S"]) == F * F and abs(sum(kr["S"]) / (F * F) - 1) <= 1e-9 and
+              all(e > 0 for e in kr["S_err"]), "%s: %d values, mean 1, S_err > 0" % (name, F * F))
+        check(kr["smooth"] is True and kr["likelihood_ratio"] >= 9.21 and kr["length_um"] > 0 and
+              kr["amplitude"] > 0, "%s: smooth part kept (likelihood ratio %.1f, length %.3g um)"
+              % (name, kr["likelihood_ratio"], kr["length_um"] or 0))
+        check([lv["q"] for lv in kr["levels"]] == [q for q in range(2, r + 1) if r % q == 0],
+              "%s: the prior's grids are the divisors of r" % name)
+        with open(truth) as f:
+            t = [x for x in json.load(f)["maps"] if x["r"] == 10][0]  # the scene's own cells
+        fine = [f for f in doc["fits"] if f["r"] == r][0]
+        e_rec, e_kr = rms_vs_truth(fine["S"], r, t["S"], 10), rms_vs_truth(kr["S"], F, t["S"], 10)
+        check(e_kr < e_rec, "%s: rms against the truth: kriged %.4f < recommended %.4f"
+              % (name, e_kr, e_rec))
+        err_rec += e_rec * e_rec
+        err_kr += e_kr * e_kr
+    check(err_kr < 0.75 ** 2 * err_rec, "over all: the kriged maps' rms %.4f, the recommended "
+          "maps' %.4f" % (math.sqrt(err_kr / len(CASES)), math.sqrt(err_rec / len(CASES))))
+    flat = os.path.join(tmp, "flat.json")
+    subprocess.run([IPS, "simulate", "--scene", "uniform", "--grid", "9", "--step", "0.6",
+                    "-o", flat], check=True, capture_output=True)
+    doc = fit(flat, "--r-max", "8", "--krige")
+    kr = doc.get("kriged_map") or {}
+    check(doc["recommended_r"] == 1 and kr.get("grid") == 24 and kr.get("smooth") is False and
+          kr.get("length_um") is None and kr.get("levels") == [] and
+          max(abs(s - 1) for s in kr.get("S", [9])) < 1e-9,
+          "flat pixel: a flat 24 x 24 kriged map without the smooth part")
+    check("kriged_map" not in fit(flat, "--r-max", "8"), "without --krige: no kriged_map")
+
+print("%d failed" % fails)
+sys.exit(1 if fails else 0)
