@@ -356,6 +356,9 @@ static json_t *result_json(const struct fit_args *a, const fit_pipeline_t *pl,
     if (pl->geometry_part.asked)
         json_object_set_new(json_object_get(root, "timing_ms"), "geometry",
                             fitjson_num(pl->geometry_part.ms));
+    if (pl->sweep.kriged)
+        json_object_set_new(json_object_get(root, "timing_ms"), "krige",
+                            fitjson_num(pl->sweep.kriged->ms));
     /* the threads the sweep could use (--threads): the context of the times above */
     json_object_set_new(json_object_get(root, "timing_ms"), "threads", json_integer(a->threads));
     return root;
