@@ -13,7 +13,8 @@
 
 #define FIT_OPTION_KEYS                                                                            \
     "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg", "region",       \
-        "margin_um", "fit_geometry", "geometry_r", "gain_e_per_dn", "read_noise_e", "map"
+        "margin_um", "fit_geometry", "geometry_r", "gain_e_per_dn", "read_noise_e", "map", \
+        "krige"
 
 #define FIT_PROMOTE_KEYS "promote", "by", "reason"
 
@@ -72,6 +73,7 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         api_get_str(q, o, "method", "method", 0, 16, &method) ||
         api_get_bool(q, o, "nonneg", "nonneg", &p->opts.nonneg) || read_region(q, o, p) ||
         api_get_bool(q, o, "fit_geometry", "fit_geometry", &p->fit_geometry) ||
+        api_get_bool(q, o, "krige", "krige", &p->krige) ||
         api_get_int(q, o, "geometry_r", "geometry_r", 0, 1, 32, &geometry_r) ||
         /* sigma's constants (eq. 5), overriding the sensor's photon transfer and the scan's */
         api_get_num(q, o, "gain_e_per_dn", "gain_e_per_dn", 0, 0, 1e6, 1, &p->gain_e_per_dn) ||

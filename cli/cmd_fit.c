@@ -341,11 +341,7 @@ static json_t *result_json(const struct fit_args *a, const fit_pipeline_t *pl,
         json_object_set_new(root, "geometry", fitjson_geometry(&pl->geometry));
     if (a->krige)
         json_object_set_new(root, "kriged_map",
-                            fitjson_kriged(pl->sweep.kriged, pl->sweep.kriged
-                                                                 ? NULL
-                                                                 : pl->kriged_error[0]
-                                                                       ? pl->kriged_error
-                                                                       : "no recommended r"));
+                            fitjson_kriged(pl->sweep.kriged, pl->kriged_error));
     json_object_set_new(root, "timing_ms",
                         json_pack("{s:o, s:o, s:o, s:o, s:o, s:o}", "read",
                                   fitjson_num(ms_read), "sweep", fitjson_num(pl->sweep_ms),

@@ -126,7 +126,8 @@ typedef struct fit_pipeline {
                                  flags is a failed part (rc -EDOM) and the later steps use the
                                  written geometry */
     fit_geometry_t geometry;
-    char kriged_error[256]; /* why sweep.kriged is NULL although asked ("" otherwise) */
+    char kriged_error[256]; /* why sweep.kriged is NULL although asked (no recommended r, too
+                               many points, no signal); "" otherwise */
 } fit_pipeline_t;
 
 /* Runs the steps opts asks for on scan. Returns 0 (check the parts), -EINVAL for a bad scan or

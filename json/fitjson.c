@@ -175,7 +175,8 @@ json_t *fitjson_shrunk(const fit_shrunk_t *s)
 
 json_t *fitjson_kriged(const fit_kriged_t *k, const char *why_not)
 {
-    if (!k || k->grid < 1) return why_not ? json_pack("{s:s}", "error", why_not) : json_null();
+    if (!k || k->grid < 1)
+        return why_not && why_not[0] ? json_pack("{s:s}", "error", why_not) : json_null();
     size_t m = (size_t)k->grid * k->grid;
     json_t *levels = json_array();
     for (int i = 0; levels && i < k->n_levels; i++)

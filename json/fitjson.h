@@ -61,7 +61,8 @@ json_t *fitjson_shrunk(const fit_shrunk_t *s);
 
 /* The kriged map (fit/krige.h): grid, r, smooth, likelihood_ratio, amplitude, length_um (null
  * without the smooth part), levels [{q, sd}], log_likelihood, evaluations, S, S_err (grid^2
- * each, row-major y then x); with k NULL, {"error": why_not} (why_not NULL: null). */
+ * each, row-major y then x); with k NULL, {"error": why_not} (null when why_not is NULL or
+ * empty). */
 json_t *fitjson_kriged(const fit_kriged_t *k, const char *why_not);
 
 /* The root document of a sweep: N, n_points, sigma, method, nonneg, design_tol, full_scale_dn,

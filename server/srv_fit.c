@@ -89,6 +89,12 @@ static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
     if (ge->asked)
         json_object_set_new(json_object_get(root, "timing_ms"), "geometry",
                             json_real(ge->ms));
+    if (p->krige) {
+        const fit_kriged_t *k = pl->sweep.kriged;
+        json_object_set_new(root, "kriged_map",
+                            fitjson_kriged(k, pl->kriged_error));
+        if (k) json_object_set_new(json_object_get(root, "timing_ms"), "krige", json_real(k->ms));
+    }
     return root;
 }
 
@@ -130,7 +136,8 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
     fit_pipeline_opts_t po = {.r_min = p->r_min, .r_max = p->r_max, .fit = p->opts,
                               .ftest_edges = p->ftest_edges, .ftest_r = p->ftest_r,
                               .wiener = p->wiener, .region = p->region,
-                              .fit_geometry = p->fit_geometry, .geometry_r = p->geometry_r};
+                              .fit_geometry = p->fit_geometry, .geometry_r = p->geometry_r,
+                              .krige = p->krige};
     fit_watch_t watch = {.stop = watch_stop, .progress = watch_progress, .params = (void *)hooks,
                          .poll = watch_poll, .poll_at = watch_poll_at};
     fit_pipeline_t pl;

@@ -120,6 +120,7 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
     if (p->region.kind == FIT_REGION_MARGIN)
         json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
     if (p->all_pixels) json_object_set_new(o, "pixels", json_string("all"));
+    if (p->krige) json_object_set_new(o, "krige", json_true());
     if (p->map_shrunk) json_object_set_new(o, "map", json_string("shrunk"));
     if (isfinite(p->gain_e_per_dn))
         json_object_set_new(o, "gain_e_per_dn", json_real(p->gain_e_per_dn));
@@ -171,6 +172,7 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     opt_int(json_object_get(o, "pixel"), "row", &p->pixel_row);
     p->wiener = json_is_true(json_object_get(o, "wiener"));
     p->fit_geometry = json_is_true(json_object_get(o, "fit_geometry"));
+    p->krige = json_is_true(json_object_get(o, "krige"));
     p->all_pixels = (x = json_object_get(o, "pixels")) && json_is_string(x) &&
                     strcmp(json_string_value(x), "all") == 0;
     p->map_shrunk = (x = json_object_get(o, "map")) && json_is_string(x) &&

@@ -49,6 +49,7 @@ typedef struct srv_fit_params {
     char reason[SRV_REASON_MAX + 1];
     fit_region_t region;  /* the points fitted (fit/region.h): inside (the paper's) */
     int fit_geometry;     /* fit R, dx, dy first (fit/geometry.h) at geometry_r (0: default) */
+    int krige;            /* add the kriged map (fit/krige.h) to the result */
     int geometry_r;
     /* every pixel of the scan's sub-frame its raster covers (instrument/scan_cover.h), one fit
      * each, instead of (dcol, drow): "pixels": "all" (server/srv_fitall.c) */

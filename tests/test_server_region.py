@@ -6,8 +6,12 @@ from the file by fit/region.h's rule (strictly inside (0, pitch)^2; within the m
 stored fit document must say the region and fit exactly those points, with the Wiener map the
 raster's nodes inside the pixel. Bad regions are refused (400 / 422 naming the field) and store
 nothing."""
+import json
 import math
+import os
+import subprocess
 import sys
+import tempfile
 
 import ipsd_http
 from ipsd_http import Db, Ipsd
@@ -62,7 +66,8 @@ def test(c, t, argv, daemons):
             ({"margin_um": 1}, 422, "margin_um"),
             ({"fit_geometry": "yes"}, 400, "fit_geometry"),
             ({"geometry_r": 3}, 422, "geometry_r"),
-            ({"fit_geometry": True, "geometry_r": 0}, 422, "geometry_r")]:
+            ({"fit_geometry": True, "geometry_r": 0}, 422, "geometry_r"),
+            ({"krige": "yes"}, 400, "krige")]:
         c.error(d.post("/api/fits", dict(base, **extra)), status, field, "upload with %r" % extra)
     c.eq(fits_jobs(), before, "bad regions stored nothing")
 
@@ -115,6 +120,41 @@ def test(c, t, argv, daemons):
             c.ok(g["chi2_fitted"] <= g["chi2_fixed"] * (1 + 1e-9),
                  "chi2 fitted %r <= fixed %r" % (g.get("chi2_fitted"), g.get("chi2_fixed")))
             c.ok("geometry" in res["timing_ms"], "timing_ms has geometry")
+
+    # the kriged map (fit/krige.h) through the API: the result's kriged_map, number for number
+    # the `ips fit --krige` document's of the same scan file
+    r = d.post("/api/fits", dict(base, krige=True))
+    c.status(r, 202, "upload with krige")
+    j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    c.ok(j, "kriged fit done")
+    if j:
+        c.eq(j["params"].get("krige"), True, "job params record krige")
+        res = d.get("/api/fits/%d" % j["fit_id"]).json()["result"]
+        k, rec = res.get("kriged_map") or {}, res["recommended_r"]
+        F = rec * -(-24 // rec)
+        c.eq((k.get("grid"), k.get("r"), len(k.get("S", []))), (F, rec, F * F),
+             "kriged_map on the %d x %d grid of the recommended r = %d" % (F, F, rec))
+        c.ok("krige" in res["timing_ms"], "timing_ms has krige")
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "scan.json")
+            with open(path, "w") as f:
+                json.dump(scan, f)
+            out = subprocess.run([argv[2], "fit", path, "--r-min", "1", "--r-max", "3",
+                                  "--wiener", "--krige"], capture_output=True, text=True)
+            kc = json.loads(out.stdout).get("kriged_map", {}) if out.returncode == 0 else {}
+        # the same to rounding, not bit for bit: GSL's BFGS takes its vector sums from the CBLAS
+        # each binary links (ips: GSL's own, statically; ipsd: the shared one), fit/krige.c
+        def rel(a, b):
+            return max((abs(x - y) / max(abs(x), abs(y), 1e-300) for x, y in zip(a, b)),
+                       default=1.0) if a and b and len(a) == len(b) else 1.0
+        d_s, d_e = rel(kc.get("S"), k.get("S")), rel(kc.get("S_err"), k.get("S_err"))
+        c.ok(d_s < 1e-8 and d_e < 1e-6,
+             "ips fit --krige gives the same kriged map (S within %.1e, S_err %.1e)" % (d_s, d_e))
+    r = d.post("/api/fits", base)
+    j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    if j:
+        c.ok("kriged_map" not in d.get("/api/fits/%d" % j["fit_id"]).json()["result"],
+             "without krige: no kriged_map")
 
 
 if __name__ == "__main__":
