@@ -13,6 +13,8 @@ import subprocess
 import sys
 import tempfile
 
+from fitdoc import rms_vs_truth
+
 IPS = sys.argv[1]
 CASES = [(scene, seed, peak) for scene in ("softedge:10", "gradient:10", "dip:10", "paperlike:10")
          for seed, peak in ((5, 2150), (3, 21500))]
@@ -23,18 +25,6 @@ def check(cond, msg):
     global fails
     print(("ok   " if cond else "FAIL ") + msg)
     fails += 0 if cond else 1
-
-
-def rms_vs_truth(S, r, T, m, g=240):
-    """rms over the pixel of two mean-1 piecewise-constant maps sampled on a g x g grid."""
-    ms, mt = sum(S) / len(S), sum(T) / len(T)
-    acc = 0.0
-    for j in range(g):
-        for i in range(g):
-            u, v = (i + 0.5) / g, (j + 0.5) / g
-            d = S[int(v * r) * r + int(u * r)] / ms - T[int(v * m) * m + int(u * m)] / mt
-            acc += d * d
-    return math.sqrt(acc / (g * g))
 
 
 def fit(path, *opts):

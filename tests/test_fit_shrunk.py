@@ -13,6 +13,8 @@ import subprocess
 import sys
 import tempfile
 
+from fitdoc import rms_vs_truth
+
 try:
     from astropy.io import fits
 except ImportError:
@@ -46,18 +48,6 @@ def project(S, q, r):
     w = overlap_1d(r, q)
     return [sum(w[j][l] * w[i][k] * S[l * q + k] for l in range(q) for k in range(q))
             for j in range(r) for i in range(r)]
-
-
-def rms_vs_truth(S, r, T, m, g=240):
-    """rms over the pixel of two mean-1 piecewise-constant maps sampled on a g x g grid."""
-    ms, mt = sum(S) / len(S), sum(T) / len(T)
-    acc = 0.0
-    for j in range(g):
-        for i in range(g):
-            u, v = (i + 0.5) / g, (j + 0.5) / g
-            d = S[int(v * r) * r + int(u * r)] / ms - T[int(v * m) * m + int(u * m)] / mt
-            acc += d * d
-    return math.sqrt(acc / (g * g))
 
 
 def fit(path, *opts):

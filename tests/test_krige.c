@@ -41,12 +41,20 @@ static double gauss(unsigned long long *s)
 /* The truth's value on a g x g partition of the pixel (row-major, y then x). */
 typedef double (*truth_fn)(double u, double v); /* u, v: fractions of the pitch */
 
+/* A scan and the arrays it borrows. */
+struct scan {
+    double x[N], y[N], sig[N];
+    fit_scan_t sc;
+};
+
 /* A 9 x 9 scan at 0.6 um steps centred on the pixel: signal = bias + PEAK x the integral of the
  * Airy spot times the truth (constant on each cell of a g x g partition, the truth at the cell's
  * centre), by the box integral, plus the noise model's noise times noise (0: none). */
-static void make_scan(truth_fn t, int g, double noise, unsigned long long seed, double *x, double *y,
-                      double *sig, fit_scan_t *sc)
+static fit_scan_t *make_scan(truth_fn t, int g, double noise, unsigned long long seed,
+                             struct scan *b)
 {
+    double *x = b->x, *y = b->y, *sig = b->sig;
+    fit_scan_t *sc = &b->sc;
     *sc = (fit_scan_t){N, x, y, sig, P, RAD, BIAS, GAIN, READ, FRAMES, FIT_FULL_SCALE_DEFAULT};
     for (int k = 0; k < N; k++) {
         x[k] = P / 2 + 0.6 * (k % 9 - 4);
@@ -64,6 +72,7 @@ static void make_scan(truth_fn t, int g, double noise, unsigned long long seed, 
     }
     for (int k = 0; k < N && noise > 0; k++)
         sig[k] += noise * fit_noise_sigma(FIT_NOISE_SHOT_READ, sc, sig[k]) * gauss(&seed);
+    return sc;
 }
 
 static double flat(double u, double v)
@@ -106,14 +115,13 @@ static fit_options_t shot_read(void)
 
 static void flat_pixel(void)
 {
-    double x[N], y[N], sig[N];
-    fit_scan_t sc;
-    make_scan(flat, 1, 0, 1, x, y, sig, &sc);
+    static struct scan b;
+    const fit_scan_t *sc = make_scan(flat, 1, 0, 1, &b);
     fit_options_t o = shot_read();
     fit_kriged_t k;
     err_t e;
     for (int r = 1; r <= 2; r++) { /* no prior part, and the 2 x 2 grid's */
-        CHECK(fit_krige(&sc, r, &o, &k, &e) == 0);
+        CHECK(fit_krige(sc, r, &o, &k, &e) == 0);
         CHECK(k.grid == 24 && k.r == r && k.smooth == 0 && k.n_levels == (r == 2));
         CHECK(k.lr >= 0 && k.lr < FIT_KRIGE_LR);
         CHECK(isnan(k.length_um) && k.amplitude == 0);
@@ -127,13 +135,12 @@ static void flat_pixel(void)
 
 static void piecewise_pixel(void)
 {
-    double x[N], y[N], sig[N];
-    fit_scan_t sc;
-    make_scan(dead_corner, 3, 1, 7, x, y, sig, &sc);
+    static struct scan b;
+    const fit_scan_t *sc = make_scan(dead_corner, 3, 1, 7, &b);
     fit_options_t o = shot_read();
     fit_kriged_t k;
     err_t e;
-    CHECK(fit_krige(&sc, 3, &o, &k, &e) == 0);
+    CHECK(fit_krige(sc, 3, &o, &k, &e) == 0);
     CHECK(k.grid == 24 && k.n_levels == 1 && k.level_q[0] == 3);
     fprintf(stderr, "dead corner: LR %.2f, rms %.5f\n", k.lr, map_rms(k.S, 24, dead_corner));
     CHECK(k.smooth == 0 && k.lr < FIT_KRIGE_LR);
@@ -151,15 +158,14 @@ static void piecewise_pixel(void)
 
 static void tilted_pixel(void)
 {
-    double x[N], y[N], sig[N];
-    fit_scan_t sc;
-    make_scan(tilt, 24, 1, 11, x, y, sig, &sc);
+    static struct scan b;
+    const fit_scan_t *sc = make_scan(tilt, 24, 1, 11, &b);
     fit_options_t o = shot_read();
     fit_kriged_t k;
     fit_result_t f;
     err_t e;
-    CHECK(fit_krige(&sc, 6, &o, &k, &e) == 0);
-    CHECK(fit_map(&sc, 6, &o, &f, &e) == 0);
+    CHECK(fit_krige(sc, 6, &o, &k, &e) == 0);
+    CHECK(fit_map(sc, 6, &o, &f, &e) == 0);
     CHECK(k.smooth == 1 && k.lr >= FIT_KRIGE_LR);
     CHECK(k.length_um > 0 && k.amplitude > 0 && k.evaluations > 0);
     double rk = map_rms(k.S, 24, tilt), rf = map_rms(f.S, 6, tilt);
@@ -181,9 +187,8 @@ static int stop_now(void *arg)
 
 static void refusals(void)
 {
-    double x[N], y[N], sig[N];
-    fit_scan_t sc;
-    make_scan(flat, 1, 0, 1, x, y, sig, &sc);
+    static struct scan b;
+    fit_scan_t sc = *make_scan(flat, 1, 0, 1, &b);
     fit_options_t o = shot_read();
     fit_kriged_t k;
     err_t e;
@@ -198,8 +203,7 @@ static void refusals(void)
     dark.signal_dn = zero;
     CHECK(fit_krige(&dark, 3, &o, &k, &e) == -EINVAL && k.S == NULL);
     o.stop.poll = stop_now;
-    make_scan(tilt, 6, 1, 3, x, y, sig, &sc);
-    CHECK(fit_krige(&sc, 3, &o, &k, &e) == -ECANCELED && k.S == NULL);
+    CHECK(fit_krige(make_scan(tilt, 6, 1, 3, &b), 3, &o, &k, &e) == -ECANCELED && k.S == NULL);
 }
 
 int main(void)
