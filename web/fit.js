@@ -169,12 +169,16 @@ export function renderFit(root, id, ctx) {
         // the shrunk map (fit/shrink.h): the recommended map's detail over r - 1 kept where it
         // stands above its noise, offered as one more choice of the selector
         const sh = res.shrunk_map;
+        // the kriged map (fit/krige.h, a fit request's "krige": true): a Gaussian-process
+        // estimate on a fine grid, one more choice when the fit has it
+        const kr = res.kriged_map && Array.isArray(res.kriged_map.S) ? res.kriged_map : null;
         const rSel = h('select', { id: 'r-select', 'data-testid': 'r-select' },
             fits.map((f) => h('option', { value: f.r, selected: f.r === rec },
                 `r = ${f.r}${f.r === rec ? ' (recommended)' : ''}` +
                 `${f.r === best.bic ? ' (best BIC)' : ''}${f.r === best.aic ? ' (best AIC)' : ''}`)),
             sh ? h('option', { value: 'shrunk' }, `r = ${sh.r}, shrunk toward r = ${sh.toward_r}`)
-                : null);
+                : null,
+            kr ? h('option', { value: 'kriged' }, `kriged, ${kr.grid} × ${kr.grid}`) : null);
         const facts = h('dl', { class: 'facts' });
         const note = h('p', { class: 'muted small', 'data-testid': 'selection-note' });
         const maps = h('div', { class: 'maps' });
@@ -183,10 +187,15 @@ export function renderFit(root, id, ctx) {
         points.catch(() => {});
         const show = () => {
             const shrunk = rSel.value === 'shrunk' && sh;
-            const fr = fits.find((x) => x.r === (shrunk ? sh.r : Number(rSel.value)));
-            // the shrunk map shown in its fit's place (the fit's I0, status and goodness are the
-            // recommended fit's; its residuals and interpolation are of the fit's own map)
-            const f = shrunk && fr ? { ...fr, S: sh.S, S_err: sh.S_err } : fr;
+            const kriged = rSel.value === 'kriged' && kr;
+            const fr = fits.find((x) => x.r === (shrunk ? sh.r : kriged ? rec
+                : Number(rSel.value)));
+            // the shrunk or kriged map shown in its fit's place (the fit's I0, status and
+            // goodness are the recommended fit's; its residuals and interpolation are of the
+            // fit's own map, so they are not shown with either)
+            const f = shrunk && fr ? { ...fr, S: sh.S, S_err: sh.S_err }
+                : kriged && fr ? { ...fr, r: kr.grid, S: kr.S, S_err: kr.S_err } : fr;
+            const own = !shrunk && !kriged;
             if (!f) {
                 fill(maps, h('p', { class: 'muted' }, 'This fit has no maps.'));
                 return;
@@ -206,7 +215,13 @@ export function renderFit(root, id, ctx) {
                 h('dd', { 'data-testid': 'best-r-bic' }, best.bic ?? '–'),
                 h('dt', {}, 'Map shown'), h('dd', { 'data-testid': 'shown-r' }, shrunk
                     ? `r = ${f.r}, shrunk toward r = ${sh.toward_r} ` +
-                        `(${fmt(100 * sh.factor, 2)} % of the detail kept)` : `r = ${f.r}`),
+                        `(${fmt(100 * sh.factor, 2)} % of the detail kept)`
+                    : kriged ? `kriged, ${kr.grid} × ${kr.grid} (` + (kr.smooth
+                        ? `smooth part: sd ${fmt(kr.amplitude, 2)}, length ` +
+                            `${fmt(kr.length_um, 2)} µm, likelihood ratio ` +
+                            `${fmt(kr.likelihood_ratio, 3)}`
+                        : 'the recommended grid alone: no smooth part') + ')'
+                        : `r = ${f.r}`),
                 h('dt', {}, 'Fit status'), h('dd', { 'data-testid': 'map-status',
                     class: f.status === 'ok' ? 'ok' : 'warn' }, f.status),
                 h('dt', {}, 'Goodness of fit'), (() => {
@@ -221,7 +236,12 @@ export function renderFit(root, id, ctx) {
                 h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
                     `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`));
             fill(note, `Best r by AIC: ${best.aic ?? '–'}, by BIC: ${best.bic ?? '–'}; ` +
-                `recommended: ${rec ?? '–'}. The maps above ` + (shrunk ? `are the shrunk ` +
+                `recommended: ${rec ?? '–'}. The maps above ` + (kriged ? 'are the kriged ' +
+                `map: a Gaussian-process estimate on a ${kr.grid} × ${kr.grid} grid with the ` +
+                `recommended r = ${rec ?? '–'}'s grid in its prior (about half the best r's ` +
+                'error in the fidelity harness); the fit offers the recommended r\'s own map ' +
+                'as its pixel\'s calibration.'
+                : shrunk ? `are the shrunk ` +
                 `map: r = ${f.r}'s detail over r = ${sh.toward_r} kept where it stands above ` +
                 `its noise (closer to the truth than the recommended map in the fidelity ` +
                 `harness); a fit offers it as its pixel's calibration when asked ("map": ` +
@@ -241,10 +261,11 @@ export function renderFit(root, id, ctx) {
                 h('p', { class: 'muted', 'data-testid': 'resid-missing' },
                     `No residual plot: ${err.message}.`)));
             fill(maps, mapPairFigure(f, res.wiener, pitch),
-                shrunk ? null : surfaceFigure(`/api/fits/${fit.id}/interp?r=${f.r}`, pitch),
+                own ? surfaceFigure(`/api/fits/${fit.id}/interp?r=${f.r}`, pitch) : null,
                 f.S_err ? errFigure(f, pitch) : null,
-                sh && sh.S_res && f.r === sh.r ? resFigure(sh.S_res, f.r, pitch) : null,
-                shrunk ? null : resid);
+                !kriged && sh && sh.S_res && f.r === sh.r ? resFigure(sh.S_res, f.r, pitch)
+                    : null,
+                own ? resid : null);
         };
         rSel.addEventListener('change', show);
         const where = fit.scan_id

@@ -744,7 +744,8 @@ async function run(base, page, api) {
 
     // a re-fit is stored as a fit only; its Fit view says so, and promotes it with a reason typed
     // and sent from the keyboard (POST /api/fits/{id}/promote)
-    const refitJob = (await api('POST', `/api/scans/${scan.id}/fits`, { r_max: 2 })).body.job;
+    const refitJob = (await api('POST', `/api/scans/${scan.id}/fits`, { r_max: 2, krige: true }))
+        .body.job;
     const refit = (await until(async () => {
         const j = (await api('GET', `/api/jobs/${refitJob.id}`)).body;
         return j.state === 'done' && j;
@@ -756,6 +757,22 @@ async function run(base, page, api) {
     check((await calState.textContent()).includes(`calibration #${calId}`),
         'the re-fit\'s view: stored as a fit, the current calibration is the automatic fit\'s',
         await calState.textContent());
+    // the re-fit asked for the kriged map (fit/krige.h): one more choice of the selector, its
+    // heat map the API's kriged_map.S on its grid, named in "Map shown"
+    const kr = (await api('GET', `/api/fits/${refit}`)).body.result.kriged_map;
+    check(kr && Array.isArray(kr.S) && kr.S.length === kr.grid * kr.grid,
+        'the re-fit has a kriged map', JSON.stringify(kr && { grid: kr.grid, error: kr.error }));
+    if (kr && Array.isArray(kr.S)) {
+        await page.locator('[data-testid="r-select"]').selectOption('kriged');
+        await page.locator('[data-testid="shown-r"]', { hasText: `kriged, ${kr.grid} × ${kr.grid}` })
+            .waitFor({ timeout: WAIT });
+        const km = await graph('plot-maps');
+        check(same(flat(km.data[0].z), kr.S) && km.data[0].z.length === kr.grid,
+            'choosing the kriged map plots the API\'s kriged S on its grid',
+            JSON.stringify(km.data[0].z).slice(0, 200));
+        check((await text('selection-note')).includes('are the kriged map'),
+            'the note says the maps shown are the kriged map', await text('selection-note'));
+    }
     const reason = page.locator('[data-testid="promote-form"]').getByLabel('Reason');
     await reason.focus();
     await page.keyboard.type('checked by the dashboard test');
