@@ -22,6 +22,7 @@
 #include "fit/design.h"
 #include "fit/gslerr.h"
 #include "fit/noise.h"
+#include "points.h"
 #include "wls.h"
 
 #define MAX_ITER 100
@@ -60,8 +61,8 @@ static void geo_free(struct geo *g)
     free(g->T);
 }
 
-/* The usable points, selected and weighted exactly as fit_map does (model.c's points_select:
- * finite, below full scale, sigma from the noise model floored at the rounding of whole DN). */
+/* The usable points, selected and weighted exactly as fit_map does (points.h: finite, below full
+ * scale, sigma from the noise model floored at the rounding of whole DN). */
 static int geo_init(const fit_scan_t *scan, int r, const fit_options_t *o, struct geo *g)
 {
     size_t nn = scan->n ? scan->n : 1;
@@ -78,17 +79,20 @@ static int geo_init(const fit_scan_t *scan, int r, const fit_options_t *o, struc
     g->d = g->y + nn;
     g->sw = g->d + nn;
     g->ys = g->xs + nn;
-    double floor = sqrt(1.0 / 12 / scan->frames);
-    for (size_t k = 0; k < scan->n; k++) {
-        double x = scan->x_um[k], y = scan->y_um[k], s = scan->signal_dn[k];
-        if (!isfinite(x) || !isfinite(y) || !isfinite(s)) continue;
-        if (scan->full_scale_dn > 0 && s >= scan->full_scale_dn) continue;
-        g->x[g->n] = x;
-        g->y[g->n] = y;
-        g->d[g->n] = s - scan->bias_dn;
-        g->sw[g->n] = 1 / fmax(fit_noise_sigma(o->noise, scan, s), floor);
-        g->n++;
+    fit_points_t p;
+    size_t nonfinite, saturated;
+    if (fit_points_select(scan, o->noise, &p, &nonfinite, &saturated)) {
+        fit_points_free(&p);
+        return -ENOMEM;
     }
+    for (size_t k = 0; k < p.n; k++) {
+        g->x[k] = p.x[k];
+        g->y[k] = p.y[k];
+        g->d[k] = p.d[k];
+        g->sw[k] = 1 / p.sigma[k];
+    }
+    g->n = p.n;
+    fit_points_free(&p);
     g->dopt = fit_design_opts_for_tol(o->design_tol > 0 ? o->design_tol : 1e-12);
     g->dopt.stop = o->stop; /* every residual builds a design matrix: it polls the stop */
     double R = scan->spot_radius_um;
