@@ -1,5 +1,7 @@
 /* krige.c: the kriged map (krige.h): restricted likelihood of the fine grid's Gaussian-process
- * prior, its maximisation, the posterior mean and standard deviation of the map. */
+ * prior, its maximisation, the posterior mean and standard deviation of the map. Written here
+ * because neither GSL nor LAPACK has Gaussian-process regression: the algebra is LAPACK's
+ * Cholesky (dpotrf, dpotri) and the Fortran BLAS (gemm.h), the search GSL's BFGS. */
 #include "fit/krige.h"
 
 #include <errno.h>
