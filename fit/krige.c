@@ -37,7 +37,8 @@ struct kr {
     double *Y, *Yd, *X, *Xd; /* n x m: A's images times K1, D1; A K; A dK/dlog l */
     double *M, *Md;       /* n x n: I0^2 A K A^T and its d/dlog l (unit amplitude) */
     double *V, *Vi, *Py, *Vone;
-    double l_cached;      /* the l of K1, D1, M, Md (NaN: none) */
+    double l_cached;      /* the l of K1, D1, X, M (NaN: none) */
+    double l_cached_d;    /* the l of Yd, Xd, Md: the gradient's, made only when asked (NaN) */
     const fit_stop_t *stop;
     int evals, stopped, failed;
 };
@@ -58,30 +59,36 @@ static double unbounded(double theta, double lo, double hi)
 }
 
 /* The smooth part's products for correlation length l (pitches): K1, D1 on the cell centres,
- * X = A K and Xd = A dK/dlog l through the product form, (K a)_image = K1 a K1, and
- * dK/dlog l = D1 (x) K1 + K1 (x) D1; then M = I0^2 X A^T, Md = I0^2 Xd A^T. */
-static void smooth_products(struct kr *k, double l)
+ * X = A K through the product form, (K a)_image = K1 a K1, and M = I0^2 X A^T; with deriv also
+ * Xd = A dK/dlog l, dK/dlog l = D1 (x) K1 + K1 (x) D1, and Md = I0^2 Xd A^T (half the work, and
+ * only the gradient needs it). */
+static void smooth_products(struct kr *k, double l, int deriv)
 {
-    if (l == k->l_cached) return;
     int F = k->F;
     size_t n = k->n, m = k->m;
-    for (int i = 0; i < F; i++)
-        for (int j = 0; j < F; j++) {
-            double s = abs(i - j) / (double)F / l; /* |dx| / l, cell centres 1/F apart */
-            k->K1[i * F + j] = exp(-s);
-            k->D1[i * F + j] = s * exp(-s); /* l d/dl exp(-|dx| / l) */
-        }
-    /* A's rows as F x F images stacked (n F rows of F): Y = A K1, Yd = A D1 along x */
-    fit_gemm(k->A, 0, k->K1, 0, n * F, F, F, 1, 0, k->Y);
-    fit_gemm(k->A, 0, k->D1, 0, n * F, F, F, 1, 0, k->Yd);
-    for (size_t p = 0; p < n; p++) { /* along y: X_p = K1 Y_p, Xd_p = D1 Y_p + K1 Yd_p */
-        fit_gemm(k->K1, 0, k->Y + p * m, 0, F, F, F, 1, 0, k->X + p * m);
+    if (l != k->l_cached) {
+        for (int i = 0; i < F; i++)
+            for (int j = 0; j < F; j++) {
+                double s = abs(i - j) / (double)F / l; /* |dx| / l, cell centres 1/F apart */
+                k->K1[i * F + j] = exp(-s);
+                k->D1[i * F + j] = s * exp(-s); /* l d/dl exp(-|dx| / l) */
+            }
+        /* A's rows as F x F images stacked (n F rows of F): Y = A K1 along x */
+        fit_gemm(k->A, 0, k->K1, 0, n * F, F, F, 1, 0, k->Y);
+        for (size_t p = 0; p < n; p++) /* along y: X_p = K1 Y_p */
+            fit_gemm(k->K1, 0, k->Y + p * m, 0, F, F, F, 1, 0, k->X + p * m);
+        fit_gemm(k->X, 0, k->A, 1, n, m, n, k->I0 * k->I0, 0, k->M);
+        k->l_cached = l;
+        k->l_cached_d = NAN;
+    }
+    if (!deriv || l == k->l_cached_d) return;
+    fit_gemm(k->A, 0, k->D1, 0, n * F, F, F, 1, 0, k->Yd); /* Yd = A D1 along x */
+    for (size_t p = 0; p < n; p++) { /* along y: Xd_p = D1 Y_p + K1 Yd_p */
         fit_gemm(k->D1, 0, k->Y + p * m, 0, F, F, F, 1, 0, k->Xd + p * m);
         fit_gemm(k->K1, 0, k->Yd + p * m, 0, F, F, F, 1, 1, k->Xd + p * m);
     }
-    fit_gemm(k->X, 0, k->A, 1, n, m, n, k->I0 * k->I0, 0, k->M);
     fit_gemm(k->Xd, 0, k->A, 1, n, m, n, k->I0 * k->I0, 0, k->Md);
-    k->l_cached = l;
+    k->l_cached_d = l;
 }
 
 /* tr(P G) - (P d)^T G (P d) for a symmetric n x n G, P = Vi - Vone Vone^T / a (krige.h). */
@@ -114,7 +121,7 @@ static double neg_loglik(struct kr *k, const double *th, double *grad)
         k->stopped = 1;
         return HUGE_VAL;
     }
-    if (k->smooth) smooth_products(k, exp(th[nl + 1]));
+    if (k->smooth) smooth_products(k, exp(th[nl + 1]), grad != NULL);
     for (size_t i = 0; i < n * n; i++) k->V[i] = 0;
     for (size_t i = 0; i < n; i++) k->V[i * n + i] = k->s2[i];
     for (int q = 0; q < nl; q++) {
@@ -414,7 +421,8 @@ int fit_krige(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_krig
     double t0 = clock_mono_ms();
     fit_points_t p;
     size_t nonfinite, saturated;
-    struct kr k = {.F = r * ((FIT_KRIGE_CELLS + r - 1) / r), .l_cached = NAN, .stop = &o.stop};
+    struct kr k = {.F = r * ((FIT_KRIGE_CELLS + r - 1) / r), .l_cached = NAN, .l_cached_d = NAN,
+                   .stop = &o.stop};
     double *A = NULL, th1[FIT_KRIGE_MAX_LEVELS + 2] = {0}, th0[FIT_KRIGE_MAX_LEVELS + 2] = {0};
     if ((rc = fit_points_select(scan, o.noise, &p, &nonfinite, &saturated))) goto nomem;
     k.n = p.n;
@@ -483,7 +491,7 @@ int fit_krige(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_krig
     }
     if (!(out->S = malloc(sizeof(double) * k.m)) || !(out->S_err = malloc(sizeof(double) * k.m)))
         goto nomem;
-    if (k.smooth) k.l_cached = NAN, smooth_products(&k, exp(th[k.nl + 1]));
+    if (k.smooth) k.l_cached = NAN, smooth_products(&k, exp(th[k.nl + 1]), 0);
     if ((rc = posterior(&k, th, out))) {
         rc = rc == -ENOMEM    ? err_set(err, rc, "out of memory")
              : rc == -ECANCELED ? err_set(err, rc, "kriged map stopped")
