@@ -36,7 +36,8 @@
  * the flat part of what was measured (docs/numerics.md "The kriged map": cases within 1.1x of the
  * best r on seeds 1-21 / 22-42: always smooth 1142 / 1140, threshold 6 1175 / 1171, 9.21 1176 /
  * 1172 of 1172, 20 1176 / 1172 at a larger mean error). In C on all 1176 cases of each: 1176
- * (worst 1.01x, mean ratio 0.487) and 1175 (a dead corner, 0.0019 against 0.0013, 1.49x). */
+ * (worst 1.01x, mean ratio 0.487) and 1175 (a dead corner, 0.0019 against 0.0013, 1.49x); on
+ * fresh seeds 43-63, run once at the end, 1176 (worst 1.08x, 0.486). */
 #define FIT_KRIGE_LR 9.21
 /* Largest number of points: the restricted likelihood factors an N x N matrix per evaluation. */
 #define FIT_KRIGE_MAX_POINTS 1200
