@@ -37,6 +37,8 @@ struct kr {
     double *Y, *Yd, *X, *Xd; /* n x m: A's images times K1, D1; A K; A dK/dlog l */
     double *M, *Md;       /* n x n: I0^2 A K A^T and its d/dlog l (unit amplitude) */
     double *V, *Vi, *Py, *Vone;
+    double a, mu;         /* 1_A^T Vi 1_A and the mean's estimate 1_A^T Vi d / a, at the last
+                             evaluation */
     double l_cached;      /* the l of K1, D1, X, M (NaN: none) */
     double l_cached_d;    /* the l of Yd, Xd, Md: the gradient's, made only when asked (NaN) */
     const fit_stop_t *stop;
@@ -155,6 +157,8 @@ static double neg_loglik(struct kr *k, const double *th, double *grad)
     }
     for (size_t i = 0; i < n; i++) a += k->one[i] * k->Vone[i], b += k->one[i] * k->Py[i];
     if (!(a > 0)) return HUGE_VAL;
+    k->a = a;
+    k->mu = b / a;
     double dPd = 0;
     for (size_t i = 0; i < n; i++) { /* P d = Vi d - Vone (b / a) */
         k->Py[i] -= k->Vone[i] * b / a;
@@ -332,14 +336,7 @@ static int posterior(struct kr *k, const double *th, fit_kriged_t *out)
         goto out;
     }
     prior_products(k, th, Z, Kd, Kr);
-    double a = 0, b = 0;
-    for (size_t i = 0; i < n; i++) a += k->one[i] * k->Vone[i];
-    for (size_t i = 0; i < n; i++) { /* mu = 1_A^T Vi d / a */
-        double w = 0;
-        for (size_t j = 0; j < n; j++) w += k->Vi[i * n + j] * k->d[j];
-        b += k->one[i] * w;
-    }
-    double mu = b / a;
+    double a = k->a, mu = k->mu; /* of the evaluation just made */
     /* T = mu + I0^2 Z^T P d */
     fit_gemm(Z, 1, k->Py, 0, m, n, 1, I2, 0, T);
     for (size_t i = 0; i < m; i++) T[i] += mu;

@@ -347,7 +347,7 @@ static int run_steps(struct run *rn, err_t *err)
     memcpy(sw->recommended_reason, rec.reason, sizeof sw->recommended_reason);
     int rc = keep_shrunk(rn, sw, rec.noise_scale, err);
     if (rc == 0 && o->krige && rec.r > 0) rc = keep_kriged(rn, sw, err);
-    else if (o->krige)
+    else if (rc == 0 && o->krige)
         snprintf(rn->out->kriged_error, sizeof rn->out->kriged_error,
                  "no recommended r: no fit has a map to trust");
     if (rc) return rc;
