@@ -137,7 +137,7 @@ json_t *api_enc_calib(const storage_calib_t *c)
         c->software_version ? c->software_version : "", "created_ms", api_time(c->created_ms),
         "superseded_by", id_or_null(c->superseded_by), "current", !c->superseded_by, "supersedes",
         id_or_null(c->supersedes), "by", str_or_null(c->by), "reason", str_or_null(c->reason),
-        "map", c->shrunk ? "shrunk" : "recommended", "S_res",
+        "map", storage_map_name(c->map), "S_res",
         c->S_res ? array(c->S_res, n) : json_null());
 }
 

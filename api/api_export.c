@@ -41,7 +41,7 @@ static fitsmap_t map_of(const storage_calib_t *c, const storage_sensor_t *sn)
                        .current = c->superseded_by == 0,
                        .by = c->by,
                        .reason = c->reason,
-                       .map = c->shrunk ? "shrunk" : "recommended"};
+                       .map = storage_map_name(c->map)};
 }
 
 /* Writes maps and replies with the file (application/fits, RFC 4047), named filename. */

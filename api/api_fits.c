@@ -80,12 +80,14 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         api_get_num(q, o, "read_noise_e", "read_noise_e", 0, 0, 1e6, 0, &p->read_noise_e) ||
         api_get_str(q, o, "map", "map", 0, 16, &map))
         return -1;
-    if (map && strcmp(map, "recommended") != 0 && strcmp(map, "shrunk") != 0) {
-        api_error(q, 422, "out_of_range", "map", "map must be recommended or shrunk (got '%s')",
+    int which = map ? storage_map_parse(map) : STORAGE_MAP_RECOMMENDED;
+    if (which < 0) {
+        api_error(q, 422, "out_of_range", "map", "map must be " STORAGE_MAP_WORDS " (got '%s')",
                   map);
         return -1;
     }
-    p->map_shrunk = map && strcmp(map, "shrunk") == 0;
+    p->map = (storage_map_t)which;
+    if (p->map == STORAGE_MAP_KRIGED) p->krige = 1; /* the map it stores is the kriged one */
     if (geometry_r && !p->fit_geometry) {
         api_error(q, 422, "invalid", "geometry_r", "geometry_r goes with \"fit_geometry\": true");
         return -1;

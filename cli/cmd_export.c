@@ -15,7 +15,7 @@
 #include "mapfile.h"
 
 static const char usage[] =
-    "usage: ips export MAPS.json --pitch UM -o OUT.fits [--r R | --shrunk]\n"
+    "usage: ips export MAPS.json --pitch UM -o OUT.fits [--r R | --shrunk | --kriged]\n"
     "  Writes IPS maps as FITS: per map the image extensions ('S', k) and ('S_ERR', k) with\n"
     "  their sampling (OVERSAMP, CDELT/CRVAL/CRPIX), optics and provenance, then ('S_RES', k)\n"
     "  where the map's resolution error is known (docs/api.md, FITS).\n"
@@ -24,20 +24,22 @@ static const char usage[] =
     "  --pitch UM     pixel pitch of the sensor (um, > 0; the documents do not carry it)\n"
     "  -o, --out FILE the FITS file to write\n"
     "  --r R          the r of an `ips fit` document's map (default: its recommended r)\n"
-    "  --shrunk       an `ips fit` document's shrunk map (its shrunk_map) instead\n";
+    "  --shrunk       an `ips fit` document's shrunk map (its shrunk_map) instead\n"
+    "  --kriged       an `ips fit --krige` document's kriged map (its kriged_map, on its fine\n"
+    "                 grid: OVERSAMP is that grid) instead\n";
 
-enum { OPT_PITCH = 256, OPT_R, OPT_SHRUNK, OPT_HELP };
+enum { OPT_PITCH = 256, OPT_R, OPT_SHRUNK, OPT_KRIGED, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"pitch", required_argument, NULL, OPT_PITCH}, {"out", required_argument, NULL, 'o'},
     {"r", required_argument, NULL, OPT_R},         {"help", no_argument, NULL, OPT_HELP},
-    {"shrunk", no_argument, NULL, OPT_SHRUNK},
+    {"shrunk", no_argument, NULL, OPT_SHRUNK},     {"kriged", no_argument, NULL, OPT_KRIGED},
     {NULL, 0, NULL, 0}};
 
 struct export_args {
     double pitch;
     const char *out;
-    int r, shrunk;
+    int r, shrunk, kriged;
 };
 
 static int parse_opt(int c, const char *arg, void *user, err_t *err)
@@ -47,6 +49,7 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
     case OPT_PITCH: return opts_num("pitch", arg, 1e-3, 1e4, &a->pitch, err);
     case OPT_R: return opts_int32("r", arg, 1, 256, &a->r, err);
     case OPT_SHRUNK: a->shrunk = 1; return 0;
+    case OPT_KRIGED: a->kriged = 1; return 0;
     case 'o': a->out = arg; return 0;
     default: return err_set(err, -EINVAL, "unhandled option");
     }
@@ -67,10 +70,11 @@ int cmd_export(int argc, char **argv)
         return cli_fail(CLI_EXIT_USAGE, "export", "expected one MAPS.json (see ips export --help)");
     if (!a.out) return cli_fail(CLI_EXIT_USAGE, "export", "-o OUT.fits is required");
     if (!(a.pitch > 0)) return cli_fail(CLI_EXIT_USAGE, "export", "--pitch UM is required");
-    if (a.shrunk && a.r)
-        return cli_fail(CLI_EXIT_USAGE, "export", "--shrunk and --r exclude each other");
+    if ((a.shrunk != 0) + (a.kriged != 0) + (a.r != 0) > 1)
+        return cli_fail(CLI_EXIT_USAGE, "export", "--r, --shrunk and --kriged exclude each other");
     mapfile_t mf;
-    rc = mapfile_read(argv[first], a.shrunk ? MAPFILE_SHRUNK : a.r, &mf, &err);
+    rc = mapfile_read(argv[first], a.shrunk ? MAPFILE_SHRUNK : a.kriged ? MAPFILE_KRIGED : a.r,
+                      &mf, &err);
     if (rc) {
         mapfile_free(&mf);
         return cli_fail(cli_exit_code(rc), "export", "%s", err.msg);

@@ -95,6 +95,31 @@ static int one_map(json_t *o, const char *what, mapfile_map_t *m, err_t *err)
     return 0;
 }
 
+/* The kriged map of an `ips fit --krige` document as a map object of its own (*out, a new
+ * reference): r its grid, S and S_err, and the recommended r's fit's I0, chi2_red and status.
+ * Returns 0, -EINVAL (the document has none) or -ENOMEM. */
+static int kriged_of(json_t *doc, json_t **out, err_t *err)
+{
+    json_t *k = json_object_get(doc, "kriged_map"), *fits = json_object_get(doc, "fits"), *f;
+    if (!json_is_array(json_object_get(k, "S")) || id(k, "grid") < 1) {
+        const char *why = str(k, "error");
+        return err_set(err, -EINVAL, "the fit document has no kriged map (%s)",
+                       why ? why : "fit it with `ips fit --krige`");
+    }
+    json_t *m = json_pack("{s:I, s:O, s:O}", "r", (json_int_t)id(k, "grid"), "S",
+                          json_object_get(k, "S"), "S_err", json_object_get(k, "S_err"));
+    size_t i;
+    json_array_foreach(fits, i, f) if (m && id(f, "r") == id(doc, "recommended_r"))
+    {
+        const char *keys[] = {"I0", "chi2_red", "status"};
+        for (int j = 0; j < 3; j++)
+            if (json_object_get(f, keys[j]))
+                json_object_set(m, keys[j], json_object_get(f, keys[j]));
+    }
+    *out = m;
+    return m ? 0 : err_set(err, -ENOMEM, "out of memory");
+}
+
 /* The fit of r (0: recommended_r, else the best BIC; MAPFILE_SHRUNK: the shrunk map) of an
  * `ips fit` document. */
 static json_t *fit_of(json_t *doc, int r, err_t *err)
@@ -133,6 +158,10 @@ int mapfile_read(const char *path, int r, mapfile_t *out, err_t *err)
     if (json_is_array(items)) {
         n = json_array_size(items);
         if (n == 0) return err_set(err, -EINVAL, "%s: items is empty", path);
+    } else if (json_is_array(json_object_get(doc, "fits")) && r == MAPFILE_KRIGED) {
+        int ret = kriged_of(doc, &bare, err);
+        if (ret) return ret;
+        single = bare;
     } else if (json_is_array(json_object_get(doc, "fits"))) {
         if (!(single = fit_of(doc, r, err))) return -EINVAL;
     } else if (json_is_array(doc)) {
@@ -154,6 +183,7 @@ int mapfile_read(const char *path, int r, mapfile_t *out, err_t *err)
         ret = one_map(o, what, &out->maps[k], err);
         if (!ret) out->n++;
     }
+    if (!ret && r == MAPFILE_KRIGED && bare) out->maps[0].map = "kriged";
     if (!ret && single != doc && !bare) { /* an `ips fit` document's map: which one */
         out->maps[0].map = r == MAPFILE_SHRUNK                             ? "shrunk"
                            : id(single, "r") == id(doc, "recommended_r") ? "recommended"

@@ -123,7 +123,7 @@ static void key_map(fitsfile *f, const fitsmap_t *m, const char *extname, int ex
                            status);
     key_str(f, "CALBY", m->by, "who made it the calibration", status);
     key_str(f, "REASON", m->reason, "why", status);
-    key_str(f, "IPSMAP", m->map, "recommended r's own map, or shrunk toward r - 1", status);
+    key_str(f, "IPSMAP", m->map, "recommended r's own, shrunk toward r - 1, or kriged", status);
 }
 
 static int check_map(const fitsmap_t *m, size_t k, err_t *err)

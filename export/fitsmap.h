@@ -44,7 +44,7 @@ typedef struct fitsmap {
     int64_t created_ms;      /* when the calibration was stored (CALDATE, CAL_MS); 0: unknown */
     int current;             /* 1: the pixel's current calibration; -1: unknown */
     const char *by, *reason; /* who made it the calibration, and why (CALBY, REASON) */
-    const char *map;         /* which map of its fit (IPSMAP): "recommended" or "shrunk" */
+    const char *map; /* which map of its fit (IPSMAP): "recommended", "shrunk" or "kriged" */
 } fitsmap_t;
 
 /* What the primary header says of the whole file (strings may be NULL). */

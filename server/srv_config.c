@@ -14,6 +14,7 @@
 #include "base/thread_sched.h"
 #include "instrument/stage.h"
 #include "server/srv_token.h"
+#include "storage/storage.h" /* storage_map_parse */
 
 #ifndef IPSD_WEB_DIR
 #define IPSD_WEB_DIR "web"
@@ -79,6 +80,10 @@ static const char usage[] =
     "                       radial evaluations (default 200000000, a few seconds); more get 422\n"
     "  --camera-timeout S   a camera that delivers no frame within S seconds fails the scan\n"
     "                       (default 0: the camera's own, the exposure time + 5 s)\n"
+    "  --calibration-map M  the map the automatic fit of a scan stores as its calibration:\n"
+    "                       recommended (default: the recommended r's own), shrunk or kriged\n"
+    "                       (the kriged map, closest to the truth; adds 0.2-13 s a fit; see\n"
+    "                       docs/numerics.md \"The kriged map\")\n"
     "SIGINT / SIGTERM stop gracefully: running scans resume at the next start.\n";
 
 const char *srv_config_usage(void)
@@ -204,6 +209,7 @@ enum {
     O_HEARTBEAT,
     O_ATTEMPTS,
     O_CAMTIMEOUT,
+    O_CALIBMAP,
     O_HELP
 };
 
@@ -240,6 +246,7 @@ static const struct option opts[] = {
     {"heartbeat", required_argument, NULL, O_HEARTBEAT},
     {"max-attempts", required_argument, NULL, O_ATTEMPTS},
     {"camera-timeout", required_argument, NULL, O_CAMTIMEOUT},
+    {"calibration-map", required_argument, NULL, O_CALIBMAP},
     {"help", no_argument, NULL, O_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -380,6 +387,14 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--camera-timeout must be 0..3600 seconds (got '%s')",
                            arg);
         cfg->camera_timeout_s = t;
+        return 0;
+    }
+    case O_CALIBMAP: {
+        int m = storage_map_parse(arg);
+        if (m < 0)
+            return err_set(err, -EINVAL,
+                           "--calibration-map must be " STORAGE_MAP_WORDS " (got '%s')", arg);
+        cfg->calibration_map = m;
         return 0;
     }
     default:

@@ -56,6 +56,9 @@ typedef struct srv_config {
     int max_jitter_evals;         /* largest estimated Airy integration of a jitter request, in
                                      radial evaluations (fit_jitter_cost; 200000000) */
     double camera_timeout_s;      /* a frame not delivered within fails the scan (0: camera's) */
+    /* --calibration-map: the map the automatic fit of a scan stores as its POI's calibration
+       (a storage_map_t: 0 recommended, the default; 1 shrunk; 2 kriged) */
+    int calibration_map;
 } srv_config_t;
 
 /* The defaults above (web_dir: the source tree's web/ when it exists, else ./web). */

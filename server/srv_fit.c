@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "base/clock.h"
+#include "fit/krige.h"
 #include "fit/pipeline.h"
 #include "json/fitjson.h"
 
@@ -99,24 +100,28 @@ static json_t *document(const fit_scan_t *scan, const srv_fit_params_t *p,
 }
 
 /* Copies the recommended map of the sweep (fit/recommend.h) into out (nothing when it has
- * none), or with shrunk its shrunk map (fit/shrink.h) when it has one: the map a calibration
- * stores. I0, chi2_red and the status are the recommended fit's either way, and so is the
- * resolution error S_res (the shrinkage's, of the r grid both maps share; NULL without one). */
-static int keep_map(const fit_sweep_t *sw, int shrunk, srv_fit_out_t *out, err_t *err)
+ * none), or the shrunk map (fit/shrink.h) or the kriged map (fit/krige.h) when map asks for it
+ * and the sweep has it: the map a calibration stores. I0, chi2_red and the status are the
+ * recommended fit's either way. The resolution error S_res is the shrinkage's, of the r grid the
+ * recommended and the shrunk map share (NULL without one); the kriged map has none: its S_err is
+ * already its whole error against the truth's mean per fine cell (docs/numerics.md). */
+static int keep_map(const fit_sweep_t *sw, storage_map_t map, srv_fit_out_t *out, err_t *err)
 {
     if (!sw->recommended_r) return 0;
     const fit_result_t *f = &sw->fits[sw->recommended_r - sw->r_min];
     if (!f->S || !f->S_err) return 0;
-    const fit_shrunk_t *sh = shrunk && sw->shrunk ? sw->shrunk : NULL;
-    size_t n = (size_t)f->r * f->r;
+    const fit_shrunk_t *sh = map == STORAGE_MAP_SHRUNK ? sw->shrunk : NULL;
+    const fit_kriged_t *kr = map == STORAGE_MAP_KRIGED ? sw->kriged : NULL;
+    int r = kr ? kr->grid : f->r;
+    size_t n = (size_t)r * r;
     out->S = malloc(n * sizeof(double));
     out->S_err = malloc(n * sizeof(double));
     if (!out->S || !out->S_err) return err_set(err, -ENOMEM, "out of memory");
-    memcpy(out->S, sh ? sh->S : f->S, n * sizeof(double));
-    memcpy(out->S_err, sh ? sh->S_err : f->S_err, n * sizeof(double));
-    out->r = f->r;
-    out->shrunk = sh != NULL;
-    if (sw->shrunk && sw->shrunk->r == f->r && sw->shrunk->S_res) { /* either map's grid */
+    memcpy(out->S, kr ? kr->S : sh ? sh->S : f->S, n * sizeof(double));
+    memcpy(out->S_err, kr ? kr->S_err : sh ? sh->S_err : f->S_err, n * sizeof(double));
+    out->r = r;
+    out->map = kr ? STORAGE_MAP_KRIGED : sh ? STORAGE_MAP_SHRUNK : STORAGE_MAP_RECOMMENDED;
+    if (!kr && sw->shrunk && sw->shrunk->r == f->r && sw->shrunk->S_res) { /* either map's grid */
         if (!(out->S_res = malloc(n * sizeof(double))))
             return err_set(err, -ENOMEM, "out of memory");
         memcpy(out->S_res, sw->shrunk->S_res, n * sizeof(double));
@@ -158,7 +163,7 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
         out->f_value = pl.ftest.F;
         out->p_value = pl.ftest.p_value;
     }
-    ret = keep_map(&pl.sweep, p->map_shrunk, out, err);
+    ret = keep_map(&pl.sweep, p->map, out, err);
     if (ret == 0 && !(out->result = document(scan, p, &pl, t0)))
         ret = err_set(err, -ENOMEM, "out of memory encoding the fit");
     fit_pipeline_free(&pl);

@@ -17,9 +17,10 @@ typedef struct srv_fit_out {
     json_t *result;          /* the `ips fit` document (owned) */
     int best_aic, best_bic;  /* 0: none */
     double f_value, p_value; /* NaN without an F-test */
-    /* the recommended map, when there is one (r = 0: none), or its shrunk map when the params
-     * asked for it and the sweep has one (shrunk = 1) */
-    int r, shrunk;
+    /* the recommended map, when there is one (r = 0: none), or the shrunk or kriged map when
+     * the params asked for it and the sweep has one (map; r is then the kriged map's grid) */
+    int r;
+    storage_map_t map;
     double *S, *S_err; /* r*r each (owned) */
     double *S_res;     /* r*r (owned), or NULL: the map's resolution error (fit/shrink.h) */
     double I0, chi2_red;

@@ -142,7 +142,7 @@ static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const stor
                          .r = out.r,
                          .S = out.S,
                          .S_err = out.S_err,
-                         .shrunk = out.shrunk,
+                         .map = out.map,
                          .S_res = out.S_res,
                          .I0 = out.I0,
                          .chi2_red = out.chi2_red,

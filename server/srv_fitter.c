@@ -112,7 +112,7 @@ static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struc
         c->r = out->r;
         c->S = out->S;
         c->S_err = out->S_err;
-        c->shrunk = out->shrunk;
+        c->map = out->map;
         c->S_res = out->S_res;
         c->I0 = out->I0;
         c->chi2_red = out->chi2_red;

@@ -121,7 +121,8 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
         json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
     if (p->all_pixels) json_object_set_new(o, "pixels", json_string("all"));
     if (p->krige) json_object_set_new(o, "krige", json_true());
-    if (p->map_shrunk) json_object_set_new(o, "map", json_string("shrunk"));
+    if (p->map != STORAGE_MAP_RECOMMENDED)
+        json_object_set_new(o, "map", json_string(storage_map_name(p->map)));
     if (isfinite(p->gain_e_per_dn))
         json_object_set_new(o, "gain_e_per_dn", json_real(p->gain_e_per_dn));
     if (isfinite(p->read_noise_e))
@@ -175,8 +176,9 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     p->krige = json_is_true(json_object_get(o, "krige"));
     p->all_pixels = (x = json_object_get(o, "pixels")) && json_is_string(x) &&
                     strcmp(json_string_value(x), "all") == 0;
-    p->map_shrunk = (x = json_object_get(o, "map")) && json_is_string(x) &&
-                    strcmp(json_string_value(x), "shrunk") == 0;
+    int map = storage_map_parse(json_string_value(json_object_get(o, "map")));
+    p->map = map < 0 ? STORAGE_MAP_RECOMMENDED : (storage_map_t)map;
+    if (p->map == STORAGE_MAP_KRIGED) p->krige = 1;
     if ((x = json_object_get(o, "geometry_r")) && json_is_integer(x))
         p->geometry_r = (int)json_integer_value(x);
     p->opts.nonneg = json_is_true(json_object_get(o, "nonneg"));

@@ -11,6 +11,7 @@
 #include "base/err.h"
 #include "fit/model.h"
 #include "fit/region.h"
+#include "storage/storage.h" /* storage_map_t */
 
 /* Scenes the simulated bench offers to scans. */
 #define SRV_SCENES "uniform, paperlike"
@@ -57,9 +58,10 @@ typedef struct srv_fit_params {
     /* the request's gain and read noise for sigma (eq. 5), overriding the sensor's measured
      * constants (srv_ptc.h) and the scan's; NaN: not given */
     double gain_e_per_dn, read_noise_e;
-    /* the map the fit offers as a calibration: 0 the recommended r's own (default), 1 the shrunk
-     * map (fit/shrink.h; "map": "shrunk"), the recommended one when there is none */
-    int map_shrunk;
+    /* the map the fit offers as a calibration ("map"): the recommended r's own (default), the
+     * shrunk map (fit/shrink.h) or the kriged map (fit/krige.h; it implies krige), the recommended
+     * one when the sweep has none */
+    storage_map_t map;
 } srv_fit_params_t;
 
 /* Defaults: r 1..8, paper noise, linear, no F-test (ftest_r 7), no Wiener, no upload, not

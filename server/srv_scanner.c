@@ -160,6 +160,8 @@ static int finish_done(struct scan_run *r)
     int ret = srv_failpoint(r->w, "scan.finish", &r->err); /* test hook: before the end */
     if (ret) return ret;
     srv_fit_params_t p = srv_fit_params_auto(r->scan.id);
+    p.map = (storage_map_t)r->srv->cfg.calibration_map; /* --calibration-map */
+    p.krige = p.map == STORAGE_MAP_KRIGED;
     char *params = srv_fit_params_dump(&p);
     if (!params) return err_set(&r->err, -ENOMEM, "out of memory");
     int64_t fit_job = 0;

@@ -186,13 +186,25 @@ char *stg_col_text(sqlite3_stmt *s, int i, int *oom)
     return copy;
 }
 
-int stg_col_is(sqlite3_stmt *s, int i, const char *t)
+storage_map_t stg_col_map(sqlite3_stmt *s, int i)
 {
-    const unsigned char *v = sqlite3_column_text(s, i);
-    return v && strcmp((const char *)v, t) == 0;
+    int m = storage_map_parse((const char *)sqlite3_column_text(s, i));
+    return m < 0 ? STORAGE_MAP_RECOMMENDED : (storage_map_t)m;
 }
 
-const char *stg_map_name(int shrunk) { return shrunk ? "shrunk" : "recommended"; }
+static const char *const map_words[] = {"recommended", "shrunk", "kriged"};
+
+const char *storage_map_name(storage_map_t m)
+{
+    return m >= 0 && m < (int)(sizeof map_words / sizeof *map_words) ? map_words[m] : "recommended";
+}
+
+int storage_map_parse(const char *word)
+{
+    for (int m = 0; word && m < (int)(sizeof map_words / sizeof *map_words); m++)
+        if (strcmp(word, map_words[m]) == 0) return m;
+    return -1;
+}
 
 int stg_bind_f64_or_null(sqlite3_stmt *q, int i, const double *v, size_t n, unsigned char **buf,
                          int *rc)

@@ -393,6 +393,20 @@ typedef struct storage_fit_list {
     int64_t total;
 } storage_fit_list_t;
 
+/* Which map of its fit a calibration holds (the column map of fit_maps and calibrations, schema
+ * 7; 'kriged' schema 8): the recommended r's own least-squares map, its detail shrunk toward
+ * r - 1 (fit/shrink.h), or the kriged map on its fine grid (fit/krige.h; r is then that grid). */
+typedef enum storage_map {
+    STORAGE_MAP_RECOMMENDED = 0,
+    STORAGE_MAP_SHRUNK = 1,
+    STORAGE_MAP_KRIGED = 2,
+} storage_map_t;
+#define STORAGE_MAP_WORDS "recommended, shrunk or kriged"
+/* The map's word ("recommended", "shrunk", "kriged"). */
+const char *storage_map_name(storage_map_t m);
+/* The map of a word, -1 when it names none. */
+int storage_map_parse(const char *word);
+
 /* One IPS map of one sensor pixel with its provenance. */
 typedef struct storage_calib {
     int64_t id, sensor_id;
@@ -413,8 +427,7 @@ typedef struct storage_calib {
      * "ipsd" and "no reason given"; an empty string is -EINVAL */
     char *by;
     char *reason;
-    int shrunk; /* which map (schema 7, column map): 1 the shrunk map (fit/shrink.h, 'shrunk'),
-                   0 the recommended r's own fit ('recommended') */
+    storage_map_t map; /* which map of its fit (schema 7, column map; storage_map_t) */
     double *S_res; /* r*r or NULL (not known): the map's resolution error (schema 7, fit/shrink.h:
                       add in quadrature to S_err) */
 } storage_calib_t;

@@ -69,7 +69,7 @@ static int read_calib(sqlite3_stmt *s, void *item)
     o->supersedes = stg_col_id(s, 19);
     o->by = stg_col_text(s, 20, &oom);
     o->reason = stg_col_text(s, 21, &oom);
-    o->shrunk = stg_col_is(s, 22, "shrunk");
+    o->map = stg_col_map(s, 22);
     o->S_res = stg_col_f64_or_null(s, 23, n, &bad_e, &oom);
     int ret = bad_s || bad_e ? -EIO : (oom || !o->S || !o->S_err) ? -ENOMEM : 0;
     if (ret) storage_calib_free(o);
@@ -180,7 +180,7 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
     stg_bind_id(q, 19, old, &rc);
     stg_bind_text(q, 20, c->by ? c->by : DEFAULT_BY, &rc);
     stg_bind_text(q, 21, c->reason ? c->reason : DEFAULT_REASON, &rc);
-    stg_bind_text(q, 22, stg_map_name(c->shrunk), &rc);
+    stg_bind_text(q, 22, storage_map_name(c->map), &rc);
     if (stg_bind_f64_or_null(q, 23, c->S_res, (size_t)c->r * (size_t)c->r, &res, &rc)) {
         stg_reset(q);
         ret = err_set(err, -ENOMEM, "calibration: out of memory");

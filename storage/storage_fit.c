@@ -164,7 +164,7 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
     stg_bind_double(q, 12, c->na, &rc);
     stg_bind_double(q, 13, c->spot_radius_um, &rc);
     stg_bind_text(q, 14, c->software_version ? c->software_version : IPSD_VERSION, &rc);
-    stg_bind_text(q, 15, stg_map_name(c->shrunk), &rc);
+    stg_bind_text(q, 15, storage_map_name(c->map), &rc);
     if (stg_bind_f64_or_null(q, 16, c->S_res, (size_t)c->r * (size_t)c->r, &res, &rc)) {
         stg_reset(q);
         ret = err_set(err, -ENOMEM, "fit map: out of memory");
@@ -231,7 +231,7 @@ int stg_fit_map_load(storage_t *st, int64_t fit_id, storage_calib_t *out, err_t 
         out->na = stg_col_double(q, 13);
         out->spot_radius_um = stg_col_double(q, 14);
         out->software_version = stg_col_text(q, 15, &oom);
-        out->shrunk = stg_col_is(q, 16, "shrunk");
+        out->map = stg_col_map(q, 16);
         out->S_res = stg_col_f64_or_null(q, 17, n, &bad_e, &oom);
         if (bad_s || bad_e)
             ret = err_set(err, -EIO, "fit %lld's map: BLOB of the wrong size", (long long)fit_id);

@@ -172,10 +172,8 @@ int stg_bind_map(sqlite3_stmt *q, const storage_calib_t *c, unsigned char **s, u
 double stg_col_double(sqlite3_stmt *s, int i);
 int64_t stg_col_id(sqlite3_stmt *s, int i);
 char *stg_col_text(sqlite3_stmt *s, int i, int *oom);
-/* 1 when column i holds the text t (NULL holds none). */
-int stg_col_is(sqlite3_stmt *s, int i, const char *t);
-/* The map column's word for storage_calib_t.shrunk (schema 7). */
-const char *stg_map_name(int shrunk);
+/* The map column i names (storage_map_t; a word the schema's CHECK lets in, else recommended). */
+storage_map_t stg_col_map(sqlite3_stmt *s, int i);
 /* Binds ?i to the r*r float64 BLOB of v, or NULL when v is NULL; *buf (caller frees, also on
  * error) must live until the statement has run. -ENOMEM when the BLOB cannot be made. */
 int stg_bind_f64_or_null(sqlite3_stmt *q, int i, const double *v, size_t n, unsigned char **buf,

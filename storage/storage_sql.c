@@ -3,6 +3,15 @@
  * The schema is documented for people in docs/schema.md: keep the two in step. */
 #include "storage_int.h"
 
+/* The columns of fit_maps and calibrations at schema 7, in order (migration 8 copies them). */
+#define FIT_MAP_COLUMNS_V7                                                                        \
+    "fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, chi2_red, status, wavelength_um, " \
+    "na, spot_radius_um, software_version, map, s_res"
+#define CALIBRATION_COLUMNS_V7                                                                    \
+    "id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, chi2_red, status, scan_id, fit_id, "   \
+    "noise_model, wavelength_um, na, spot_radius_um, software_version, created_ms, "              \
+    "superseded_by, supersedes, changed_by, reason, map, s_res"
+
 /* Migration N (index N-1) brings user_version N-1 to N inside one transaction run by
  * storage_open. Never edit a released migration: add a new one. */
 const char *const stg_migrations[] = {
@@ -272,6 +281,73 @@ const char *const stg_migrations[] = {
     "UPDATE calibrations SET map = 'shrunk'\n"
     "    WHERE fit_id IN (SELECT fit_id FROM fit_maps WHERE map = 'shrunk');\n"
     "PRAGMA user_version = 7;\n",
+
+    /* 8: a third map, 'kriged' (the kriged map on its fine F x F grid, fit/krige.h; r is then F,
+     * at most 46 for r <= 32), asked by a fit request's "map": "kriged". A CHECK cannot be
+     * altered, so fit_maps and calibrations are rebuilt the documented way (new table with the
+     * same columns in the same order, copy, drop, rename, indexes again; storage_open runs it in
+     * one transaction with foreign keys off and checks them after): every row and id is kept, so
+     * calibrations' links to each other and the fits' to their maps stay valid. */
+    "CREATE TABLE fit_maps_v8 (\n"
+    "    fit_id           INTEGER PRIMARY KEY REFERENCES fits (id),\n"
+    "    sensor_id        INTEGER NOT NULL REFERENCES sensors (id),\n"
+    "    pixel_col        INTEGER NOT NULL CHECK (pixel_col >= 0),\n"
+    "    pixel_row        INTEGER NOT NULL CHECK (pixel_row >= 0),\n"
+    "    r                INTEGER NOT NULL CHECK (r BETWEEN 1 AND 64),\n"
+    "    s                BLOB    NOT NULL CHECK (length(s) = 8 * r * r),\n"
+    "    s_err            BLOB    NOT NULL CHECK (length(s_err) = 8 * r * r),\n"
+    "    i0               REAL,\n"
+    "    chi2_red         REAL,\n"
+    "    status           TEXT    NOT NULL CHECK (length(status) > 0),\n"
+    "    wavelength_um    REAL,\n"
+    "    na               REAL,\n"
+    "    spot_radius_um   REAL,\n"
+    "    software_version TEXT    NOT NULL,\n"
+    "    map              TEXT    NOT NULL DEFAULT 'recommended'\n"
+    "                     CHECK (map IN ('recommended', 'shrunk', 'kriged')),\n"
+    "    s_res            BLOB    CHECK (s_res IS NULL OR length(s_res) = 8 * r * r)\n"
+    ");\n"
+    "INSERT INTO fit_maps_v8 (" FIT_MAP_COLUMNS_V7 ")\n"
+    "    SELECT " FIT_MAP_COLUMNS_V7 " FROM fit_maps;\n"
+    "DROP TABLE fit_maps;\n"
+    "ALTER TABLE fit_maps_v8 RENAME TO fit_maps;\n"
+    "CREATE TABLE calibrations_v8 (\n"
+    "    id               INTEGER PRIMARY KEY,\n"
+    "    sensor_id        INTEGER NOT NULL REFERENCES sensors (id),\n"
+    "    pixel_col        INTEGER NOT NULL CHECK (pixel_col >= 0),\n"
+    "    pixel_row        INTEGER NOT NULL CHECK (pixel_row >= 0),\n"
+    "    r                INTEGER NOT NULL CHECK (r BETWEEN 1 AND 64),\n"
+    "    s                BLOB    NOT NULL CHECK (length(s) = 8 * r * r),\n"
+    "    s_err            BLOB    NOT NULL CHECK (length(s_err) = 8 * r * r),\n"
+    "    i0               REAL,\n"
+    "    chi2_red         REAL,\n"
+    "    status           TEXT    NOT NULL CHECK (length(status) > 0),\n"
+    "    scan_id          INTEGER REFERENCES scans (id),\n"
+    "    fit_id           INTEGER REFERENCES fits (id),\n"
+    "    noise_model      TEXT    NOT NULL CHECK (length(noise_model) > 0),\n"
+    "    wavelength_um    REAL,\n"
+    "    na               REAL,\n"
+    "    spot_radius_um   REAL,\n"
+    "    software_version TEXT    NOT NULL,\n"
+    "    created_ms       INTEGER NOT NULL,\n"
+    "    superseded_by    INTEGER REFERENCES calibrations (id) DEFERRABLE INITIALLY DEFERRED,\n"
+    "    supersedes       INTEGER REFERENCES calibrations (id),\n"
+    "    changed_by       TEXT    NOT NULL DEFAULT 'ipsd',\n"
+    "    reason           TEXT    NOT NULL DEFAULT '',\n"
+    "    map              TEXT    NOT NULL DEFAULT 'recommended'\n"
+    "                     CHECK (map IN ('recommended', 'shrunk', 'kriged')),\n"
+    "    s_res            BLOB    CHECK (s_res IS NULL OR length(s_res) = 8 * r * r)\n"
+    ");\n"
+    "INSERT INTO calibrations_v8 (" CALIBRATION_COLUMNS_V7 ")\n"
+    "    SELECT " CALIBRATION_COLUMNS_V7 " FROM calibrations;\n"
+    "DROP TABLE calibrations;\n"
+    "ALTER TABLE calibrations_v8 RENAME TO calibrations;\n"
+    "CREATE UNIQUE INDEX calibrations_current ON calibrations (sensor_id, pixel_row, pixel_col)\n"
+    "    WHERE superseded_by IS NULL;\n"
+    "CREATE INDEX calibrations_pixel ON calibrations (sensor_id, pixel_row, pixel_col, id);\n"
+    "CREATE INDEX calibrations_created ON calibrations (created_ms);\n"
+    "CREATE INDEX calibrations_fit ON calibrations (fit_id);\n"
+    "PRAGMA user_version = 8;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 

@@ -5,7 +5,10 @@ bench's light and a tenth of it the kriged map keeps its smooth part and is clos
 than the recommended r's map on every scan, by at least a quarter over all; its grid is the
 smallest multiple of the recommended r with at least 24 cells, S has mean 1 and positive S_err;
 a flat pixel (recommended r = 1) gets a flat kriged map without the smooth part; without
---krige the document has no kriged_map; --table is not needed for it."""
+--krige the document has no kriged_map; --table is not needed for it. `ips export --kriged`
+writes the document's kriged map as FITS (read back by astropy, an independent reader): its S and
+S_err on the F x F grid, OVERSAMP F, IPSMAP 'kriged', the recommended fit's I0; a document without
+one, or --kriged with --r / --shrunk, exits 2 with one line."""
 import json
 import math
 import os
@@ -14,6 +17,15 @@ import sys
 import tempfile
 
 from fitdoc import rms_vs_truth
+
+try:
+    from astropy.io import fits
+except ImportError:
+    # Debian's python3-astropy is for Debian's python3: run under it when this one lacks it
+    if os.path.realpath(sys.executable) != os.path.realpath("/usr/bin/python3") and \
+            os.path.exists("/usr/bin/python3"):
+        os.execv("/usr/bin/python3", ["/usr/bin/python3", "-B"] + sys.argv)
+    fits = None
 
 IPS = sys.argv[1]
 CASES = [(scene, seed, peak) for scene in ("softedge:10", "gradient:10", "dip:10", "paperlike:10")
@@ -63,6 +75,7 @@ with tempfile.TemporaryDirectory() as tmp:
               % (name, e_kr, e_rec))
         err_rec += e_rec * e_rec
         err_kr += e_kr * e_kr
+        last_doc = doc
     check(err_kr < 0.75 ** 2 * err_rec, "over all: the kriged maps' rms %.4f, the recommended "
           "maps' %.4f" % (math.sqrt(err_kr / len(CASES)), math.sqrt(err_rec / len(CASES))))
     flat = os.path.join(tmp, "flat.json")
@@ -75,6 +88,40 @@ with tempfile.TemporaryDirectory() as tmp:
           max(abs(s - 1) for s in kr.get("S", [9])) < 1e-9,
           "flat pixel: a flat 24 x 24 kriged map without the smooth part")
     check("kriged_map" not in fit(flat, "--r-max", "8"), "without --krige: no kriged_map")
+
+    # ips export --kriged: the last graded scan's kriged map as FITS
+    doc_path, plain_path, out = (os.path.join(tmp, n) for n in ("k.json", "p.json", "k.fits"))
+    with open(doc_path, "w") as f:
+        json.dump(last_doc, f)
+    with open(plain_path, "w") as f:
+        json.dump(fit(flat, "--r-max", "8"), f)
+    kr, rec = last_doc["kriged_map"], last_doc["recommended_r"]
+    F = kr["grid"]
+    p = subprocess.run([IPS, "export", doc_path, "--pitch", "6", "-o", out, "--kriged"],
+                       capture_output=True, text=True)
+    check(p.returncode == 0, "ips export --kriged: " + p.stderr.strip())
+    if fits is None:
+        print("skip astropy is missing: the exported file is not read back")
+    elif p.returncode == 0:
+        with fits.open(out) as h:
+            s, e = h["S", 1], h["S_ERR", 1]
+            check(s.data.shape == (F, F) and s.data.ravel().tolist() == kr["S"] and
+                  e.data.ravel().tolist() == kr["S_err"],
+                  "the FITS file holds the kriged map and its S_err on the %d x %d grid" % (F, F))
+            i0 = [f for f in last_doc["fits"] if f["r"] == rec][0]["I0"]
+            check(s.header.get("IPSMAP") == "kriged" and s.header.get("OVERSAMP") == F and
+                  s.header.get("I0") == i0 and ("S_RES", 1) not in h,
+                  "its header: IPSMAP 'kriged', OVERSAMP %d, the recommended fit's I0; no S_RES"
+                  % F)
+    p = subprocess.run([IPS, "export", plain_path, "--pitch", "6", "-o", out, "--kriged"],
+                       capture_output=True, text=True)
+    check(p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and
+          "no kriged map" in p.stderr, "a document without a kriged map: exit 2, one line (%s)"
+          % p.stderr.strip())
+    p = subprocess.run([IPS, "export", doc_path, "--pitch", "6", "-o", out, "--kriged",
+                        "--shrunk"], capture_output=True, text=True)
+    check(p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and
+          "--kriged" in p.stderr, "--kriged with --shrunk: exit 2, one line naming them")
 
 print("%d failed" % fails)
 sys.exit(1 if fails else 0)

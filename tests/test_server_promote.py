@@ -13,9 +13,15 @@
   changing nothing stored;
 - "map": "shrunk" stores the result's shrunk map as the calibration (bad values 422 / 400
   naming map, changing nothing);
+- "map": "kriged" stores the result's kriged map (fit/krige.h) on its fine grid: the calibration's
+  r is that grid, its S the result's kriged_map.S, its map word "kriged" (schema 8), and its FITS
+  file samples that grid; promoted again it is the same map;
+- ipsd --calibration-map kriged: the automatic fit of a scan stores the kriged map (an unknown
+  word: exit status 2 naming the option);
 - an upload with a target pixel still becomes the calibration by default, unless
   "promote": false."""
 import struct
+import subprocess
 import sys
 
 import ipsd_http
@@ -222,6 +228,43 @@ def test(c, t, argv, daemons):
     c.eq((r.status, r.json().get("map"), r.json().get("S")), (201, "shrunk", sh and sh["S"]),
          "promoting the shrunk fit again: its shrunk map, named so")
 
+    # ---- "map": "kriged": the result's kriged map, on its fine grid, becomes the calibration ----
+    r = d.post("/api/scans/%d/fits" % scan, {"r_max": 6, "map": "kriged", "promote": True,
+                                              "reason": "the kriged map"})
+    c.status(r, 202, "re-fit storing the kriged map")
+    j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    c.eq((j["params"].get("map"), j["params"].get("krige")) if j else None, ("kriged", True),
+         "the job's params record map kriged (which runs krige)")
+    f6 = d.get("/api/fits/%d" % (j["fit_id"] if j else 0)).json()
+    km = f6.get("result", {}).get("kriged_map", {})
+    rec = f6.get("result", {}).get("recommended_r")
+    # fit/krige.h: the grid is the smallest multiple of the recommended r with >= 24 cells a side
+    want_grid = rec * -(-24 // rec) if rec else None
+    c.eq((km.get("r"), km.get("grid")), (rec, want_grid),
+         "the result's kriged map: the recommended r's prior on the smallest multiple >= 24")
+    cal6 = d.get(pix + "/calibration").json()
+    c.eq((cal6.get("fit_id"), cal6.get("map"), cal6.get("r"), cal6.get("S"), cal6.get("S_err")),
+         (f6.get("id"), "kriged", km.get("grid"), km.get("S"), km.get("S_err")),
+         "the calibration is the result's kriged map on its grid, named kriged")
+    g = km.get("grid") or 1
+    c.ok(len(cal6.get("S", [])) == g * g and abs(sum(cal6.get("S", [0])) / (g * g) - 1) < 1e-9,
+         "its S: grid^2 values of mean 1")
+    c.eq(cal6.get("S_res"), None, "a kriged map has no separate resolution error")
+    c.eq((db.val("SELECT map FROM calibrations WHERE superseded_by IS NULL"),
+          db.val("SELECT r FROM fit_maps WHERE fit_id = ?", f6.get("id"))), ("kriged", g),
+         "database: the current calibration and the fit's map are the kriged grid (schema 8)")
+    c.eq(cal6.get("I0"), [f for f in f6["result"]["fits"] if f["r"] == rec][0]["I0"] if rec
+         else None, "I0: the recommended r's fit's")
+    fits_file = d.get("/api/calibrations/%d/map.fits" % cal6.get("id", 0))
+    c.ok(fits_file.status == 200 and b"IPSMAP  = 'kriged" in fits_file.body and
+         ("OVERSAMP= %20d" % g).encode() in fits_file.body,
+         "its FITS file: IPSMAP kriged, OVERSAMP the grid (%d)" % g)
+    r = d.post("/api/fits/%d/promote" % fit1, {"reason": "the automatic map again"})
+    c.status(r, 201, "the automatic fit's map promoted again")
+    r = d.post("/api/fits/%d/promote" % f6.get("id", 0), {"reason": "kriged again"})
+    c.eq((r.status, r.json().get("map"), r.json().get("r"), r.json().get("S")),
+         (201, "kriged", g, km.get("S")), "promoting the kriged fit again: its kriged map")
+
     # ---- uploads with a target pixel: promoted by default, unless promote is false ----
     up = {"scan": pixel_file, "sensor_id": sensor, "pixel": {"col": 10, "row": 11}, "r_max": 2}
     r = d.post("/api/fits", dict(up, promote=False))
@@ -237,6 +280,33 @@ def test(c, t, argv, daemons):
          (j["fit_id"] if j else None, "api", "fit of an uploaded scan file"),
          "an upload with a target becomes the calibration, as before")
 
+    c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+
+    # ---- ipsd --calibration-map kriged: the automatic fit stores the kriged map ----
+    bad = subprocess.run([argv[1], "--calibration-map", "smooth"], capture_output=True,
+                         text=True, timeout=60)
+    c.ok(bad.returncode == 2 and "--calibration-map" in bad.stderr and
+         len(bad.stderr.strip().splitlines()) == 1,
+         "--calibration-map smooth: exit status 2, one line naming the option")
+    d.start("--calibration-map", "kriged")
+    poi2 = (POI[0] + 10, POI[1])
+    r = d.post("/api/scans", {"sensor_id": sensor, "poi": {"col": poi2[0], "row": poi2[1]},
+                              "raster": {"area_px": 3, "step_um": 0.6, "sub_px": 3, "frames": 2},
+                              "seed": 12})
+    c.status(r, 202, "submit a scan to the kriging ipsd")
+    scan2 = r.json()["scan"]["id"] if r.status == 202 else 0
+    c.ok(r.status == 202 and d.wait_job(r.json()["job"]["id"], "done"), "scan done")
+    jobs = d.get("/api/jobs?kind=fit&scan=%d" % scan2).json()["items"]
+    j = d.wait_job(jobs[0]["id"], "done") if jobs else None
+    c.eq((j["params"].get("map"), j["params"].get("krige"), j["params"].get("by")) if j else None,
+         ("kriged", True, "ipsd"), "the automatic fit's params: map kriged, by ipsd")
+    fa = d.get("/api/fits/%d" % (j["fit_id"] if j else 0)).json()
+    ka = fa.get("result", {}).get("kriged_map", {})
+    cal = d.get("/api/sensors/%d/pixels/%d/%d/calibration" % (sensor, poi2[0], poi2[1])).json()
+    c.eq((cal.get("map"), cal.get("r"), cal.get("S"), cal.get("by")),
+         ("kriged", ka.get("grid"), ka.get("S"), "ipsd"),
+         "the automatic calibration is the kriged map on its grid")
+    c.ok(isinstance(ka.get("grid"), int) and ka["grid"] >= 24, "its grid has >= 24 cells a side")
     db.close()
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 

@@ -4,7 +4,7 @@
 // downloads (JSON, and CSV with positions in µm and the pitch), two maps compared side by side
 // with their difference (calib_maps.js), and the pixel's history (GET .../calibration and
 // .../history) as small multiples and a table: who made each map current, when and why, the map
-// it superseded, and which map of its fit each is (recommended or shrunk).
+// it superseded, and which map of its fit each is (recommended, shrunk or kriged).
 import { get } from './api.js';
 import {
     clearError, errorBox, failure, field, fill, fmt, fmtTime, formBody, h, showError,
@@ -26,13 +26,18 @@ function csvLink(c, label = 'CSV') {
         download: `calibration-${c.id}.csv`, 'aria-label': `CSV of calibration #${c.id}` }, label);
 }
 
-// Which map of its fit a calibration holds (its `map`, database schema 7), and the rms of its
-// resolution error S_res where known (structure finer than the grid, beside S_err's noise).
+// Which map of its fit a calibration holds (its `map`, database schema 7; kriged schema 8), and
+// the rms of its resolution error S_res where known (structure finer than the grid, beside
+// S_err's noise).
 function mapWord(c) {
     const which = c.map === 'shrunk'
         ? `The shrunk map: r = ${c.r}'s detail shrunk toward r = ${c.r - 1} (fit request "map": ` +
           '"shrunk"; S_err includes the shrinkage\'s expected bias)'
-        : `The recommended r's own least-squares map (r = ${c.r})`;
+        : c.map === 'kriged'
+            ? `The kriged map on a fine ${c.r} × ${c.r} grid (fit request "map": "kriged"; a ` +
+              'Gaussian-process estimate, closest to the truth in the fidelity harness; S_err ' +
+              'is its whole error)'
+            : `The recommended r's own least-squares map (r = ${c.r})`;
     const res = Array.isArray(c.S_res) && c.S_res.length
         ? Math.sqrt(c.S_res.reduce((a, v) => a + v * v, 0) / c.S_res.length) : null;
     return res === null ? which : `${which}; resolution error S_res rms ${fmt(res, 3)} ` +
@@ -132,7 +137,8 @@ export function renderCalibrations(root, params) {
                             s ? `${s.model} ${s.serial}` : `#${c.sensor_id}`)),
                         h('td', {}, h('a', { href: pixelHref(c) },
                             `(${c.pixel.col}, ${c.pixel.row})`)),
-                        h('td', { title: mapWord(c) }, c.map === 'shrunk' ? `${c.r} shrunk` : c.r),
+                        h('td', { title: mapWord(c) },
+                            c.map === 'recommended' || !c.map ? c.r : `${c.r} ${c.map}`),
                     h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
                         h('td', {}, fmt(c.I0, 6)),
                         h('td', {}, c.current ? 'yes' : `superseded by #${c.superseded_by}`),

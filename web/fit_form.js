@@ -4,7 +4,8 @@
 // becomes the pixel's calibration only when "becomes the calibration" is ticked (default off: a
 // re-fit is stored as a fit, and can be promoted later from its Fit view). On the Scan view the
 // form can also fit every pixel the raster covers ("pixels": "all", one job, docs/api.md): the
-// pixel offsets are then disabled (not sent).
+// pixel offsets are then disabled (not sent). "Map stored" is the map the fit offers as the
+// calibration (recommended, shrunk or kriged; the server's rules list them).
 import { post } from './api.js';
 import { errorBox, field, h, onSubmit } from './dom.js';
 import { choices, ruleAttrs } from './rules.js';
@@ -37,6 +38,9 @@ export function buildFitForm(rule, scan, onQueued, opts = {}) {
         h('label', { class: 'fld check' }, h('input', { type: 'checkbox', checked: true,
             'data-field': 'wiener', 'data-type': 'bool' }), ' Wiener baseline')),
     h('div', { class: 'row-many' },
+        h('label', { class: 'fld', title: rule('map').description },
+            h('span', { class: 'lbl' }, 'Map stored'),
+            h('select', { 'data-field': 'map', 'data-testid': 'fit-map' }, choices(rule('map')))),
         h('label', { class: 'fld check', title: rule('promote').description },
             h('input', { type: 'checkbox', 'data-field': 'promote', 'data-type': 'bool',
                 'data-testid': 'fit-promote' }), ' becomes the calibration'),

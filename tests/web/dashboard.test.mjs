@@ -793,6 +793,12 @@ async function run(base, page, api) {
     await typeInto(rf2.getByLabel('r min'), 1);
     await typeInto(rf2.getByLabel('r max'), 7);
     await typeInto(rf2.getByLabel('F-test r'), 7);
+    // the map it stores: the form offers the API's words, and this re-fit stores the kriged map
+    const mapWords = docRule(doc, 'post', '/api/scans/{id}/fits', 'map').enum;
+    check(JSON.stringify(await rf2.locator('[data-testid="fit-map"] option').evaluateAll((os) =>
+        os.map((o) => o.value))) === JSON.stringify(mapWords) && mapWords.includes('kriged'),
+    'the re-fit form offers the maps the API knows', JSON.stringify(mapWords));
+    await rf2.locator('[data-testid="fit-map"]').selectOption('kriged');
     await rf2.locator('[data-testid="fit-promote"]').check();
     await rf2.getByRole('button', { name: 'Queue fit' }).click();
     const link = page.locator('[data-testid="refit-link"]');
@@ -806,10 +812,20 @@ async function run(base, page, api) {
         'pixel\'s calibration', JSON.stringify([promotedFit, pf.calibration, calNow.fit_id,
             pf.params, pf.result?.recommended_r, pf.result?.recommended_reason, pf.state,
             pf.result?.fits?.map((f) => [f.r, f.status])]));
+    const pk = pf.result?.kriged_map;
+    check(calNow.map === 'kriged' && pk && calNow.r === pk.grid &&
+        same(calNow.S, pk.S), 'the form\'s "Map stored: kriged" stored the result\'s kriged map ' +
+        'on its grid as the calibration', JSON.stringify([calNow.map, calNow.r,
+        pk?.grid, pk?.error]));
 
     // the pixel view: its current map as Plotly figures, two maps compared, the CSV download
     const pixelView = `#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`;
     await page.goto(`${base}/${pixelView}`);
+    await page.locator('[data-testid="current-map"]').waitFor({ timeout: WAIT });
+    check((await page.locator('[data-testid="current-map"]').textContent())
+        .includes(`kriged map on a fine ${calNow.r} × ${calNow.r} grid`),
+    'the pixel view says the calibration holds the kriged map, on its grid',
+    await page.locator('[data-testid="current-map"]').textContent());
     const cmp = await graph('plot-compare');
     const A = calNow, B = now; // the default comparison: the current map and the one before
     const [zA, zB, zD] = cmp.data.map((d) => flat(d.z));
