@@ -416,7 +416,9 @@ int cmd_fit(int argc, char **argv)
         const fit_pipeline_t *pl = &run.pl;
         fit_table_print(stdout, a.path, &run.sf.scan, &pl->sweep,
                         pl->ftest_part.asked ? &pl->ftest : NULL,
-                        pl->wiener_part.asked ? &pl->wiener : NULL, clock_mono_ms() - t0);
+                        pl->wiener_part.asked ? &pl->wiener : NULL,
+                        a.krige && !pl->sweep.kriged ? pl->kriged_error : NULL,
+                        clock_mono_ms() - t0);
         run_free(&run);
         return 0;
     }

@@ -3,7 +3,11 @@
 
 #include <math.h>
 
+#include "fit/krige.h"
 #include "fit/shrink.h"
+
+/* Grids finer than this print as the shaded picture only (a row of numbers would not fit). */
+#define NUMBERS_MAX_R 16
 
 /* A map as rows of numbers (S +- S_err) next to a shaded picture (darker = less sensitive). */
 static void print_map(FILE *f, const double *S, const double *err, int r)
@@ -14,8 +18,8 @@ static void print_map(FILE *f, const double *S, const double *err, int r)
     for (int c = 0; c < r * r; c++) lo = fmin(lo, S[c]), hi = fmax(hi, S[c]);
     for (int j = 0; j < r; j++) {
         fprintf(f, "    ");
-        for (int i = 0; i < r; i++) fprintf(f, " %6.3f", S[j * r + i]);
-        fprintf(f, "    ");
+        for (int i = 0; i < r && r <= NUMBERS_MAX_R; i++) fprintf(f, " %6.3f", S[j * r + i]);
+        if (r <= NUMBERS_MAX_R) fprintf(f, "    ");
         for (int i = 0; i < r; i++) {
             double t = hi > lo ? (S[j * r + i] - lo) / (hi - lo) : 1;
             fprintf(f, "%s", shade[(int)fmin(4, floor(t * 5))]);
@@ -48,7 +52,8 @@ static void print_sweep(FILE *f, const fit_sweep_t *sw)
 }
 
 void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fit_sweep_t *sw,
-                     const fit_ftest_t *ftest, const fit_wiener_t *wiener, double total_ms)
+                     const fit_ftest_t *ftest, const fit_wiener_t *wiener,
+                     const char *kriged_error, double total_ms)
 {
     const fit_result_t *first = &sw->fits[0];
     fprintf(f, "%s: %zu points (%zu used), pitch %g um, spot radius %g um, %d frames\n", path,
@@ -75,6 +80,22 @@ void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fi
         fprintf(f, "Resolution error of r = %d's sub-pixel values (structure finer than the grid, "
                    "fit/shrink.h): S_res rms %.3g; add it in quadrature to S_err\n",
                 sh->r, sqrt(v / (sh->r * sh->r)));
+    }
+    const fit_kriged_t *kr = sw->kriged;
+    if (kr) {
+        fprintf(f, "\nKriged map, %d x %d (fit/krige.h: a Gaussian process with r = %d's grids in "
+                   "its prior; ", kr->grid, kr->grid, kr->r);
+        if (kr->smooth)
+            fprintf(f, "smooth part kept, likelihood ratio %.1f, amplitude %.3g, length %.3g um",
+                    kr->lr, kr->amplitude, kr->length_um);
+        else
+            fprintf(f, "no smooth part, likelihood ratio %.1f < %.2f", kr->lr, FIT_KRIGE_LR);
+        fprintf(f, "; %.0f ms), mean 1%s\n", kr->ms,
+                kr->grid > NUMBERS_MAX_R ? ", as a picture (the numbers: the JSON's kriged_map)"
+                                         : "");
+        print_map(f, kr->S, kr->S_err, kr->grid);
+    } else if (kriged_error) {
+        fprintf(f, "\nNo kriged map: %s\n", kriged_error);
     }
     if (ftest) {
         fprintf(f, "\nF-test at r = %d: H0 (edge sub-pixels free, the rest one S0) p0 = %d, "

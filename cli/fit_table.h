@@ -1,5 +1,6 @@
 /* fit_table.h: the human-readable report of `ips fit --table`: the model-selection table,
- * the best map as numbers and as a shaded picture, the F-test and the Wiener baseline. */
+ * the best map as numbers and as a shaded picture, the shrunk and the kriged map, the F-test and
+ * the Wiener baseline. */
 #ifndef IPSD_CLI_FIT_TABLE_H
 #define IPSD_CLI_FIT_TABLE_H
 
@@ -8,8 +9,10 @@
 #include "fit/model.h"
 #include "fit/wiener.h"
 
-/* Prints the report to f. ftest and wiener may be NULL (not asked). total_ms: the run time. */
+/* Prints the report to f. ftest and wiener may be NULL (not asked); kriged_error: why the kriged
+ * map asked for is missing (NULL: not asked, or it is in sw->kriged). total_ms: the run time. */
 void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fit_sweep_t *sw,
-                     const fit_ftest_t *ftest, const fit_wiener_t *wiener, double total_ms);
+                     const fit_ftest_t *ftest, const fit_wiener_t *wiener,
+                     const char *kriged_error, double total_ms);
 
 #endif

@@ -5,7 +5,8 @@ bench's light and a tenth of it the kriged map keeps its smooth part and is clos
 than the recommended r's map on every scan, by at least a quarter over all; its grid is the
 smallest multiple of the recommended r with at least 24 cells, S has mean 1 and positive S_err;
 a flat pixel (recommended r = 1) gets a flat kriged map without the smooth part; without
---krige the document has no kriged_map; --table is not needed for it. `ips export --kriged`
+--krige the document has no kriged_map; --table prints it as a shaded picture with its likelihood
+ratio (and nothing of it without --krige). `ips export --kriged`
 writes the document's kriged map as FITS (read back by astropy, an independent reader): its S and
 S_err on the F x F grid, OVERSAMP F, IPSMAP 'kriged', the recommended fit's I0; a document without
 one, or --kriged with --r / --shrunk, exits 2 with one line."""
@@ -88,6 +89,22 @@ with tempfile.TemporaryDirectory() as tmp:
           max(abs(s - 1) for s in kr.get("S", [9])) < 1e-9,
           "flat pixel: a flat 24 x 24 kriged map without the smooth part")
     check("kriged_map" not in fit(flat, "--r-max", "8"), "without --krige: no kriged_map")
+    table = subprocess.run([IPS, "fit", scan, "--sigma", "shot+read", "--r-max", "8", "--krige",
+                            "--table"], capture_output=True, text=True, check=True).stdout
+    kr = last_doc["kriged_map"]
+    want = "Kriged map, %d x %d (fit/krige.h: a Gaussian process with r = %d's grids in its " \
+        "prior; smooth part kept, likelihood ratio %.1f" % (kr["grid"], kr["grid"], kr["r"],
+                                                           kr["likelihood_ratio"])
+    lines = table.splitlines()
+    at = [i for i, ln in enumerate(lines) if ln.startswith(want)]
+    check(len(at) == 1 and sum(1 for ln in lines[at[0] + 1:at[0] + 1 + kr["grid"]]
+                               if "(max 1-sigma" in ln) == kr["grid"],
+          "--table: the kriged map's line (%s...) and its %d picture rows"
+          % (want[:40], kr["grid"]))
+    plain = subprocess.run([IPS, "fit", scan, "--sigma", "shot+read", "--r-max", "8", "--table"],
+                           capture_output=True, text=True, check=True).stdout
+    check("Kriged map" not in plain and "kriged" not in plain.lower(),
+          "--table without --krige: no kriged map")
 
     # ips export --kriged: the last graded scan's kriged map as FITS
     doc_path, plain_path, out = (os.path.join(tmp, n) for n in ("k.json", "p.json", "k.fits"))
