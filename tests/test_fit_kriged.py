@@ -17,15 +17,13 @@ import subprocess
 import sys
 import tempfile
 
+from debian_python import rerun_under_debian_python
 from fitdoc import rms_vs_truth
 
 try:
     from astropy.io import fits
 except ImportError:
-    # Debian's python3-astropy is for Debian's python3: run under it when this one lacks it
-    if os.path.realpath(sys.executable) != os.path.realpath("/usr/bin/python3") and \
-            os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3", "-B"] + sys.argv)
+    rerun_under_debian_python()  # Debian's python3-astropy is for Debian's python3
     fits = None
 
 IPS = sys.argv[1]

@@ -32,6 +32,7 @@ import subprocess
 import sys
 import tempfile
 
+from debian_python import rerun_under_debian_python
 from fitdoc import untimed
 from ipsd_http import Checks, Ipsd
 
@@ -39,10 +40,7 @@ try:
     import numpy as np
     from astropy.io import fits
 except ImportError:
-    # Debian's python3-astropy is for Debian's python3: run under it when this one lacks it
-    if os.path.realpath(sys.executable) != os.path.realpath("/usr/bin/python3") and \
-            os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3", "-B"] + sys.argv)
+    rerun_under_debian_python()  # Debian's python3-astropy is for Debian's python3
     print("astropy is missing (Debian: python3-astropy): skipped")
     sys.exit(77)
 

@@ -27,6 +27,7 @@ import os
 import subprocess
 import sys
 
+from debian_python import rerun_under_debian_python
 import ipsd_http
 from ipsd_http import Ipsd
 
@@ -35,10 +36,7 @@ try:
     from astropy.io import fits
     from astropy.wcs import WCS
 except ImportError:
-    # Debian's python3-astropy is for Debian's python3: run under it when this one lacks it
-    if os.path.realpath(sys.executable) != os.path.realpath("/usr/bin/python3") and \
-            os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3", "-B"] + sys.argv)
+    rerun_under_debian_python()  # Debian's python3-astropy is for Debian's python3
     print("astropy is missing (Debian: python3-astropy): skipped")
     sys.exit(77)
 

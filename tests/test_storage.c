@@ -1131,6 +1131,22 @@ static void test_migrate_v2(void)
     storage_close(st);
 }
 
+/* Sensor 1 (a 10 x 10 sensor) and its done scan 1 of POI (5, 5): the rows the migration tests
+ * from schema 5 on hang their fits and maps on. */
+#define SENSOR_AND_DONE_SCAN                                                                      \
+    "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"                   \
+    "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, spot_radius_um, "     \
+    "area_px, step_um, sub_px, frames, exposure_us, points_total, state, points_done, "           \
+    "created_ms) VALUES (1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 'done', 9, 1);"
+
+/* Runs migrations 1 to v on the new database name by hand (an older ipsd's file). */
+static void migrate_by_hand(const char *name, int v)
+{
+    for (int i = 0; i < v; i++)
+        CHECK(raw_exec(name, stg_migrations[i]) == SQLITE_OK);
+    CHECK(raw_int(name, "PRAGMA user_version") == v);
+}
+
 /* A schema-6 database (migrations 1 to 6 run by hand) migrates to schema 7 with each fit's map
  * and each calibration named: `shrunk` for the fit whose job asked for "map": "shrunk" and whose
  * document has a shrunk_map (and for both calibrations of that fit), `recommended` for a job
@@ -1140,15 +1156,9 @@ static void test_migrate_v2(void)
  * back so (fit_maps, then its promoted calibration). */
 static void test_migrate_v6(void)
 {
-    for (int i = 0; i < 6; i++)
-        CHECK(raw_exec("v6m.db", stg_migrations[i]) == SQLITE_OK);
-    CHECK(raw_int("v6m.db", "PRAGMA user_version") == 6);
+    migrate_by_hand("v6m.db", 6);
     CHECK(raw_exec("v6m.db",
-                   "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"
-                   "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, "
-                   "spot_radius_um, area_px, step_um, sub_px, frames, exposure_us, points_total, "
-                   "state, points_done, created_ms) VALUES "
-                   "(1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 'done', 9, 1);"
+                   SENSOR_AND_DONE_SCAN
                    "INSERT INTO jobs (id, kind, params, state, progress, points_done, created_ms, "
                    "scan_id, fit_id) VALUES "
                    "(1, 'fit', '{\"scan_id\": 1, \"map\": \"shrunk\"}', 'done', 1, 0, 2, 1, 21),"
@@ -1253,15 +1263,9 @@ static void test_migrate_v6(void)
  * the calibration that says so. */
 static void test_migrate_v7(void)
 {
-    for (int i = 0; i < 7; i++)
-        CHECK(raw_exec("v7m.db", stg_migrations[i]) == SQLITE_OK);
-    CHECK(raw_int("v7m.db", "PRAGMA user_version") == 7);
+    migrate_by_hand("v7m.db", 7);
     CHECK(raw_exec("v7m.db",
-                   "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"
-                   "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, "
-                   "spot_radius_um, area_px, step_um, sub_px, frames, exposure_us, points_total, "
-                   "state, points_done, created_ms) VALUES "
-                   "(1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 'done', 9, 1);"
+                   SENSOR_AND_DONE_SCAN
                    "INSERT INTO fits (id, scan_id, dcol, drow, noise_model, result, created_ms) "
                    "VALUES (31, 1, 0, 0, 'paper', '{}', 2), (32, 1, 0, 0, 'paper', '{}', 3), "
                    "(33, 1, 0, 0, 'paper', '{}', 4);"
@@ -1338,15 +1342,9 @@ static void test_migrate_v7(void)
  * pixel joins its fit_ids, a pixel stored already is refused (a rerun stores none twice). */
 static void test_migrate_v5(void)
 {
-    for (int i = 0; i < 5; i++)
-        CHECK(raw_exec("v5m.db", stg_migrations[i]) == SQLITE_OK);
-    CHECK(raw_int("v5m.db", "PRAGMA user_version") == 5);
+    migrate_by_hand("v5m.db", 5);
     CHECK(raw_exec("v5m.db",
-                   "INSERT INTO sensors VALUES (1, 'M', 'S', 10, 10, 6, 3, 5, 100, 16383, 1);"
-                   "INSERT INTO scans (id, sensor_id, poi_col, poi_row, wavelength_um, na, "
-                   "spot_radius_um, area_px, step_um, sub_px, frames, exposure_us, points_total, "
-                   "state, points_done, created_ms) VALUES "
-                   "(1, 1, 5, 5, 0.55, 0.25, 1.342, 5, 0.6, 3, 2, 10, 9, 'done', 9, 1);"
+                   SENSOR_AND_DONE_SCAN
                    "INSERT INTO fits (id, scan_id, dcol, drow, noise_model, result, created_ms) "
                    "VALUES (11, 1, -1, -1, 'paper', '{}', 2), (12, 1, 0, -1, 'paper', '{}', 3), "
                    "(13, 1, 1, -1, 'paper', '{}', 4), (14, 1, 0, 0, 'paper', '{}', 5), "
