@@ -118,10 +118,14 @@ function calibrationPanel(fit) {
                 '(no admissible map, or an uploaded scan file without a sensor pixel).'));
             return;
         }
+        // a kriged map (a request's "map": "kriged") is offered on its own fine grid
+        const kr = f.result?.kriged_map;
+        const kriged = kr && kr.grid === c.r && c.r !== f.result?.recommended_r;
         const pixel = h('a', { href: `#/sensors/${c.sensor_id}/pixels/${c.pixel.col}/` +
             `${c.pixel.row}` }, `pixel (${c.pixel.col}, ${c.pixel.row})`);
         const st = c.current
-            ? state('ok', 'true', `Its r = ${c.r} map is the current calibration of `, pixel,
+            ? state('ok', 'true', `Its ${kriged ? 'kriged ' : ''}${c.r} × ${c.r} map is the ` +
+                'current calibration of ', pixel,
                 ` (calibration #${c.current_calibration_id}).`)
             : state(null, 'false', 'Stored as a fit, not the calibration of ', pixel,
                 c.current_calibration_id ? ` (the current one is calibration ` +
