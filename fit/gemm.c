@@ -7,6 +7,9 @@
 extern void dgemm_(const char *ta, const char *tb, const int *m, const int *n, const int *k,
                    const double *alpha, const double *a, const int *lda, const double *b,
                    const int *ldb, const double *beta, double *c, const int *ldc);
+extern void dsyrk_(const char *uplo, const char *trans, const int *n, const int *k,
+                   const double *alpha, const double *a, const int *lda, const double *beta,
+                   double *c, const int *ldc);
 extern void dtrmm_(const char *side, const char *uplo, const char *ta, const char *diag,
                    const int *m, const int *n, const double *alpha, const double *a,
                    const int *lda, double *b, const int *ldb);
@@ -22,6 +25,20 @@ void fit_gemm(const double *X, int tx, const double *Y, int ty, size_t a, size_t
     int ldy = ty ? (int)b : (int)c, ldx = tx ? (int)a : (int)b, ldo = (int)c;
     dgemm_(ty ? "T" : "N", tx ? "T" : "N", &m, &n, &k, &alpha, Y, &ldy, X, &ldx, &beta, out,
            &ldo);
+}
+
+void fit_syrk(const double *X, size_t a, size_t b, double alpha, double *out)
+{
+    if (a == 0) return;
+    fit_gsl_policy();
+    /* row-major X (a x b) is column-major X^T (b x a): X X^T = (X^T)^T (X^T), dsyrk's "T" form;
+     * it fills one triangle of the symmetric a x a product (column-major upper is row-major
+     * lower), mirrored here */
+    int n = (int)a, k = (int)b, ld = (int)b, lo = (int)a;
+    double zero = 0;
+    dsyrk_("U", "T", &n, &k, &alpha, X, &ld, &zero, out, &lo);
+    for (size_t i = 0; i < a; i++)
+        for (size_t j = i + 1; j < a; j++) out[i * a + j] = out[j * a + i];
 }
 
 void fit_trmm(int left, int upper, int trans, int unit, size_t rows, size_t cols,
