@@ -82,7 +82,7 @@ static const char usage[] =
     "                       (default 0: the camera's own, the exposure time + 5 s)\n"
     "  --calibration-map M  the map the automatic fit of a scan stores as its calibration:\n"
     "                       recommended (default: the recommended r's own), shrunk or kriged\n"
-    "                       (the kriged map, closest to the truth; adds 0.2-13 s a fit; see\n"
+    "                       (the kriged map, closest to the truth; adds 0.1-5 s a fit; see\n"
     "                       docs/numerics.md \"The kriged map\")\n"
     "SIGINT / SIGTERM stop gracefully: running scans resume at the next start.\n";
 

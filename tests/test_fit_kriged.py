@@ -61,7 +61,7 @@ with tempfile.TemporaryDirectory() as tmp:
             continue
         check(len(kr["S"]) == F * F and abs(sum(kr["S"]) / (F * F) - 1) <= 1e-9 and
               all(e > 0 for e in kr["S_err"]), "%s: %d values, mean 1, S_err > 0" % (name, F * F))
-        check(kr["smooth"] is True and kr["likelihood_ratio"] >= 9.21 and kr["length_um"] > 0 and
+        check(kr["smooth"] is True and kr["likelihood_ratio"] >= 13.82 and kr["length_um"] > 0 and
               kr["amplitude"] > 0, "%s: smooth part kept (likelihood ratio %.1f, length %.3g um)"
               % (name, kr["likelihood_ratio"], kr["length_um"] or 0))
         check([lv["q"] for lv in kr["levels"]] == [q for q in range(2, r + 1) if r % q == 0],
