@@ -122,8 +122,7 @@ static void smooth_ak(struct kr *k)
     images_times_k1(k);
     for (size_t p = 0; p < k->n; p++)
         fit_gemm(k->K1, 0, k->Y + p * m, 0, F, F, F, 1, 0, k->X + p * m);
-    k->l_cached_x = k->l_cached;
-    k->l_cached_d = NAN; /* Y was the gradient's */
+    k->l_cached_x = k->l_cached; /* (Y is scratch: Md, made from it, stays valid) */
 }
 
 /* tr(P G) - (P d)^T G (P d) for a symmetric n x n G, P = Vi - Vone Vone^T / a (krige.h). */
