@@ -19,6 +19,7 @@ import tempfile
 
 from debian_python import rerun_under_debian_python
 from fitdoc import rms_vs_truth
+from oklines import check, finish
 
 try:
     from astropy.io import fits
@@ -29,13 +30,7 @@ except ImportError:
 IPS = sys.argv[1]
 CASES = [(scene, seed, peak) for scene in ("softedge:10", "gradient:10", "dip:10", "paperlike:10")
          for seed, peak in ((5, 2150), (3, 21500))]
-fails = 0
 
-
-def check(cond, msg):
-    global fails
-    print(("ok   " if cond else "FAIL ") + msg)
-    fails += 0 if cond else 1
 
 
 def fit(path, *opts):
@@ -138,5 +133,4 @@ with tempfile.TemporaryDirectory() as tmp:
     check(p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and
           "--kriged" in p.stderr, "--kriged with --shrunk: exit 2, one line naming them")
 
-print("%d failed" % fails)
-sys.exit(1 if fails else 0)
+finish()

@@ -24,6 +24,7 @@ import sys
 import tempfile
 
 from fitdoc import untimed
+from oklines import check, fails, finish
 
 IPS = sys.argv[1]
 SUB, AREA, STEP, PITCH = 7, 5, 0.6, 6.0
@@ -32,13 +33,7 @@ COVERED = {(dc, dr) for dc in range(-2, 3) for dr in range(-2, 3)}
 SIM = ["--scene", "paperlike", "--seed", "3", "--subframe", str(SUB), "--area", str(AREA),
        "--step", str(STEP)]
 
-fails = 0
 
-
-def check(cond, msg):
-    global fails
-    print(("ok   " if cond else "FAIL ") + msg)
-    fails += 0 if cond else 1
 
 
 def run(*args, code=0):
@@ -199,5 +194,4 @@ def main(t):
 
 with tempfile.TemporaryDirectory(prefix="ips-pixels-") as tmp:
     main(tmp)
-print("%s: %d failed" % ("FAIL" if fails else "PASS", fails))
-sys.exit(1 if fails else 0)
+finish("FAIL: " if fails() else "PASS: ")

@@ -15,6 +15,7 @@ import tempfile
 
 from debian_python import rerun_under_debian_python
 from fitdoc import rms_vs_truth
+from oklines import check, finish
 
 try:
     from astropy.io import fits
@@ -27,13 +28,7 @@ IPS = sys.argv[1]
 # bench's light and a tenth of it
 CASES = [(scene, seed, peak) for scene in ("softedge:10", "gradient:10", "dip:10")
          for seed, peak in ((5, 2150), (3, 21500))]
-fails = 0
 
-
-def check(cond, msg):
-    global fails
-    print(("ok   " if cond else "FAIL ") + msg)
-    fails += 0 if cond else 1
 
 
 def overlap_1d(r, q):
@@ -161,5 +156,4 @@ with tempfile.TemporaryDirectory() as tmp:
     check(p.returncode == 2 and "no shrunk map" in p.stderr,
           "--shrunk of a flat pixel's document: exit 2, no shrunk map")
 
-print("%d failed" % fails)
-sys.exit(1 if fails else 0)
+finish()
