@@ -18,34 +18,29 @@ if(TARGET ips)
     set_tests_properties(test_fit_region PROPERTIES TIMEOUT 240)
 endif()
 
+find_package(Python3 COMPONENTS Interpreter)
+# A Python test of the ips binary: tests/NAME.py IPS, run in the test data directory, within
+# TIMEOUT seconds (0: CTest's default).
+function(ips_python_test name timeout)
+    if(TARGET ips AND Python3_Interpreter_FOUND)
+        add_test(NAME ${name}
+                 COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/${name}.py
+                         $<TARGET_FILE:ips>
+                 WORKING_DIRECTORY ${IPSD_TEST_DATA})
+        if(timeout GREATER 0)
+            set_tests_properties(${name} PROPERTIES TIMEOUT ${timeout})
+        endif()
+    endif()
+endfunction()
+
 # `ips fit --pixels all` on an `ips simulate --write-subframe` scan: every covered pixel against
 # the simulator's truth, the POI against ips fit, bad subframes (16 s optimised at load 11;
 # ASan at load 26 over 300 s)
-find_package(Python3 COMPONENTS Interpreter)
-if(TARGET ips AND Python3_Interpreter_FOUND)
-    add_test(NAME test_fit_pixels
-             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_fit_pixels.py
-                     $<TARGET_FILE:ips>
-             WORKING_DIRECTORY ${IPSD_TEST_DATA})
-    set_tests_properties(test_fit_pixels PROPERTIES TIMEOUT 1200)
-endif()
-
+ips_python_test(test_fit_pixels 1200)
 # the fit document's shrunk_map against the formula by hand and the simulator's truth (~1 s)
-if(TARGET ips AND Python3_Interpreter_FOUND)
-    add_test(NAME test_fit_shrunk
-             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_fit_shrunk.py
-                     $<TARGET_FILE:ips>
-             WORKING_DIRECTORY ${IPSD_TEST_DATA})
-endif()
-
+ips_python_test(test_fit_shrunk 0)
 # `ips fit --krige`: the kriged map against the simulator's truth and the recommended map (~5 s)
-if(TARGET ips AND Python3_Interpreter_FOUND)
-    add_test(NAME test_fit_kriged
-             COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_fit_kriged.py
-                     $<TARGET_FILE:ips>
-             WORKING_DIRECTORY ${IPSD_TEST_DATA})
-    set_tests_properties(test_fit_kriged PROPERTIES TIMEOUT 300)
-endif()
+ips_python_test(test_fit_kriged 300)
 
 # `ips ptc --sim`: gain and read noise against the simulator's truth, bad input (~3 s optimised)
 if(TARGET ips)
