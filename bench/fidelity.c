@@ -347,8 +347,8 @@ static void tally_case(struct tally *k, const fid_result_t *f, int n_rules)
 /* The kriged map (--krige, fit/krige.h) over a set of cases: within 1.1x of the best r, its
  * mean ratio beside the shrunk map's, S_err's honesty, cost. */
 struct ktally {
-    int n, ok, smooth;
-    double worst, sum, sum_shrunk, ms_sum, ms_max, z2;
+    int n, ok, smooth, ok_post;
+    double worst, sum, sum_shrunk, ms_sum, ms_max, z2, worst_post;
     long z_n, z_in2;
 };
 
@@ -368,6 +368,8 @@ static void ktally_add(struct ktally *k, const fid_result_t *f)
     k->sum += q;
     k->sum_shrunk += ratio_shrunk(f);
     k->smooth += f->kriged_smooth;
+    k->ok_post += ratio(f, f->r_post) <= OK_RATIO;
+    k->worst_post = fmax(k->worst_post, ratio(f, f->r_post));
     if (isfinite(f->kriged_ms)) k->ms_sum += f->kriged_ms, k->ms_max = fmax(k->ms_max, f->kriged_ms);
     k->z2 += f->z2_kriged, k->z_n += f->z_n_kriged, k->z_in2 += f->z_in2_kriged;
 }
@@ -375,10 +377,12 @@ static void ktally_add(struct ktally *k, const fid_result_t *f)
 static void ktally_print(const char *name, const struct ktally *k)
 {
     if (!k->n) return;
-    printf("  %-12s %5d | %4d/%-4d %7.2f   %6.3f   %6.3f | %4d | %6.3f %5.1f%% | %8.1f %8.1f\n",
+    printf("  %-12s %5d | %4d/%-4d %7.2f   %6.3f   %6.3f | %4d | %6.3f %5.1f%% | %8.1f %8.1f"
+           " | %4d/%-4d %7.2f\n",
            name, k->n, k->ok, k->n, k->worst, k->sum / k->n, k->sum_shrunk / k->n, k->smooth,
            k->z_n ? sqrt(k->z2 / (double)k->z_n) : NAN,
-           k->z_n ? 100.0 * (double)k->z_in2 / (double)k->z_n : NAN, k->ms_sum / k->n, k->ms_max);
+           k->z_n ? 100.0 * (double)k->z_in2 / (double)k->z_n : NAN, k->ms_sum / k->n, k->ms_max,
+           k->ok_post, k->n, k->worst_post);
 }
 
 /* Adds tally k into sum. */
@@ -614,8 +618,10 @@ int main(int argc, char **argv)
     if (u.krige) {
         printf("\nkriged map (fit/krige.h) against the best r in hindsight: cases within %.1fx, "
                "worst; mean ratio of the kriged and of the shrunk map; cases with the smooth part; "
-               "S_err against the truth's fine-cell means (rms z, within 2 sigma); ms mean, max\n",
-               OK_RATIO);
+               "S_err against the truth's fine-cell means (rms z, within 2 sigma); ms mean, max; "
+               "the one r nearest the kriged map (the Bayes pick of one grid): within %.1fx, "
+               "worst\n",
+               OK_RATIO, OK_RATIO);
         for (size_t si = 0; si < N_SCENES; si++) ktally_print(scenes[si], &kt[si]);
         ktally_print("all", &kt[N_SCENES]);
     }

@@ -95,10 +95,25 @@ out:
     free(tc);
 }
 
+/* The r of sweep sw whose map is nearest the kriged map (S, F x F), sampled like the errors:
+ * given the data, the truth ~ N(S, C) under the kriged model, so E|S_r - truth|^2 = |S_r - S|^2
+ * + tr C, and the nearest map is the one r a Bayesian would pick. 0 when no r has a map. */
+static int posterior_pick(const fit_sweep_t *sw, const double *S, int F)
+{
+    int pick = 0;
+    double best = INFINITY;
+    for (int r = sw->r_min; r <= sw->r_max; r++) {
+        const fit_result_t *f = &sw->fits[r - sw->r_min];
+        double d = f->S ? fid_map_rms(f->S, r, S, F, SAMPLES) : NAN;
+        if (d < best) best = d, pick = r;
+    }
+    return pick;
+}
+
 /* The kriged map of the recommended r (fit/krige.h): its error and S_err's honesty against the
- * truth's mean over each fine cell (both mean 1). */
-static void kriged(const fit_scan_t *scan, const fit_options_t *o, int r, const double *T, int m,
-                   fid_result_t *out)
+ * truth's mean over each fine cell (both mean 1), and the sweep's r nearest it. */
+static void kriged(const fit_scan_t *scan, const fit_options_t *o, const fit_sweep_t *sw, int r,
+                   const double *T, int m, fid_result_t *out)
 {
     fit_kriged_t k;
     err_t e;
@@ -109,6 +124,7 @@ static void kriged(const fit_scan_t *scan, const fit_options_t *o, int r, const 
     out->kriged_grid = F;
     out->kriged_smooth = k.smooth;
     out->kriged_ms = k.ms;
+    out->r_post = posterior_pick(sw, k.S, F);
     if (tc && fit_grid_average(T, m, F, tc) == 0) {
         for (int q = 0; q < F * F; q++) mean += tc[q] / (F * F);
         for (int q = 0; q < F * F; q++) {
@@ -223,7 +239,7 @@ int fid_run(const fid_case_t *c, int r_max, fid_result_t *out, err_t *err)
         fit_recommend(&sw, c->rules ? &c->rules[k] : NULL, &rec);
         out->r_rec[k] = rec.r;
         if (k == 0 && sw.shrunk) z_scores(&sw, rec.noise_scale, T, m, out);
-        if (k == 0 && c->krige) kriged(&fitted.scan, &o, rec.r, T, m, out);
+        if (k == 0 && c->krige) kriged(&fitted.scan, &o, &sw, rec.r, T, m, out);
     }
     fit_wiener_t w;
     err_t we;

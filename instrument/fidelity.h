@@ -73,6 +73,9 @@ typedef struct fid_result {
     double rms_kriged;         /* the kriged map's error (NaN: none, not asked or failed) */
     int kriged_grid, kriged_smooth; /* its F and whether its smooth part was kept */
     double kriged_ms;          /* its cost */
+    int r_post;                /* the sweep's r whose map is nearest the kriged map (0: none): the
+                                  pick minimising the expected squared error under the kriged
+                                  posterior, |S_r - mean|^2 + tr(cov), the Bayes pick of one r */
     int z_n_kriged, z_in2_kriged; /* its S_err against the truth's mean over each fine cell */
     double z2_kriged;
     size_t n_raster;           /* the points of the whole raster */
