@@ -19,7 +19,7 @@
  * the restricted likelihood significantly, 2 (log L_1 - log L_0) >= FIT_KRIGE_LR against the
  * prior of the divisor grids alone (or the flat map, r = 1): where the truth is exactly
  * piecewise on the recommended grid (a dead corner on r = 3, a uniform pixel) the smooth part
- * only adds noise.
+ * only adds noise. Its error bars then come from the smooth model all the same (S_err below).
  *
  * Chosen by measuring against the simulator's truth (bench/fidelity.c --krige): see FIT_KRIGE_LR.
  * Cost: one N x N factorisation per likelihood evaluation, 90-330 evaluations: about 0.1 s for
@@ -57,7 +57,10 @@ typedef struct fit_kriged {
     double log_lik;     /* the restricted log-likelihood of the model kept (up to a constant) */
     int evaluations;    /* of the likelihood, both models */
     double *S, *S_err;  /* F*F, row-major y then x, mean 1: posterior mean and standard deviation
-                           (the noise model's units, as fit_result_t.S_err) */
+                           (the noise model's units, as fit_result_t.S_err); without the smooth
+                           part, S_err is the root of the smooth model's posterior second moment
+                           about S (its variance plus its mean's distance from S): the divisor
+                           grids alone see nothing inside their cells (krige.c) */
     double ms;          /* cost */
 } fit_kriged_t;
 
