@@ -18,3 +18,7 @@ ipsd_add_test(test_ptc ipsfit) # photon transfer (EMVA 1288) against analytic ca
 # 1681-point raster to r = 12
 ipsd_add_test(test_fit_threads ipsfit Threads::Threads)
 set_tests_properties(test_fit_threads PROPERTIES TIMEOUT 240)
+# the kriged map's algebra (white box): the kernel's closed forms against dense LAPACK, the
+# likelihood in the points' and the cells' space against each other and central differences
+ipsd_add_test(test_krige_lik ipsfit)
+target_include_directories(test_krige_lik PRIVATE ${PROJECT_SOURCE_DIR}/fit)
