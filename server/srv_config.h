@@ -44,6 +44,7 @@ typedef struct srv_config {
     char web_dir[SRV_PATH_MAX];   /* static files of the dashboard */
     char port_file[SRV_PATH_MAX]; /* where to write the bound port, "" for nowhere */
     size_t max_body;              /* request body limit in bytes (4 MiB) */
+    size_t max_reply_bytes;       /* largest reply one request may build, in bytes (64 MiB) */
     double max_scan_bytes;        /* largest scan accepted, in frame bytes stored (1 GiB) */
     int max_connections;          /* open HTTP connections at most (4096) */
     int max_per_client;           /* of them from one address at most (128) */

@@ -242,9 +242,11 @@ typedef struct storage_frame {
     double stage_x_um, stage_y_um, stage_z_um; /* stage position at this point */
     double exposure_us;
     int frames, sub_px;      /* k and m; must equal the scan's */
-    uint16_t *raw;           /* k*m*m raw sub-frames, frame after frame, each row-major y then x */
+    uint16_t *raw;           /* raw_count*m*m raw sub-frames, frame after frame (raw_first
+                                first), each row-major y then x; all k from storage_frame_get */
     double *mean;            /* m*m mean of the k sub-frames (DN), row-major y then x */
     int64_t captured_ms;     /* set by storage */
+    int raw_first, raw_count; /* read back: the frames raw holds (0 and k but for _get_part) */
 } storage_frame_t;
 
 /* Stores one point and advances the scan's points_done, in one transaction. The scan must be
@@ -255,6 +257,11 @@ int storage_frame_put(storage_t *st, const storage_frame_t *f, err_t *err);
 /* One point's frames; caller frees with storage_frame_free. -ENOENT when not stored. */
 int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_frame_t *out,
                       err_t *err);
+/* The same with only raw frames first .. first + count - 1 read (the point's other raw frames
+ * are not loaded: a point can store hundreds of megabytes); 0 <= first, count and first + count
+ * <= k, else -ERANGE. */
+int storage_frame_get_part(storage_t *st, int64_t scan_id, int point_index, int first, int count,
+                           storage_frame_t *out, err_t *err);
 /* For resume: *last = highest stored point index (-1 when none) and *count = points stored.
  * The scan writer stores points in raster order, so it resumes at *last + 1 (and count ==
  * last + 1 says nothing is missing). -ENOENT for an unknown scan. */
