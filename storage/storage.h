@@ -93,6 +93,13 @@ int storage_schema_version(void);
  * is refused with -ENOTSUP and left untouched. *out is owned by the caller: storage_close it. */
 int storage_open(const char *path, storage_t **out, err_t *err);
 
+/* Opens the database at path only to read it (the source of `ipsd --backup`): never created,
+ * never migrated, nothing of it written. -EINVAL for a file that is not an SQLite database or
+ * not an ipsd one (no schema version, or without ipsd's first tables), -ENOTSUP for a newer
+ * schema than this code knows, -EIO when it cannot be read. Only reads may be made through
+ * the handle (storage_backup, the getters); storage_close it. */
+int storage_open_readonly(const char *path, storage_t **out, err_t *err);
+
 /* Moves the write-ahead log into the database file and truncates the log to nothing (PRAGMA
  * wal_checkpoint(TRUNCATE)): after a storage fault, the log's space goes back to the file system
  * once the database file can take its pages. 0, -EBUSY (a reader or writer kept it from
