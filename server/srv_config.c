@@ -79,7 +79,7 @@ static const char usage[] =
     "  --max-fit-r N        largest r_max / ftest_r / geometry_r a fit may ask for, 1..32\n"
     "                       (default 32); more get 422\n"
     "  --max-jitter-evals N largest Airy integration a jitter request may need, estimated in\n"
-    "                       radial evaluations (default 200000000, a few seconds); more get 422\n"
+    "                       radial evaluations (default 40000000, ~1 s); more get 422\n"
     "  --camera-timeout S   a camera that delivers no frame within S seconds fails the scan\n"
     "                       (default 0: the camera's own, the exposure time + 5 s)\n"
     "  --calibration-map M  the map the automatic fit of a scan stores as its calibration:\n"
@@ -110,7 +110,7 @@ srv_config_t srv_config_default(void)
                       .max_attempts = 3,
                       .max_fit_points = 10000,
                       .max_fit_r = 32,
-                      .max_jitter_evals = 200000000};
+                      .max_jitter_evals = 40000000};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
     snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
     snprintf(c.bench, sizeof c.bench, "sim");
