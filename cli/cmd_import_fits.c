@@ -95,6 +95,13 @@ static int slurp(const char *path, char **buf, size_t *len, err_t *err)
         }
         size_t got = fread(*buf + *len, 1, cap - *len, f);
         *len += got;
+        /* a FITS file begins with the card SIMPLE: anything else (/dev/zero, a log) is refused at
+         * its first block instead of read to the end */
+        if (*len >= 9 && *len - got < 9 && memcmp(*buf, "SIMPLE  =", 9) != 0) {
+            rc = err_set(err, -EINVAL, "%s: not a FITS file (it does not begin with the card "
+                         "SIMPLE)", path);
+            break;
+        }
         if (got == 0) {
             if (ferror(f)) rc = err_set(err, -EIO, "%s: read error", path);
             break;
