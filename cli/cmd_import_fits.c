@@ -189,6 +189,6 @@ int cmd_import_fits(int argc, char **argv)
     }
     json_decref(extra);
     scanfile_free(&sf);
-    if (rc) return cli_fail(CLI_EXIT_FAILURE, "import-fits", "%s: %s", a.out, err.msg);
+    if (rc) return cli_fail(cli_exit_code(rc), "import-fits", "%s", err.msg);
     return 0;
 }
