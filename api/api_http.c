@@ -237,7 +237,7 @@ static int check_request(api_req_t *q, const char *method, const char *url)
         api_error(q, 503, "shutting_down", NULL, "ipsd is shutting down");
         return -1;
     }
-    if (q->route->json_body && !is_json_type(MHD_lookup_connection_value(
+    if (q->route->json_body == 1 && !is_json_type(MHD_lookup_connection_value(
                                    q->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE))) {
         api_error(q, 415, "unsupported_media_type", NULL,
                   "the body must be JSON with Content-Type: application/json");

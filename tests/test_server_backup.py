@@ -133,6 +133,10 @@ def test(c, t, argv, daemons):
 
     # ---- a backup of the scan held mid-way ----
     c.error(d.post("/api/backup"), 401, "", "a backup needs the write token")
+    # the endpoint has no option: a member is refused, not ignored, and nothing is written
+    r = d.post("/api/backup", {"dir": "/tmp"}, headers=auth)
+    c.error(r, 422, "dir", "POST /api/backup with an unknown member")
+    c.eq(os.listdir(bk), [], "the refused backup wrote nothing")
     r = d.post("/api/backup", headers=auth)
     c.status(r, 201, "POST /api/backup")
     b = r.json()
