@@ -9,6 +9,15 @@
 
 void api_h_backup(api_req_t *q)
 {
+    /* no member is known: a body, when one comes, is an empty object (a misspelt option is
+     * refused rather than ignored) */
+    if (q->body_len) {
+        static const char *const keys[] = {NULL};
+        json_t *o = api_body_object(q);
+        int bad = !o || api_no_unknown(q, o, "", keys);
+        json_decref(o);
+        if (bad) return;
+    }
     storage_t *st = api_db(q);
     if (!st) return;
     char name[128];

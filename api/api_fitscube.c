@@ -88,10 +88,18 @@ int api_fits_cube_scan(api_req_t *q, json_t *o)
     }
     fitsscan_t cube;
     err_t err = {{0}};
-    rc = fitsscan_read(bytes, len, &cube, &err);
+    /* --max-fit-points bounds the memory of what a fit takes: with all_points every position of
+     * the cube is the scan's, so NAXIS3 is checked from the header before anything is cut (a
+     * 4 MB body can claim a million one-byte points: ~300 MB of JSON values before) */
+    int cap = srv_config(q->srv)->max_fit_points;
+    rc = fitsscan_read_capped(bytes, len, all ? (size_t)cap : SIZE_MAX, &cube, &err);
     free(bytes);
     if (rc) {
-        if (rc == -ENOMEM) api_error(q, 500, "internal", NULL, "%s", err.msg);
+        if (rc == -E2BIG)
+            api_error(q, 413, "payload_too_large", "scan_fits.data",
+                      "scan_fits: %s, ipsd's limit of points a fit takes (--max-fit-points)",
+                      err.msg);
+        else if (rc == -ENOMEM) api_error(q, 500, "internal", NULL, "%s", err.msg);
         else api_error(q, 422, "invalid", "scan_fits.data", "scan_fits: %s", err.msg);
         return -1;
     }
@@ -113,6 +121,14 @@ int api_fits_cube_scan(api_req_t *q, json_t *o)
     scanfile_t sf;
     rc = scan_cube_pixel(&c, (int)dcol, (int)drow, all, &sf, &err);
     fitsscan_free(&cube);
+    if (rc == 0 && sf.scan.n > (size_t)cap) {
+        api_error(q, 413, "payload_too_large", "scan_fits.data",
+                  "scan_fits: %zu positions lie inside pixel (%+lld, %+lld), more than ipsd's "
+                  "limit of %d points a fit takes (--max-fit-points)",
+                  sf.scan.n, dcol, drow, cap);
+        scanfile_free(&sf);
+        return -1;
+    }
     if (rc == 0 && sf.scan.n == 0)
         rc = err_set(&err, -EINVAL,
                      "no spot position lies strictly inside pixel (%+lld, %+lld) (all_points keeps "

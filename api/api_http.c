@@ -204,12 +204,16 @@ static int check_request(api_req_t *q, const char *method, const char *url)
         return -1;
     }
     /* what the request needs and what its token grants (no tokens configured: all open) */
-    int need = SRV_TOKEN_NONE;
-    if (write && api_route_computes_only(q->route)) write = 0; /* POST /api/jitter */
+    int need = SRV_TOKEN_NONE, computes = write && api_route_computes_only(q->route);
+    if (computes) write = 0; /* POST /api/jitter, /api/events/ticket */
     if (write)
         need = SRV_TOKEN_WRITE;
     else if (cfg->reads_closed && !open_read(url))
         need = SRV_TOKEN_READ;
+    /* jitter photometry takes an HTTP thread for up to a second: never open to anyone when ipsd
+     * has tokens. With reads open there is no read token, so it takes a write token then */
+    if (computes && need == SRV_TOKEN_NONE && q->route->fn == api_h_jitter)
+        need = SRV_TOKEN_WRITE;
     const char *auth =
         MHD_lookup_connection_value(q->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_AUTHORIZATION);
     int have = need && cfg->n_tokens ? bearer_level(cfg, auth) : need;
@@ -233,7 +237,7 @@ static int check_request(api_req_t *q, const char *method, const char *url)
         api_error(q, 503, "shutting_down", NULL, "ipsd is shutting down");
         return -1;
     }
-    if (q->route->json_body && !is_json_type(MHD_lookup_connection_value(
+    if (q->route->json_body == 1 && !is_json_type(MHD_lookup_connection_value(
                                    q->conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_TYPE))) {
         api_error(q, 415, "unsupported_media_type", NULL,
                   "the body must be JSON with Content-Type: application/json");

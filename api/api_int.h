@@ -18,7 +18,9 @@
 typedef struct api_req api_req_t;
 typedef void (*api_handler_fn)(api_req_t *q);
 
-/* A route: method, pattern, handler, and whether it takes a JSON body. */
+/* A route: method, pattern, handler, and whether it takes a JSON body (API_BODY_OPTIONAL: a
+ * body is read when one comes, and must then be a JSON object; the handler checks it). */
+#define API_BODY_OPTIONAL 2
 typedef struct api_route {
     const char *method;
     const char *pattern;

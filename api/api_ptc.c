@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "instrument/sim.h"
 #include "server/srv_ptc.h"
 #include "api_int.h"
 
@@ -47,6 +48,24 @@ void api_h_sensor_ptc_create(api_req_t *q)
         api_get_num(q, o, "flat_e", "flat_e", 0, 0, 1e12, 1, &p.flat_e) ||
         api_get_int(q, o, "seed", "seed", 0, 0, 4294967295LL, &seed) || !(st = api_db(q)))
         goto out;
+    /* what the bench can honour, refused now rather than as a failed job (srv_ptc.h) */
+    int min_levels = p.flat_e > 0 ? SRV_PTC_LEVELS_MIN : SRV_PTC_LEVELS_MIN_DEFAULT_LAMP;
+    if (levels < min_levels) {
+        api_error(q, 422, "out_of_range", "levels",
+                  "levels must be at least %d (got %lld): the photon-transfer slope needs 4 "
+                  "levels below saturation%s",
+                  min_levels, levels,
+                  p.flat_e > 0 ? "" : ", and the default lamp saturates the series' top fifth "
+                                      "(a flat_e below the saturation charge allows 4)");
+        goto out;
+    }
+    if (roi > SRV_PTC_ROI_MAX) {
+        api_error(q, 422, "out_of_range", "roi_px",
+                  "roi_px must be 2..%d (got %lld): the simulated bench captures at most %d "
+                  "pixels at once",
+                  SRV_PTC_ROI_MAX, roi, SIM_CAPTURE_PX_MAX);
+        goto out;
+    }
     p.levels = (int)levels;
     p.roi_px = (int)roi;
     p.seed = (unsigned long)seed;

@@ -39,7 +39,7 @@ static const api_route_t routes[] = {
     {"POST", "/api/jobs/{id}/cancel", api_h_job_cancel, 0},
     {"GET", "/api/events", api_h_events, 0},
     {"POST", "/api/events/ticket", api_h_events_ticket, 0},
-    {"POST", "/api/backup", api_h_backup, 0},
+    {"POST", "/api/backup", api_h_backup, API_BODY_OPTIONAL},
     {"GET", "/api/calibrations/{id}/map.fits", api_h_calib_fits, 0},
     {"GET", "/api/sensors/{id}/pixels/{col}/{row}/calibration.fits", api_h_pixel_calib_fits, 0},
     {"GET", "/api/sensors/{id}/calibrations.fits", api_h_sensor_calibs_fits, 0},

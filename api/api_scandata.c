@@ -1,7 +1,7 @@
 /* api_scandata.c: the data of a scan: the response raster of any pixel of the sub-frame (in the
  * scan-file format, so it feeds `ips fit`), the whole raster with every pixel's response (the
- * scan file's subframe, for `ips fit --pixels all`), the frames of one point (mean and raw), and
- * the fits made of the scan. */
+ * scan file's subframe, for `ips fit --pixels all`), and the fits made of the scan (one point's
+ * frames: api_point.c). */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -74,6 +74,21 @@ void api_h_scan_scanfile(api_req_t *q)
     storage_scan_t sc;
     err_t err = {{0}};
     if (!st || load_scan(q, st, &sc)) return;
+    /* every point's sub_px² means, a number of at most 24 characters and a comma each, and the
+     * POI's response (~200 bytes a point): refused before anything is read when over the cap */
+    double m2 = (double)sc.sub_px * sc.sub_px, bound = 4096 + sc.points_total * (m2 * 25 + 200);
+    size_t cap = srv_config(q->srv)->max_reply_bytes;
+    if (bound > (double)cap) {
+        api_error(q, 413, "reply_too_large", NULL,
+                  "scan %lld: %d points of %d x %d pixels would make a scan file of up to %.0f "
+                  "bytes, more than ipsd's --max-reply-bytes (%zu): read one pixel's response "
+                  "with /api/scans/%lld/pixels/{dcol}/{drow}, or a point's frames with "
+                  "/api/scans/%lld/points/{index}",
+                  (long long)sc.id, sc.points_total, sc.sub_px, sc.sub_px, bound, cap,
+                  (long long)sc.id, (long long)sc.id);
+        storage_scan_free(&sc);
+        return;
+    }
     json_t *extra = scan_file_meta(&sc,
                                    "a scan's raster with the whole sub-frame at each point (ipsd): "
                                    "the POI's response, every pixel's in subframe",
@@ -85,42 +100,6 @@ void api_h_scan_scanfile(api_req_t *q)
     json_decref(extra);
     reply_scan_text(q, ret, text, len, &err);
     storage_scan_free(&sc);
-}
-
-void api_h_scan_point(api_req_t *q)
-{
-    storage_t *st = api_db(q);
-    storage_scan_t sc;
-    storage_frame_t f;
-    err_t err = {{0}};
-    if (!st || load_scan(q, st, &sc)) return;
-    int64_t i = q->arg[1];
-    int ret = i < 0 || i >= sc.points_total
-                  ? err_set(&err, -ENOENT, "point %lld is outside scan %lld's 0..%d", (long long)i,
-                            (long long)sc.id, sc.points_total - 1)
-                  : storage_frame_get(st, sc.id, (int)i, &f, &err);
-    storage_scan_free(&sc);
-    if (ret) {
-        api_error_rc(q, ret, ret == -ENOENT ? "index" : NULL, err.msg);
-        return;
-    }
-    size_t mm = (size_t)f.sub_px * f.sub_px;
-    json_t *mean = json_array(), *raw = json_array();
-    for (size_t k = 0; mean && k < mm; k++)
-        json_array_append_new(mean, api_num(f.mean[k]));
-    for (int k = 0; raw && k < f.frames; k++) {
-        json_t *frame = json_array();
-        for (size_t j = 0; frame && j < mm; j++)
-            json_array_append_new(frame, json_integer(f.raw[(size_t)k * mm + j]));
-        json_array_append_new(raw, frame);
-    }
-    api_reply_json(q, 200,
-                   json_pack("{s:I, s:i, s:[f, f, f], s:f, s:o, s:i, s:i, s:o, s:o}", "scan_id",
-                             (json_int_t)f.scan_id, "point_index", f.point_index, "stage_um",
-                             f.stage_x_um, f.stage_y_um, f.stage_z_um, "exposure_us", f.exposure_us,
-                             "captured_ms", api_time(f.captured_ms), "frames", f.frames, "sub_px",
-                             f.sub_px, "mean", mean, "raw", raw));
-    storage_frame_free(&f);
 }
 
 void api_h_scan_fits_list(api_req_t *q)

@@ -6,9 +6,11 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "base/clock.h"
 #include "base/opts.h"
+#include "base/outfile.h"
 #include "cliutil.h"
 #include "commands.h"
 #include "export/fitsmap.h"
@@ -106,13 +108,15 @@ int cmd_export(int argc, char **argv)
     free(maps);
     mapfile_free(&mf);
     if (rc) return cli_fail(cli_exit_code(rc), "export", "%s", err.msg);
-    FILE *f = fopen(a.out, "wb");
-    int ok = f && fwrite(buf, 1, len, f) == len;
-    if (f && fclose(f) != 0) ok = 0;
-    if (!ok) {
-        free(buf);
-        return cli_fail(CLI_EXIT_FAILURE, "export", "%s: cannot write", a.out);
+    outfile_t o;
+    if ((rc = outfile_open(a.out, &o, &err)) == 0) {
+        if (fwrite(buf, 1, len, o.f) != len) {
+            rc = err_set(&err, -EIO, "%s: cannot write: %s", a.out, strerror(errno));
+            outfile_abort(&o);
+        } else {
+            rc = outfile_commit(&o, &err);
+        }
     }
     free(buf);
-    return 0;
+    return rc ? cli_fail(cli_exit_code(rc), "export", "%s", err.msg) : 0;
 }

@@ -95,6 +95,13 @@ static int slurp(const char *path, char **buf, size_t *len, err_t *err)
         }
         size_t got = fread(*buf + *len, 1, cap - *len, f);
         *len += got;
+        /* a FITS file begins with the card SIMPLE: anything else (/dev/zero, a log) is refused at
+         * its first block instead of read to the end */
+        if (*len >= 9 && *len - got < 9 && memcmp(*buf, "SIMPLE  =", 9) != 0) {
+            rc = err_set(err, -EINVAL, "%s: not a FITS file (it does not begin with the card "
+                         "SIMPLE)", path);
+            break;
+        }
         if (got == 0) {
             if (ferror(f)) rc = err_set(err, -EIO, "%s: read error", path);
             break;
@@ -182,6 +189,6 @@ int cmd_import_fits(int argc, char **argv)
     }
     json_decref(extra);
     scanfile_free(&sf);
-    if (rc) return cli_fail(CLI_EXIT_FAILURE, "import-fits", "%s: %s", a.out, err.msg);
+    if (rc) return cli_fail(cli_exit_code(rc), "import-fits", "%s", err.msg);
     return 0;
 }

@@ -20,7 +20,7 @@
 #include "mapfile.h"
 
 #define MAX_SAMPLES 10000000
-#define NOTE_EVALS 2e8 /* ipsd's default --max-jitter-evals: a few seconds (docs/operations.md) */
+#define NOTE_EVALS 4e7 /* ipsd's default --max-jitter-evals: ~1 s (docs/operations.md) */
 
 static const char usage[] =
     "usage: ips jitter (--map FILE | --scene NAME) (--rms UM | --series FILE) [options]\n"
@@ -264,9 +264,9 @@ int cmd_jitter(int argc, char **argv)
         }
         fprintf(stderr,
                 "ips jitter: note: %zu samples reaching %.3g spot radii need about %.3g radial "
-                "evaluations (ipsd refuses more than 2e8 by default; this may take %.0f s or "
+                "evaluations (ipsd refuses more than 4e7 by default; this may take %.0f s or "
                 "more)\n",
-                n, reach / s.psf.width_um, evals, evals / NOTE_EVALS * 3);
+                n, reach / s.psf.width_um, evals, evals / NOTE_EVALS);
     }
     json_t *doc;
     rc = jitterjson_run(&s, dx, dy, n, meas, a.samples_out, &doc, &err);

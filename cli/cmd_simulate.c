@@ -20,6 +20,7 @@
 
 #include "base/clock.h"
 #include "base/opts.h"
+#include "base/outfile.h"
 #include "base/parse.h"
 #include "cliutil.h"
 #include "commands.h"
@@ -369,8 +370,15 @@ static int write_truth(const sim_t *sim, const char *path, err_t *err)
         json_array_append_new(maps, e);
     }
     json_object_set_new(root, "maps", maps);
-    if (rc == 0 && json_dump_file(root, path, JSON_INDENT(1) | JSON_REAL_PRECISION(17)) != 0)
-        rc = err_set(err, -EIO, "cannot write the truth file %s", path);
+    outfile_t o;
+    if (rc == 0 && (rc = outfile_open(path, &o, err)) == 0) {
+        if (json_dumpf(root, o.f, JSON_INDENT(1) | JSON_REAL_PRECISION(17)) != 0) {
+            outfile_abort(&o);
+            rc = err_set(err, -EIO, "cannot write the truth file %s", path);
+        } else {
+            rc = outfile_commit(&o, err);
+        }
+    }
     json_decref(root);
     return rc;
 }

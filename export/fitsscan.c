@@ -80,7 +80,52 @@ static int whole(const char *key, const char *meaning, double v, long lo, long h
     return 0;
 }
 
+/* A keyword's value text as a finite number (FITS writes E or D exponents). */
+static int finite_number(const char *text, double *v)
+{
+    char buf[FLEN_VALUE], *end;
+    snprintf(buf, sizeof buf, "%s", text);
+    for (char *p = buf; *p; p++)
+        if (*p == 'D' || *p == 'd') *p = 'e';
+    errno = 0;
+    *v = strtod(buf, &end);
+    while (*end == ' ')
+        end++;
+    return end != buf && !*end && errno != ERANGE && isfinite(*v);
+}
+
 /* ---- the positions table ---- */
+
+/* The bytes of a row by the table's TFORMn (FITS 4.0, table 18: rT with r the repeat count,
+ * default 1), which must be its NAXIS1: cfitsio reads a row whose columns overrun NAXIS1 from
+ * the next row's bytes. */
+static int table_width(fitsfile *f, long rowlen, err_t *err)
+{
+    int status = 0, fields = 0;
+    fits_get_num_cols(f, &fields, &status);
+    if (status) return cfitsio_fail(err, status, "table POSITIONS: cannot count its columns");
+    double bytes = 0;
+    for (int i = 1; i <= fields; i++) {
+        char key[FLEN_KEYWORD], form[FLEN_VALUE] = "", *p = form;
+        snprintf(key, sizeof key, "TFORM%d", i);
+        fits_read_key(f, TSTRING, key, form, NULL, &status);
+        if (status) return cfitsio_fail(err, status, "table POSITIONS: unreadable TFORM");
+        while (*p == ' ')
+            p++;
+        double repeat = 1;
+        if (*p >= '0' && *p <= '9') repeat = strtod(p, &p);
+        static const char types[] = "LXBIJKAEDCMPQ";
+        static const double size[] = {1, 0, 1, 2, 4, 8, 1, 4, 8, 8, 16, 8, 16};
+        const char *t = *p ? strchr(types, *p) : NULL;
+        if (!t) return err_set(err, -EINVAL, "table POSITIONS: %s = '%s' is not a binary table "
+                               "column format", key, form);
+        bytes += *t == 'X' ? ceil(repeat / 8) : repeat * size[t - types];
+    }
+    if (bytes != (double)rowlen)
+        return err_set(err, -EINVAL, "table POSITIONS: its columns take %.0f bytes a row but "
+                       "NAXIS1 = %ld", bytes, rowlen);
+    return 0;
+}
 
 /* A column's 1-based number, or 0 when the table has none of that name; -EINVAL when it is not
  * one number per row, or its unit is not um (unit_um). */
@@ -104,6 +149,22 @@ static int column(fitsfile *f, const char *name, int unit_um, int *col, err_t *e
                   typecode == TULONGLONG || typecode == TFLOAT || typecode == TDOUBLE;
     if (!numeric || repeat != 1)
         return err_set(err, -EINVAL, "table POSITIONS: column %s must hold one number per row", name);
+    /* a scale cfitsio cannot use is dropped by it without a word (NaN, 1e999): refused here */
+    static const char *const scales[2] = {"TSCAL", "TZERO"};
+    for (int k = 0; k < 2; k++) {
+        char key[FLEN_KEYWORD], value[FLEN_VALUE];
+        double v;
+        snprintf(key, sizeof key, "%s%d", scales[k], *col);
+        fits_read_keyword(f, key, value, NULL, &status);
+        if (status == KEY_NO_EXIST) {
+            fits_clear_errmsg();
+            status = 0;
+            continue;
+        }
+        if (status || !finite_number(value, &v) || (k == 0 && v == 0))
+            return err_set(err, -EINVAL, "table POSITIONS: %s (column %s's %s) must be a finite "
+                           "number%s", key, name, k ? "offset" : "scale", k ? "" : ", not 0");
+    }
     if (unit_um) {
         char key[FLEN_KEYWORD], unit[FLEN_VALUE] = "";
         snprintf(key, sizeof key, "TUNIT%d", *col);
@@ -178,7 +239,7 @@ static int data_inside(fitsfile *f, double bytes, size_t len, const char *what, 
     return 0;
 }
 
-static int read_primary(fitsfile *f, size_t len, fitsscan_t *s, err_t *err)
+static int read_primary(fitsfile *f, size_t len, size_t max_points, fitsscan_t *s, err_t *err)
 {
     int status = 0, bitpix = 0, naxis = 0, rc;
     long naxes[3] = {0, 0, 0};
@@ -195,6 +256,23 @@ static int read_primary(fitsfile *f, size_t len, fitsscan_t *s, err_t *err)
     s->ncol = (int)naxes[0];
     s->nrow = (int)naxes[1];
     s->n = (size_t)naxes[2];
+    if (s->n > max_points) /* before anything is allocated: the header says how many */
+        return err_set(err, -E2BIG, "the cube has %zu points (NAXIS3), more than %zu", s->n,
+                       max_points);
+    static const char *const scales[2] = {"BSCALE", "BZERO"};
+    for (int k = 0; k < 2; k++) {
+        char value[FLEN_VALUE];
+        double v;
+        fits_read_keyword(f, scales[k], value, NULL, &status);
+        if (status == KEY_NO_EXIST) {
+            fits_clear_errmsg();
+            status = 0;
+            continue;
+        }
+        if (status || !finite_number(value, &v) || (k == 0 && v == 0))
+            return err_set(err, -EINVAL, "keyword %s must be a finite number%s", scales[k],
+                           k ? "" : ", not 0");
+    }
     /* every value takes at least a byte of the file: a header claiming more is not this file's */
     double values = (double)naxes[0] * (double)naxes[1] * (double)naxes[2];
     if (values > (double)len)
@@ -260,7 +338,9 @@ static int read_positions(fitsfile *f, size_t len, fitsscan_t *s, err_t *err)
     fits_read_key(f, TLONG, "NAXIS1", &rowlen, NULL, &status);
     fits_read_key(f, TLONG, "PCOUNT", &heap, NULL, &status);
     if (status) return cfitsio_fail(err, status, "table POSITIONS: cannot count its rows");
-    if ((rc = data_inside(f, (double)rows * rowlen + heap, len, "table POSITIONS", err))) return rc;
+    if ((rc = data_inside(f, (double)rows * rowlen + heap, len, "table POSITIONS", err)) ||
+        (rc = table_width(f, rowlen, err)))
+        return rc;
     if (rows != (LONGLONG)s->n)
         return err_set(err, -EINVAL, "table POSITIONS has %lld rows but the cube %zu points (NAXIS3)",
                        (long long)rows, s->n);
@@ -294,6 +374,12 @@ static int read_positions(fitsfile *f, size_t len, fitsscan_t *s, err_t *err)
 
 int fitsscan_read(const void *buf, size_t len, fitsscan_t *out, err_t *err)
 {
+    return fitsscan_read_capped(buf, len, SIZE_MAX, out, err);
+}
+
+int fitsscan_read_capped(const void *buf, size_t len, size_t max_points, fitsscan_t *out,
+                         err_t *err)
+{
     memset(out, 0, sizeof *out);
     /* cfitsio reads a read-only memory file in place; it neither writes nor frees the buffer */
     void *mem = (void *)buf;
@@ -305,7 +391,11 @@ int fitsscan_read(const void *buf, size_t len, fitsscan_t *out, err_t *err)
                                      "whose first card is SIMPLE)");
     if (fits_open_memfile(&f, "scan.fits", READONLY, &mem, &size, 0, NULL, &status))
         return cfitsio_fail(err, status, "not a readable FITS file");
-    rc = read_primary(f, len, out, err);
+    int simple = 0;
+    fits_read_key(f, TLOGICAL, "SIMPLE", &simple, NULL, &status);
+    rc = status || !simple
+             ? err_set(err, -EINVAL, "SIMPLE = F: the file says it does not conform to FITS")
+             : read_primary(f, len, max_points, out, err);
     if (rc == 0) rc = read_positions(f, len, out, err);
     status = 0;
     fits_close_file(f, &status);

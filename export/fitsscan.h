@@ -40,8 +40,15 @@ typedef struct fitsscan {
 
 /* Reads the scan cube of len bytes at buf into *out (owned arrays: fitsscan_free). On error *out
  * is zeroed and err names what is wrong in one line (the keyword, the axis, the column, the
- * row). Returns 0, -EINVAL (not FITS, or not the layout above), or -ENOMEM. */
+ * row). Returns 0, -EINVAL (not FITS, or not the layout above: also SIMPLE = F, a BSCALE,
+ * BZERO, TSCALn or TZEROn that is not a finite number, a table whose columns do not fill its
+ * NAXIS1 exactly), or -ENOMEM. */
 int fitsscan_read(const void *buf, size_t len, fitsscan_t *out, err_t *err);
+
+/* The same, refusing with -E2BIG a cube of more than max_points points (NAXIS3) before anything
+ * is allocated: a small file can claim a million points of one byte each. */
+int fitsscan_read_capped(const void *buf, size_t len, size_t max_points, fitsscan_t *out,
+                         err_t *err);
 
 /* Releases what *s owns and zeroes it; accepts NULL and a zeroed struct. */
 void fitsscan_free(fitsscan_t *s);

@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/outfile.h"
 #include "instrument/scan_limits.h"
 
 /* ---- pre-pass for NaN / Infinity / -Infinity ----
@@ -534,26 +535,17 @@ out:
     return rc;
 }
 
-/* "path: strerror(errno)" into err; returns -errno. */
-static int sys_error(err_t *err, const char *path)
-{
-    int e = errno ? errno : EIO;
-    return err_set(err, -e, "%s: %s", path, strerror(e));
-}
-
 int scanfile_write(const char *path, const fit_scan_t *scan, json_t *extra, err_t *err)
 {
-    char tmp[4096];
-    if ((size_t)snprintf(tmp, sizeof tmp, "%s.tmp", path) >= sizeof tmp)
-        return err_set(err, -ENAMETOOLONG, "path too long: %s", path);
-    FILE *f = fopen(tmp, "wb");
-    if (!f) return sys_error(err, tmp);
+    outfile_t o;
+    int rc = outfile_open(path, &o, err); /* never replaces a link, a FIFO or a device */
+    if (rc) return rc;
     err_t sub;
-    int rc = scanfile_dump(f, scan, extra, &sub);
-    if (rc) err_set(err, rc, "%s: %s", path, sub.msg);
-    if (!rc && fsync(fileno(f)) != 0) rc = sys_error(err, tmp);
-    if (fclose(f) != 0 && !rc) rc = sys_error(err, tmp);
-    if (!rc && rename(tmp, path) != 0) rc = sys_error(err, path);
-    if (rc) unlink(tmp);
-    return rc;
+    rc = scanfile_dump(o.f, scan, extra, &sub);
+    if (rc) {
+        err_set(err, rc, "%s: %s", path, sub.msg);
+        outfile_abort(&o);
+        return rc;
+    }
+    return outfile_commit(&o, err);
 }

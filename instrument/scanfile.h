@@ -61,8 +61,11 @@ void scanfile_free(scanfile_t *sf);
  * redefine a scan-file key. full_scale_dn is always written. Returns 0, -EINVAL or -EIO. */
 int scanfile_dump(FILE *f, const fit_scan_t *scan, json_t *extra, err_t *err);
 
-/* As scanfile_dump into the file at path, replaced atomically (written to path.tmp first, then
- * renamed), so a failed write leaves any earlier file intact. Returns 0 or a negative errno. */
+/* As scanfile_dump into the file at path by base/outfile.h: a regular file replaced atomically
+ * (written to path.tmp first, then renamed), so a failed write leaves any earlier file intact;
+ * a link's target written the same way; a FIFO or a character device written in place, never
+ * replaced. Returns 0, -EINVAL (a directory, a link to nothing, ...: nothing written), -EIO (a
+ * write failed) or another negative errno. */
 int scanfile_write(const char *path, const fit_scan_t *scan, json_t *extra, err_t *err);
 
 #endif

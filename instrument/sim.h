@@ -88,6 +88,12 @@ enum { SIM_FRAME_OK, SIM_FRAME_HANG, SIM_FRAME_FAIL };
 
 sim_config_t sim_config_default(void);
 
+/* The most pixels one capture of the bench may ask for: its memo of pixel integrals
+ * (sim_memo.c, 2^20 entries) kept below 70 % full; a larger region fails the capture with
+ * "out of memory for the pixel memo". 856 x 856 is the largest square (a photon-transfer
+ * region: srv_ptc.h). */
+#define SIM_CAPTURE_PX_MAX 734003
+
 /* Opens a bench. *out is the caller's (sim_close). Returns 0, -EINVAL (bad configuration, named
  * in err), -ENOENT (map file missing) or -ENOMEM. */
 int sim_open(const sim_config_t *cfg, sim_t **out, err_t *err);

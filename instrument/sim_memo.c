@@ -12,6 +12,10 @@
 
 #define QUANTUM_UM 1e-9        /* relative positions are rounded to this before integration */
 #define MEMO_MAX (1u << 20)    /* entries before the memo is emptied (~40 MB) */
+/* sim.h's SIM_CAPTURE_PX_MAX is the largest ask memo_reserve takes at MEMO_MAX */
+_Static_assert(SIM_CAPTURE_PX_MAX * 10ull < MEMO_MAX * 7ull &&
+                   (SIM_CAPTURE_PX_MAX + 1) * 10ull >= MEMO_MAX * 7ull,
+               "SIM_CAPTURE_PX_MAX matches the memo's limit");
 #define BATCH 256              /* design rows per fit_design_build call at most */
 #define ROWS_BUDGET (1u << 21) /* doubles of design rows held at once (16 MB) */
 

@@ -180,9 +180,20 @@ static int parse_host_port(const char *hp, const char *fam, stage_url_t *u, err_
         hlen -= 2;
     }
     long long port;
-    if (!colon || hlen == 0 || hlen >= sizeof u->host || parse_ll(colon + 1, &port) || port < 1 ||
+    /* the port only digits (parse_ll takes a leading space: "h: 80"); the host a name or an
+     * IPv4 address, or an IPv6 address in brackets: no bracket, space or control character
+     * reaches the resolver ("[::1" was looked up as the host "[:") */
+    int ok = colon && colon[1] && strspn(colon + 1, "0123456789") == strlen(colon + 1);
+    const char *allowed = host != hp ? "0123456789abcdefABCDEF:.%" /* [v6] */
+                                     : "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                       "0123456789.-_";
+    for (size_t i = 0; ok && i < hlen; i++)
+        ok = strchr(allowed, host[i]) != NULL;
+    if (!ok || hlen == 0 || hlen >= sizeof u->host || parse_ll(colon + 1, &port) || port < 1 ||
         port > 65535)
-        return err_set(err, -EINVAL, "need %s:tcp://HOST:PORT with a port 1..65535 (got '%.120s')",
+        return err_set(err, -EINVAL,
+                       "need %s:tcp://HOST:PORT with a host name, an IPv4 address or [IPv6] and "
+                       "a port 1..65535 (got '%.120s')",
                        fam, hp);
     memcpy(u->host, host, hlen);
     u->host[hlen] = 0;
@@ -196,7 +207,32 @@ static const struct {
     int backend;
 } families[] = {{"gcs:", STAGE_URL_GCS}, {"zaber:", STAGE_URL_ZABER}};
 
+/* The one-line error quotes the string: its control characters (a newline, ESC) and bytes
+ * over 0x7e written as \xNN, so a hostile string can neither break the line nor drive a
+ * terminal. */
+static void escape_controls(err_t *err)
+{
+    char out[sizeof err->msg];
+    size_t o = 0;
+    for (const unsigned char *p = (const unsigned char *)err->msg; *p && o + 5 < sizeof out; p++)
+        if (*p < 0x20 || *p >= 0x7f)
+            o += (size_t)snprintf(out + o, sizeof out - o, "\\x%02x", *p);
+        else
+            out[o++] = (char)*p;
+    out[o] = 0;
+    memcpy(err->msg, out, o + 1);
+}
+
+static int parse(const char *text, stage_url_t *u, err_t *err);
+
 int stage_url_parse(const char *text, stage_url_t *u, err_t *err)
+{
+    int ret = parse(text, u, err);
+    if (ret && err) escape_controls(err);
+    return ret;
+}
+
+static int parse(const char *text, stage_url_t *u, err_t *err)
 {
     memset(u, 0, sizeof *u);
     u->baud = 115200;
@@ -252,10 +288,20 @@ int stage_url_parse(const char *text, stage_url_t *u, err_t *err)
     }
     if (ret) return ret;
     struct seen seen = {0, 0};
+    const char *keys[64];
+    int n_keys = 0;
     if (query)
         for (char *save = NULL, *kv = strtok_r(query, "&", &save); kv;
-             kv = strtok_r(NULL, "&", &save))
+             kv = strtok_r(NULL, "&", &save)) {
+            /* a key given twice is a mistake, not a last-one-wins (unit=mm&unit=um) */
+            size_t klen = strcspn(kv, "=");
+            for (int i = 0; i < n_keys; i++)
+                if (strlen(keys[i]) == klen && strncmp(keys[i], kv, klen) == 0)
+                    return err_set(err, -EINVAL, "option %.*s= is given twice", (int)klen, kv);
+            if (n_keys == 64) return err_set(err, -EINVAL, "too many options");
             if ((ret = one_option(kv, u, &seen, err))) return ret;
+            keys[n_keys++] = kv; /* one_option cut it at its '=' */
+        }
     if (u->backend == STAGE_URL_ZABER) {
         if (!seen.step_um)
             return err_set(err, -EINVAL,

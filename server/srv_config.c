@@ -62,6 +62,8 @@ static const char usage[] =
     "                       keep running on it, check it, print what was written, and exit\n"
     "  --web DIR            static files of the dashboard (default the source tree's web/)\n"
     "  --max-body BYTES     largest request body (default 4194304); larger ones get 413\n"
+    "  --max-reply-bytes B  largest reply one request may build, in bytes (default 67108864);\n"
+    "                       a larger one gets 413 naming how to ask for less\n"
     "  --max-scan-bytes B   largest scan accepted, in bytes of frames it would store (default\n"
     "                       1073741824); larger ones get 422\n"
     "  --max-connections N  open HTTP connections at most (default 4096)\n"
@@ -77,7 +79,7 @@ static const char usage[] =
     "  --max-fit-r N        largest r_max / ftest_r / geometry_r a fit may ask for, 1..32\n"
     "                       (default 32); more get 422\n"
     "  --max-jitter-evals N largest Airy integration a jitter request may need, estimated in\n"
-    "                       radial evaluations (default 200000000, a few seconds); more get 422\n"
+    "                       radial evaluations (default 40000000, ~1 s); more get 422\n"
     "  --camera-timeout S   a camera that delivers no frame within S seconds fails the scan\n"
     "                       (default 0: the camera's own, the exposure time + 5 s)\n"
     "  --calibration-map M  the map the automatic fit of a scan stores as its calibration:\n"
@@ -98,6 +100,7 @@ srv_config_t srv_config_default(void)
                       .http_threads = 2,
                       .fit_nice = 10,
                       .max_body = 4u << 20,
+                      .max_reply_bytes = 64u << 20,
                       .max_scan_bytes = (double)(1u << 30),
                       .max_connections = 4096,
                       .max_per_client = 128,
@@ -107,7 +110,7 @@ srv_config_t srv_config_default(void)
                       .max_attempts = 3,
                       .max_fit_points = 10000,
                       .max_fit_r = 32,
-                      .max_jitter_evals = 200000000};
+                      .max_jitter_evals = 40000000};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
     snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
     snprintf(c.bench, sizeof c.bench, "sim");
@@ -198,6 +201,7 @@ enum {
     O_WEB,
     O_MAXBODY,
     O_MAXSCAN,
+    O_MAXREPLY,
     O_MAXCONN,
     O_PERCLIENT,
     O_REQTIMEOUT,
@@ -235,6 +239,7 @@ static const struct option opts[] = {
     {"web", required_argument, NULL, O_WEB},
     {"max-body", required_argument, NULL, O_MAXBODY},
     {"max-scan-bytes", required_argument, NULL, O_MAXSCAN},
+    {"max-reply-bytes", required_argument, NULL, O_MAXREPLY},
     {"max-connections", required_argument, NULL, O_MAXCONN},
     {"max-per-client", required_argument, NULL, O_PERCLIENT},
     {"request-timeout", required_argument, NULL, O_REQTIMEOUT},
@@ -337,6 +342,12 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
             return err_set(err, -EINVAL, "--max-body must be 1024..1073741824 bytes (got '%s')",
                            arg);
         cfg->max_body = (size_t)v;
+        return 0;
+    case O_MAXREPLY:
+        if (parse_long(arg, 1LL << 20, 1LL << 30, &v))
+            return err_set(err, -EINVAL,
+                           "--max-reply-bytes must be 1048576..1073741824 bytes (got '%s')", arg);
+        cfg->max_reply_bytes = (size_t)v;
         return 0;
     case O_MAXCONN:
     case O_PERCLIENT:

@@ -44,6 +44,7 @@ typedef struct srv_config {
     char web_dir[SRV_PATH_MAX];   /* static files of the dashboard */
     char port_file[SRV_PATH_MAX]; /* where to write the bound port, "" for nowhere */
     size_t max_body;              /* request body limit in bytes (4 MiB) */
+    size_t max_reply_bytes;       /* largest reply one request may build, in bytes (64 MiB) */
     double max_scan_bytes;        /* largest scan accepted, in frame bytes stored (1 GiB) */
     int max_connections;          /* open HTTP connections at most (4096) */
     int max_per_client;           /* of them from one address at most (128) */
@@ -54,7 +55,7 @@ typedef struct srv_config {
     int max_fit_points;           /* largest uploaded scan file a fit takes, in points (10000) */
     int max_fit_r;                /* largest r a fit request may ask for (32) */
     int max_jitter_evals;         /* largest estimated Airy integration of a jitter request, in
-                                     radial evaluations (fit_jitter_cost; 200000000) */
+                                     radial evaluations (fit_jitter_cost; 40000000, ~1 s) */
     double camera_timeout_s;      /* a frame not delivered within fails the scan (0: camera's) */
     /* --calibration-map: the map the automatic fit of a scan stores as its POI's calibration
        (a storage_map_t: 0 recommended, the default; 1 shrunk; 2 kriged) */

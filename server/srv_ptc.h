@@ -15,11 +15,18 @@
 
 #define SRV_PTC_LEVELS_DEFAULT 40
 #define SRV_PTC_ROI_DEFAULT 256 /* the N x N pixels at the array's corner (capped by the array) */
+/* The largest region the simulated bench can capture at once: floor(sqrt(SIM_CAPTURE_PX_MAX)) */
+#define SRV_PTC_ROI_MAX 856
+/* Levels a series needs for the photon-transfer slope: 4 below saturation, and the default lamp
+ * (the saturation charge at the reference exposure, 10 of the series' 12.5 ms) saturates the
+ * top fifth, so 6 without flat_e (measured: 3 never gives a slope, 4-5 only with a dimmer lamp) */
+#define SRV_PTC_LEVELS_MIN 4
+#define SRV_PTC_LEVELS_MIN_DEFAULT_LAMP 6
 
 typedef struct srv_ptc_params {
     int64_t sensor_id;
-    int levels;         /* exposures in the series (3..1000) */
-    int roi_px;         /* N: the N x N pixels at the array's corner measured (2..4096) */
+    int levels;         /* exposures in the series (4..1000; 6.. with the default lamp) */
+    int roi_px;         /* N: the N x N pixels at the array's corner measured (2..856) */
     double flat_e;      /* the simulated lamp, e- per pixel at the reference exposure; 0: the
                          * sensor's saturation charge (the series then crosses saturation) */
     unsigned long seed; /* noise of the simulated frames */

@@ -44,8 +44,14 @@ int srv_tool_backup(const srv_config_t *cfg)
     storage_t *st = NULL;
     storage_backup_info_t info;
     err_t err = {{0}};
-    int ret = storage_open(cfg->db_path, &st, &err);
-    if (!ret) ret = storage_backup(st, cfg->backup_out, 0, NULL, NULL, &info, &err);
+    /* read-only: a backup taken with a newer ipsd before an upgrade must not migrate the
+     * database under the old server, nor write anything into a file that is not ipsd's */
+    int ret = storage_open_readonly(cfg->db_path, &st, &err);
+    if (ret) {
+        fprintf(stderr, "ipsd: --backup: %s\n", err.msg);
+        return ret == -EIO || ret == -ENOMEM ? 1 : 2;
+    }
+    ret = storage_backup(st, cfg->backup_out, 0, NULL, NULL, &info, &err);
     storage_close(st);
     if (ret) {
         fprintf(stderr, "ipsd: %s\n", err.msg); /* "backup: ..." */

@@ -591,6 +591,57 @@ out:
     return 0;
 }
 
+int storage_open_readonly(const char *path, storage_t **out, err_t *err)
+{
+    if (!out) return err_set(err, -EINVAL, "storage_open_readonly: out is NULL");
+    *out = NULL;
+    if (!path || !*path) return err_set(err, -EINVAL, "storage_open_readonly: no database path");
+    storage_t *st = calloc(1, sizeof *st);
+    if (!st) return err_set(err, -ENOMEM, "storage_open_readonly: out of memory");
+    int ret = 0, v = 0, tables = 0;
+    /* read-only and never created: nothing is written to the file, not even its journal mode */
+    int rc = sqlite3_open_v2(path, &st->db, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, NULL);
+    if (rc == SQLITE_OK) rc = sqlite3_extended_result_codes(st->db, 1);
+    if (rc == SQLITE_OK) rc = sqlite3_busy_timeout(st->db, STG_BUSY_TIMEOUT_MS);
+    if (rc != SQLITE_OK) {
+        ret = err_set(err, rc == SQLITE_NOMEM ? -ENOMEM : -EIO, "cannot open database %s: %s",
+                      path, st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc));
+        goto out;
+    }
+    sqlite3_stmt *s = NULL;
+    rc = sqlite3_prepare_v2(st->db,
+                            "SELECT (SELECT user_version FROM pragma_user_version), "
+                            "(SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN "
+                            "('sensors', 'scans', 'frames', 'jobs'))",
+                            -1, &s, NULL);
+    if (rc == SQLITE_OK && (rc = sqlite3_step(s)) == SQLITE_ROW) {
+        v = sqlite3_column_int(s, 0);
+        tables = sqlite3_column_int(s, 1);
+        rc = SQLITE_OK;
+    }
+    sqlite3_finalize(s);
+    if ((rc & 0xff) == SQLITE_NOTADB)
+        ret = err_set(err, -EINVAL, "%s is not an SQLite database", path);
+    else if (rc != SQLITE_OK)
+        ret = err_set(err, -EIO, "reading database %s: %s", path, sqlite3_errmsg(st->db));
+    else if (v > stg_n_migrations)
+        ret = err_set(err, -ENOTSUP,
+                      "database %s has schema version %d, newer than this ipsd knows (%d): "
+                      "use a newer ipsd",
+                      path, v, stg_n_migrations);
+    else if (v < 1 || tables != 4)
+        ret = err_set(err, -EINVAL,
+                      "%s is not an ipsd database (schema version %d, %d of its 4 first tables)",
+                      path, v, tables);
+out:
+    if (ret) {
+        storage_close(st);
+        return ret;
+    }
+    *out = st;
+    return 0;
+}
+
 int storage_checkpoint(storage_t *st, err_t *err)
 {
     if (!st) return err_set(err, -EINVAL, "checkpoint: NULL handle");

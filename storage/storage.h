@@ -93,6 +93,13 @@ int storage_schema_version(void);
  * is refused with -ENOTSUP and left untouched. *out is owned by the caller: storage_close it. */
 int storage_open(const char *path, storage_t **out, err_t *err);
 
+/* Opens the database at path only to read it (the source of `ipsd --backup`): never created,
+ * never migrated, nothing of it written. -EINVAL for a file that is not an SQLite database or
+ * not an ipsd one (no schema version, or without ipsd's first tables), -ENOTSUP for a newer
+ * schema than this code knows, -EIO when it cannot be read. Only reads may be made through
+ * the handle (storage_backup, the getters); storage_close it. */
+int storage_open_readonly(const char *path, storage_t **out, err_t *err);
+
 /* Moves the write-ahead log into the database file and truncates the log to nothing (PRAGMA
  * wal_checkpoint(TRUNCATE)): after a storage fault, the log's space goes back to the file system
  * once the database file can take its pages. 0, -EBUSY (a reader or writer kept it from
@@ -242,9 +249,11 @@ typedef struct storage_frame {
     double stage_x_um, stage_y_um, stage_z_um; /* stage position at this point */
     double exposure_us;
     int frames, sub_px;      /* k and m; must equal the scan's */
-    uint16_t *raw;           /* k*m*m raw sub-frames, frame after frame, each row-major y then x */
+    uint16_t *raw;           /* raw_count*m*m raw sub-frames, frame after frame (raw_first
+                                first), each row-major y then x; all k from storage_frame_get */
     double *mean;            /* m*m mean of the k sub-frames (DN), row-major y then x */
     int64_t captured_ms;     /* set by storage */
+    int raw_first, raw_count; /* read back: the frames raw holds (0 and k but for _get_part) */
 } storage_frame_t;
 
 /* Stores one point and advances the scan's points_done, in one transaction. The scan must be
@@ -255,6 +264,11 @@ int storage_frame_put(storage_t *st, const storage_frame_t *f, err_t *err);
 /* One point's frames; caller frees with storage_frame_free. -ENOENT when not stored. */
 int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_frame_t *out,
                       err_t *err);
+/* The same with only raw frames first .. first + count - 1 read (the point's other raw frames
+ * are not loaded: a point can store hundreds of megabytes); 0 <= first, count and first + count
+ * <= k, else -ERANGE. */
+int storage_frame_get_part(storage_t *st, int64_t scan_id, int point_index, int first, int count,
+                           storage_frame_t *out, err_t *err);
 /* For resume: *last = highest stored point index (-1 when none) and *count = points stored.
  * The scan writer stores points in raster order, so it resumes at *last + 1 (and count ==
  * last + 1 says nothing is missing). -ENOENT for an unknown scan. */

@@ -135,6 +135,15 @@ int storage_backup(storage_t *st, const char *dest, int pages_per_step, storage_
         ret = err_set(err, -e, "backup: cannot make %s: %s", dest, strerror(e));
     }
     unlink(part);
+    /* a copy that failed (a full disk) leaves the destination's journal: a rollback journal, or
+     * the log and index of WAL, the journal mode the copied header names until check_copy
+     * switches it to DELETE */
+    static const char *const journals[] = {"-journal", "-wal", "-shm"};
+    for (int i = 0; i < 3; i++) {
+        char j[PATH_MAX + 16];
+        snprintf(j, sizeof j, "%s%s", part, journals[i]);
+        unlink(j);
+    }
     if (!ret && stat(dest, &sb) != 0) ret = err_set(err, -errno, "backup: %s vanished", dest);
     if (!ret) {
         char dir[PATH_MAX];

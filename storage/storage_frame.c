@@ -142,7 +142,43 @@ static int read_frame(sqlite3_stmt *q, storage_frame_t *out, err_t *err)
         return err_set(err, -EIO, "scan %lld point %d: stored frame size does not match the scan",
                        (long long)out->scan_id, out->point_index);
     if (!out->mean || !out->raw) return err_set(err, -ENOMEM, "frame get: out of memory");
+    out->raw_first = 0;
+    out->raw_count = out->frames;
     return 0;
+}
+
+/* Decodes the row of STG_FRAME_HEAD into *out (frames/sub_px and raw_first/raw_count set), the
+ * raw frames wanted read from the blob by its row id. */
+static int read_frame_part(storage_t *st, sqlite3_stmt *q, storage_frame_t *out, err_t *err)
+{
+    size_t m2 = (size_t)out->sub_px * (size_t)out->sub_px;
+    size_t n = (size_t)out->raw_count * m2, off = (size_t)out->raw_first * m2 * 2;
+    int bad_mean = 0;
+    out->stage_x_um = stg_col_double(q, 0);
+    out->stage_y_um = stg_col_double(q, 1);
+    out->stage_z_um = stg_col_double(q, 2);
+    out->exposure_us = stg_col_double(q, 3);
+    out->captured_ms = stg_col_id(q, 4);
+    out->mean = stg_f64_from_blob(sqlite3_column_blob(q, 5), (size_t)sqlite3_column_bytes(q, 5), m2,
+                                  &bad_mean);
+    sqlite3_int64 rowid = sqlite3_column_int64(q, 6), raw_bytes = sqlite3_column_int64(q, 7);
+    if (bad_mean || raw_bytes != (sqlite3_int64)((size_t)out->frames * m2 * 2))
+        return err_set(err, -EIO, "scan %lld point %d: stored frame size does not match the scan",
+                       (long long)out->scan_id, out->point_index);
+    unsigned char *bytes = malloc(n ? n * 2 : 1);
+    out->raw = malloc(n ? n * sizeof *out->raw : 1);
+    if (!out->mean || !out->raw || !bytes) {
+        free(bytes);
+        return err_set(err, -ENOMEM, "frame get: out of memory");
+    }
+    sqlite3_blob *b = NULL;
+    int rc = sqlite3_blob_open(st->db, "main", "frames", "raw", rowid, 0, &b);
+    if (rc == SQLITE_OK && n) rc = sqlite3_blob_read(b, bytes, (int)(n * 2), (int)off);
+    sqlite3_blob_close(b);
+    for (size_t i = 0; rc == SQLITE_OK && i < n; i++)
+        out->raw[i] = le_get_u16(bytes + 2 * i);
+    free(bytes);
+    return rc == SQLITE_OK ? 0 : stg_error(st, rc, err, "reading a frame's raw frames");
 }
 
 int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_frame_t *out,
@@ -168,6 +204,46 @@ int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_f
     if (ret == -ENOENT)
         err_set(err, ret, "scan %lld has no point %d", (long long)scan_id, point_index);
     if (ret == 0) ret = read_frame(q, out, err);
+    stg_reset(q);
+out:
+    if (ret == 0) ret = stg_commit(st, err);
+    if (ret) {
+        stg_rollback(st);
+        storage_frame_free(out);
+    }
+    return ret;
+}
+
+int storage_frame_get_part(storage_t *st, int64_t scan_id, int point_index, int first, int count,
+                           storage_frame_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    storage_scan_t sc;
+    int ret, rc = SQLITE_OK;
+    if (!st || !out) return err_set(err, -EINVAL, "frame get: NULL argument");
+    memset(out, 0, sizeof *out);
+    if ((ret = stg_begin_read(st, err))) return ret;
+    if ((ret = stg_scan_load(st, scan_id, &sc, err))) goto out;
+    out->scan_id = scan_id;
+    out->point_index = point_index;
+    out->frames = sc.frames;
+    out->sub_px = sc.sub_px;
+    storage_scan_free(&sc);
+    if (first < 0 || count < 0 || first > out->frames || count > out->frames - first) {
+        ret = err_set(err, -ERANGE, "raw frames %d..%d: scan %lld has frames 0..%d", first,
+                      first + count - 1, (long long)scan_id, out->frames - 1);
+        goto out;
+    }
+    out->raw_first = first;
+    out->raw_count = count;
+    if ((ret = stg_stmt(st, STG_FRAME_HEAD, &q, err))) goto out;
+    stg_bind_int(q, 1, scan_id, &rc);
+    stg_bind_int(q, 2, point_index, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a frame")
+                          : stg_error(st, rc, err, "reading a frame");
+    if (ret == -ENOENT)
+        err_set(err, ret, "scan %lld has no point %d", (long long)scan_id, point_index);
+    if (ret == 0) ret = read_frame_part(st, q, out, err);
     stg_reset(q);
 out:
     if (ret == 0) ret = stg_commit(st, err);

@@ -420,6 +420,11 @@ const char *const stg_sql[STG_N] = {
     [STG_FRAME_GET] =
         "SELECT stage_x_um, stage_y_um, stage_z_um, exposure_us, captured_ms, mean, raw "
         "FROM frames WHERE scan_id = ?1 AND point_index = ?2",
+    /* the raw frames' size and row id, not the frames: length() of a blob reads no overflow
+       page, and the frames wanted are read by sqlite3_blob_read (storage_frame_get_part) */
+    [STG_FRAME_HEAD] =
+        "SELECT stage_x_um, stage_y_um, stage_z_um, exposure_us, captured_ms, mean, id, "
+        "length(raw) FROM frames WHERE scan_id = ?1 AND point_index = ?2",
     [STG_FRAME_LAST] =
         "SELECT coalesce(max(point_index), -1), count(*) FROM frames WHERE scan_id = ?1",
     /* ?2 is the 1-based byte offset of the pixel's float64 in the mean BLOB */

@@ -41,6 +41,8 @@ ips_python_test(test_fit_pixels 1200)
 ips_python_test(test_fit_shrunk 0)
 # `ips fit --krige`: the kriged map against the simulator's truth and the recommended map (~5 s)
 ips_python_test(test_fit_kriged 300)
+# output files never replace a link, a FIFO or a device (base/outfile.h; a few s)
+ips_python_test(test_cli_outfile 120)
 
 # `ips ptc --sim`: gain and read noise against the simulator's truth, bad input (~3 s optimised)
 if(TARGET ips)

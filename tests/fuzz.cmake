@@ -1,6 +1,7 @@
 # tests/fuzz.cmake: the fuzz targets of tests/fuzz/ (issue 10: hostile input), one per parser of
 # outside input: the scan-file reader, each JSON request validator of the API, the URL router,
-# the query parsing of the list endpoints, and base/'s text parsers (tests/fuzz/README.md).
+# the query parsing of the list endpoints, base/'s text parsers, the stage string, and the
+# POSITIONS table of a FITS scan cube (tests/fuzz/README.md).
 #
 # Every build (gcc too) builds each target with tests/fuzz/replay.c as fuzz_replay_<target> and
 # replays its seed corpus (tests/fuzz/<target>/) and the inputs fuzzing found
@@ -13,7 +14,7 @@ set(IPSD_FUZZ_SECONDS 10 CACHE STRING "Seconds each fuzz_<target> ctest fuzzes (
 # target:needs-the-API
 set(IPSD_FUZZ_TARGETS scanfile:0 text:0 router:1 query:1 sensor_create:1 scan_create:1
                       scan_fit:1 fit_upload:1 promote:1 stage_url:0
-                      jitter:1)
+                      jitter:1 fits_positions:0)
 if(IPSD_FUZZ)
     add_custom_target(ipsd_fuzz) # scripts/test.sh builds only this in the fuzz build
 endif()
@@ -50,6 +51,12 @@ foreach(t ${IPSD_FUZZ_TARGETS})
         target_include_directories(${exe} PRIVATE ${IPSD_FUZZ_DIR} ${PROJECT_SOURCE_DIR}/api)
         if(api)
             target_link_options(${exe} PRIVATE ${IPSD_FUZZ_WRAP})
+        endif()
+        if(name STREQUAL "fits_positions")
+            target_link_libraries(${exe} PRIVATE ipsexport)
+        elseif(name STREQUAL "stage_url")
+            # white-box: stage_url.h is internal to instrument/
+            target_include_directories(${exe} PRIVATE ${PROJECT_SOURCE_DIR}/instrument)
         endif()
     endforeach()
     add_test(NAME fuzz_replay_${name} COMMAND fuzz_replay_${name} ${inputs})

@@ -35,6 +35,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             stage:300
             ptc:300
             zaber:300
+            points:120
             )
         string(REPLACE ":" ";" t ${t})
         list(GET t 0 name)

@@ -23,7 +23,9 @@ as header keywords with 17 significant digits. Then:
   with one line on stderr naming what is wrong, and writes no file.
 With IPSD, a real ipsd: POST /api/fits with the cube as scan_fits (base64) fits the same scan
 file as an upload of the import (the stored results equal, timings aside), for the POI and for
-pixel (1, 0) with all_points; bad cubes are 422 naming scan_fits.data / scan_fits.dcol.
+pixel (1, 0) with all_points; bad cubes are 422 naming scan_fits.data / scan_fits.dcol; a cube
+of a million one-byte points is 413 naming scan_fits.data, refused before its scan file is built
+(ipsd's peak memory grows by little).
 Exits 77 (skipped) without astropy."""
 import base64
 import json
@@ -128,6 +130,42 @@ def fit_doc(ips, path):
     return p.returncode, untimed(doc)  # timings vary from run to run
 
 
+def card(text):
+    """One 80-byte header card."""
+    return text.ljust(80).encode()
+
+
+def patched(t, good, name, hdu, key, new):
+    """good's bytes with the card of key in header hdu (0 primary, 1 the table) replaced by the
+    card new, written as name.fits: a raw edit no FITS writer would make."""
+    with open(good, "rb") as f:
+        body = bytearray(f.read())
+    start = 0 if hdu == 0 else next(i for i in range(2880, len(body), 2880)
+                                    if body[i:i + 9] == b"XTENSION=")
+    at = next(i for i in range(start, len(body), 80) if body[i:i + 8] == key.ljust(8).encode())
+    body[at:at + 80] = card(new)
+    path = os.path.join(t, name + ".fits")
+    with open(path, "wb") as f:
+        f.write(body)
+    return path
+
+
+def three_points(t):
+    """A 1 x 1 x 3 cube with positions (0.3, 0.3), (0.9, 0.9), (1.5, 1.5) in two D columns: its
+    table's data fit in one 2880-byte block, so a wrong NAXIS1 still finds the table."""
+    prim = fits.PrimaryHDU(np.full((3, 1, 1), 100.0))
+    for key, value in (("PITCH", 6.0), ("SPOTRAD", 1.0), ("BIAS", 0.0), ("GAIN", 1.0),
+                       ("RDNOISE", 1.0), ("NCOMBINE", 1), ("POICOL", 1), ("POIROW", 1)):
+        prim.header[key] = value
+    xy = np.array([0.3, 0.9, 1.5])
+    tab = fits.BinTableHDU.from_columns([fits.Column(name="X_UM", format="D", array=xy),
+                                         fits.Column(name="Y_UM", format="D", array=xy)])
+    tab.header["EXTNAME"] = "POSITIONS"
+    path = os.path.join(t, "three.fits")
+    fits.HDUList([prim, tab]).writeto(path, overwrite=True)
+    return path
+
+
 def bad_inputs(c, ips, t, scans, poi, good):
     """Each broken cube: exit 2, one line on stderr naming what is wrong, no file written."""
     def variant(name, edit):
@@ -198,6 +236,20 @@ def bad_inputs(c, ips, t, scans, poi, good):
         ("X_UM in mm", variant("mm", mm), [], "need um"),
         ("a NaN position", variant("nanx", nan_x), [], "X_UM in row 4"),
         ("NCOMBINE differs in row 6", variant("ncombine", ncombine_rows), [], "row 6"),
+        ("SIMPLE = F", patched(t, good, "simplef", 0, "SIMPLE", "SIMPLE  = %20s" % "F"), [],
+         "SIMPLE = F"),
+        ("BSCALE = NaN", patched(t, good, "bscale", 0, "BUNIT", "BSCALE  = %20s" % "NaN"), [],
+         "BSCALE"),
+        ("BZERO = 1e999", patched(t, good, "bzero", 0, "BUNIT", "BZERO   = %20s" % "1e999"), [],
+         "BZERO"),
+        ("TSCAL1 = NaN", patched(t, good, "tscal", 1, "TUNIT1", "TSCAL1  = %20s" % "NaN"), [],
+         "TSCAL1"),
+        ("TZERO1 = 1e999", patched(t, good, "tzero", 1, "TUNIT1", "TZERO1  = %20s" % "1e999"),
+         [], "TZERO1"),
+        # two D columns (16 bytes) in rows of 8: cfitsio read Y from the next row's X
+        ("NAXIS1 8, two D columns", patched(t, three_points(t), "naxis1", 1, "NAXIS1",
+                                            "NAXIS1  = %20s" % "8"), [], "NAXIS1 = 8"),
+        ("/dev/zero", "/dev/zero", [], "not a FITS file"),
         ("pixel outside the cube", good, ["--pixel", "2,0"], "outside"),
         ("pixel above the cube", good, ["--pixel", "0,-1"], "outside"),
         ("--pixel one number", good, ["--pixel", "1"], "--pixel"),
@@ -223,7 +275,7 @@ def bad_inputs(c, ips, t, scans, poi, good):
               ("a truncated file", cut, [], "cut.fits")]
     for what, path, args, word in cases:
         out = os.path.join(t, "bad-out.json")
-        p = import_fits(ips, path, out, *args)
+        p = run([ips, "import-fits", path, "-o", out] + args, timeout=120)
         c.ok(p.returncode == 2 and word in p.stderr and p.stderr.count("\n") == 1 and
              p.stderr.startswith("ips import-fits: "),
              "%s: exit 2, one line naming %r (exit %d, %r)" % (what, word, p.returncode, p.stderr))
@@ -270,6 +322,49 @@ def api_checks(c, ipsd, t, good, poi, pixel_file, daemons):
             ({"scan": poi, "scan_fits": {"data": b64}}, "scan_fits", "both scan and scan_fits"),
             ({}, "scan", "neither")):
         c.error(d.post("/api/fits", body), 422, field, "POST /api/fits, " + what)
+    for name, (hdu, key, text, word) in {
+            "SIMPLE = F": (0, "SIMPLE", "SIMPLE  = %20s" % "F", "SIMPLE"),
+            "TZERO1 = 1e999": (1, "TUNIT1", "TZERO1  = %20s" % "1e999", "TZERO1"),
+            "NAXIS1 8": (1, "NAXIS1", "NAXIS1  = %20s" % "8", "NAXIS1")}.items():
+        src = three_points(t) if key == "NAXIS1" else good
+        with open(patched(t, src, "api", hdu, key, text), "rb") as f:
+            data = base64.b64encode(f.read()).decode()
+        r = d.post("/api/fits", {"scan_fits": {"data": data}})
+        c.error(r, 422, "scan_fits.data", "POST /api/fits, " + name)
+        c.ok(word in r.text, "%s: named (%s)" % (name, r.text[:200]))
+    # 1 x 1 x 1,040,000 one-byte points with one-byte positions inside the pixel: 4.17 MB of
+    # base64, within --max-body, a hundred times --max-fit-points. Refused from the header
+    # (all_points) or the cut (inside only) before the scan file's JSON is built: ipsd's peak
+    # memory (VmHWM, the kernel's count) grows by little, not by the ~300 MB it took
+    n = 1040000
+    prim = fits.PrimaryHDU(np.full((n, 1, 1), 100, dtype=np.uint8))
+    for key, value in (("PITCH", 6.0), ("SPOTRAD", 1.0), ("BIAS", 0.0), ("GAIN", 1.0),
+                       ("RDNOISE", 1.0), ("NCOMBINE", 1), ("POICOL", 1), ("POIROW", 1)):
+        prim.header[key] = value
+    pos = np.full(n, 3, dtype=np.uint8)
+    tab = fits.BinTableHDU.from_columns([fits.Column(name="X_UM", format="B", array=pos),
+                                         fits.Column(name="Y_UM", format="B", array=pos)])
+    tab.header["EXTNAME"] = "POSITIONS"
+    big = os.path.join(t, "big.fits")
+    fits.HDUList([prim, tab]).writeto(big)
+    with open(big, "rb") as f:
+        data = base64.b64encode(f.read()).decode()
+
+    def hwm_kb():
+        with open("/proc/%d/status" % d.proc.pid) as f:
+            return int(next(l for l in f if l.startswith("VmHWM:")).split()[1])
+
+    before = hwm_kb()
+    r = d.post("/api/fits", {"scan_fits": {"data": data, "all_points": True}})
+    c.error(r, 413, "scan_fits.data", "a million points, all_points: 413 from the header")
+    c.ok("NAXIS3" in r.text and "--max-fit-points" in r.text, "named: " + r.text[:300])
+    r = d.post("/api/fits", {"scan_fits": {"data": data}})
+    c.error(r, 413, "scan_fits.data", "a million points inside the pixel: 413 from the cut")
+    c.ok("--max-fit-points" in r.text, "named: " + r.text[:300])
+    grew = (hwm_kb() - before) / 1024
+    c.ok(grew < 120, "ipsd's peak memory grew by %.0f MB (< 120) for a %.1f MB body"
+         % (grew, len(data) / 1e6))
+    print("  a million-point cube: peak memory +%.0f MB for a %.1f MB body" % (grew, len(data) / 1e6))
     c.eq(d.stop_term(), 0, "ipsd: SIGTERM, exit 0")
 
 

@@ -467,8 +467,8 @@ static void test_config(void)
     CHECK(parse(&c, &err, 3, "--listen", "127.0.0.1:70000") == -EINVAL && strstr(err.msg, "port"));
     CHECK(parse(&c, &err, 3, "--bench", "usb") == -EINVAL && strstr(err.msg, "bench"));
     CHECK(parse(&c, &err, 3, "--max-body", "10") == -EINVAL && strstr(err.msg, "max-body"));
-    /* the jitter request's bound on its Airy integrals: default 2e8, 1e5..2e9 */
-    CHECK(parse(&c, &err, 1) == 0 && c.max_jitter_evals == 200000000);
+    /* the jitter request's bound on its Airy integrals: default 4e7, 1e5..2e9 */
+    CHECK(parse(&c, &err, 1) == 0 && c.max_jitter_evals == 40000000);
     CHECK(parse(&c, &err, 3, "--max-jitter-evals", "5000000") == 0 && c.max_jitter_evals == 5000000);
     CHECK(parse(&c, &err, 3, "--max-jitter-evals", "99999") == -EINVAL &&
           strstr(err.msg, "max-jitter-evals"));

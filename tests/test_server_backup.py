@@ -10,9 +10,12 @@ Python's sqlite3 (an independent reader):
   - the backup needs the write token (401 without), a second ipsd without --backup-dir
     answers 409 backups_off;
   - `ipsd --backup OUT --db LIVE` next to the running ipsd writes a checked copy, and refuses
-    an OUT that exists (exit 2);
+    an OUT that exists (exit 2); it only reads its source: an older schema is copied as it is,
+    a newer one, an empty file and a file that is not SQLite are refused (exit 2, one line), none
+    of them written, and a copy that fails for want of space leaves no file behind;
   - restore: ipsd started on a copy of the first backup serves its sensor and scan, and resumes
     the scan that was running in the snapshot to its last point."""
+import hashlib
 import os
 import shutil
 import sqlite3
@@ -27,6 +30,80 @@ TOKEN = "backup-writer-81d2"
 
 def open_copy(path):
     return sqlite3.connect("file:%s?mode=ro" % path, uri=True, isolation_level=None)
+
+
+def digest(path):
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def run_backup(exe, db, out, **kw):
+    return subprocess.run([exe, "--db", db, "--backup", out], capture_output=True, text=True,
+                          timeout=ipsd_http.DEADLINE_S, **kw)
+
+
+def source_checks(c, t, exe, good):
+    """ipsd --backup reads its source and nothing else: an older schema is copied as it is (the
+    source's bytes unchanged, the copy at the old version), a newer schema, an empty file and a
+    file that is not SQLite are refused with exit 2 and one line, and none of them is written;
+    a copy that fails on a full file system leaves no OUT, OUT.part nor OUT.part-journal."""
+    version = sqlite3.connect(good).execute("PRAGMA user_version").fetchone()[0]
+    cases = {"old.db": version - 1, "new.db": version + 1}
+    for name, v in cases.items():
+        path = os.path.join(t, name)
+        shutil.copyfile(good, path)
+        cx = sqlite3.connect(path)
+        cx.execute("PRAGMA user_version = %d" % v)
+        cx.commit()
+        cx.close()
+    with open(os.path.join(t, "empty.db"), "wb"):
+        pass
+    with open(os.path.join(t, "text.db"), "w") as f:
+        f.write("not a database\n" * 100)
+    before = {n: digest(os.path.join(t, n)) for n in ("old.db", "new.db", "empty.db", "text.db")}
+    r = run_backup(exe, os.path.join(t, "old.db"), os.path.join(t, "old-copy.db"))
+    c.ok(r.returncode == 0 and "schema %d" % (version - 1) in r.stdout,
+         "an older schema is backed up as it is: %d %s %s" % (r.returncode, r.stdout.strip(),
+                                                                r.stderr.strip()))
+    cp = open_copy(os.path.join(t, "old-copy.db"))
+    c.eq(cp.execute("PRAGMA user_version").fetchone()[0], version - 1, "the copy's schema")
+    cp.close()
+    for name, word in (("new.db", "newer"), ("empty.db", "not an ipsd database"),
+                       ("text.db", "not an SQLite database")):
+        out = os.path.join(t, name + ".copy")
+        r = run_backup(exe, os.path.join(t, name), out)
+        lines = r.stderr.strip().split("\n")
+        c.ok(r.returncode == 2 and len(lines) == 1 and word in lines[0],
+             "%s is refused with exit 2 and one line: %d %r" % (name, r.returncode, r.stderr))
+        c.ok(not os.path.exists(out) and not os.path.exists(out + ".part"),
+             "%s: no copy made" % name)
+    after = {n: digest(os.path.join(t, n)) for n in before}
+    c.eq(after, before, "no source file was written (its bytes)")
+    c.eq(os.path.getsize(os.path.join(t, "empty.db")), 0, "the empty file stays empty")
+    # a real full disk (root only: a tmpfs), at every size from nothing to the copy's: wherever
+    # the copy stops, nothing of it is left (the copy's header says WAL, so a copy that could not
+    # switch to journal_mode DELETE left OUT.part-wal and OUT.part-shm)
+    mnt = os.path.join(t, "tmpfs")
+    os.makedirs(mnt)
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4k", "tmpfs",
+                                            mnt], stderr=subprocess.DEVNULL).returncode != 0:
+        print("full-disk case skipped: cannot mount a tmpfs here")
+        return
+    subprocess.run(["umount", "-l", mnt])
+    size, failed, left = os.path.getsize(good), 0, []
+    for kib in range(8, size // 1024 + 48, 8):
+        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=%dk" % kib, "tmpfs", mnt], check=True)
+        try:
+            r = run_backup(exe, good, os.path.join(mnt, "full.db"))
+            failed += r.returncode == 1
+            if r.returncode == 1:
+                left += ["%d KiB: %s" % (kib, f) for f in os.listdir(mnt)]
+            elif r.returncode != 0 or os.listdir(mnt) != ["full.db"]:
+                left.append("%d KiB: exit %d, %r" % (kib, r.returncode, os.listdir(mnt)))
+        finally:
+            subprocess.run(["umount", "-l", mnt])
+    c.ok(failed > 3, "the copy failed for want of space %d times" % failed)
+    c.eq(left, [], "a failed copy leaves nothing behind (OUT, OUT.part, -journal, -wal, -shm)")
 
 
 def test(c, t, argv, daemons):
@@ -56,6 +133,10 @@ def test(c, t, argv, daemons):
 
     # ---- a backup of the scan held mid-way ----
     c.error(d.post("/api/backup"), 401, "", "a backup needs the write token")
+    # the endpoint has no option: a member is refused, not ignored, and nothing is written
+    r = d.post("/api/backup", {"dir": "/tmp"}, headers=auth)
+    c.error(r, 422, "dir", "POST /api/backup with an unknown member")
+    c.eq(os.listdir(bk), [], "the refused backup wrote nothing")
     r = d.post("/api/backup", headers=auth)
     c.status(r, 201, "POST /api/backup")
     b = r.json()
@@ -123,6 +204,7 @@ def test(c, t, argv, daemons):
          "a missing database is refused, not created")
     c.eq(d.stop_term(), 0, "SIGTERM: exit 0")
     db.close()
+    source_checks(c, t, exe, out)
 
     # ---- no --backup-dir: 409 ----
     other = os.path.join(t, "other")

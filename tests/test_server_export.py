@@ -330,6 +330,13 @@ def test(c, t, argv, daemons):
                                  "psf": {"kind": "airy", "wavelength_nm": 5, "na": 0.25},
                                  "jitter": {"rms_um": 503, "samples": 30000}})
     c.error(far, 422, "jitter.samples", "a tiny spot jittered far: too many Airy rings")
+    # a 0.2 um spot jittered 1 um, 100000 samples: ~1.8e8 evaluations by the estimate, 5 s of an
+    # HTTP thread's CPU at the measured ~25 ns each (docs/operations.md): over the default bound
+    r = d.post("/api/jitter", {"map": {"r": 1, "S": [1]}, "pitch_um": 6,
+                               "psf": {"radius_um": 0.2},
+                               "jitter": {"rms_um": 1, "samples": 100000}})
+    c.error(r, 422, "jitter.samples", "a 0.2 um spot, 100000 samples: over the default bound")
+    c.ok("4e+07" in r.text, "the message names the default bound: " + r.text[:300])
     c.ok("spot radii" in far.text and "--max-jitter-evals" in far.text,
          "the refusal says how far the samples reach and which option bounds it: %s" % far.text)
     # the same request on the command line: --max-evals refuses it before any integral, in one

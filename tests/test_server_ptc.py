@@ -53,6 +53,17 @@ def test(c, t, argv, daemons):
     # ---- bad requests ----
     c.error(d.post("/api/sensors/999/ptc", {}), 404, "", "unknown sensor")
     c.error(d.post("/api/sensors/%d/ptc" % sensor, {"levels": 2}), 422, "levels", "levels < 3")
+    # what the bench cannot honour is refused before a job is queued, naming the limit: a
+    # region over the simulator's one-capture memo (856 x 856), too few levels for a slope
+    jobs = db.val("SELECT count(*) FROM jobs")
+    for body, field, word in (({"roi_px": 857}, "roi_px", "2..856"),
+                              ({"roi_px": 4096, "levels": 40}, "roi_px", "2..856"),
+                              ({"levels": 5}, "levels", "at least 6"),
+                              ({"levels": 3, "flat_e": 10000}, "levels", "at least 4")):
+        r = d.post("/api/sensors/%d/ptc" % sensor, body)
+        c.error(r, 422, field, "%r: refused" % body)
+        c.ok(word in r.text, "%r: the limit named (%s)" % (body, r.text[:200]))
+    c.eq(db.val("SELECT count(*) FROM jobs"), jobs, "no job queued by the refused requests")
     c.error(d.post("/api/sensors/%d/ptc" % sensor, {"lamp": 1}), 422, "lamp", "unknown member")
     c.error(d.post("/api/sensors/%d/ptc" % sensor, [1]), 400, "", "not an object")
     c.error(d.get("/api/ptc/1"), 404, "", "no measurement yet")

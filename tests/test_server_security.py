@@ -14,7 +14,9 @@
   - the event stream without a header (a browser's EventSource, reads closed): POST
     /api/events/ticket needs a read or write token and gives a ticket, GET /api/events?ticket=
     opens with it; a tampered ticket, a ticket on another read, and a ticket with a header of a
-    wrong token get 401; no ticket is in the request log."""
+    wrong token get 401; no ticket is in the request log;
+  - POST /api/jitter, which only computes, takes a read token when reads are closed and the
+    write token when only writes are (never open when ipsd has tokens)."""
 import hashlib
 import os
 import re
@@ -227,6 +229,14 @@ def test(c, t, argv, daemons):
                headers=dict(bearer(WRITER_PLAIN), Origin="http://lab.example"))
     c.status(r, 201, "a cross-origin write with the token")
     c.eq(r.headers.get("Access-Control-Allow-Origin"), "http://lab.example", "its Allow-Origin")
+    # reads open, writes closed: jitter photometry (an HTTP thread for up to a second) is not
+    # open to anyone, it takes the write token (docs/api.md, Conventions)
+    c.status(d.get("/api/sensors"), 200, "reads are open with --token alone")
+    c.error(d.post("/api/jitter", jit), 401, "", "POST /api/jitter without a token, reads open")
+    c.error(d.post("/api/jitter", jit, headers=bearer("nope")), 401, "",
+            "POST /api/jitter with a wrong token, reads open")
+    c.status(d.post("/api/jitter", jit, headers=bearer(WRITER_PLAIN)), 200,
+             "POST /api/jitter with the write token, reads open")
     c.eq(d.stop_term(), 0, "SIGTERM: exit 0")
     c.ok(re.search(r"Z 127\.0\.0\.1 POST /api/sensors 201 \d+ \d+\.\d\dms", d.log_text()),
          "without --access-log the lines go to stderr")

@@ -188,8 +188,26 @@ static void test_urls(void)
         {"gcs:tcp://h:1?speed=3", "unknown option 'speed'"},
         {"gcs:tcp://h:1?step_um=0.1", "for zaber"},
         {"gcs:tcp://h:1?unit", "key=value"},
+        /* a host the resolver would have been asked for, a port with a space, a repeated key */
+        {"gcs:tcp://[::1", "[IPv6]"},
+        {"gcs:tcp://[::1]x:1", "[IPv6]"},
+        {"gcs:tcp://::1:50000", "[IPv6]"},
+        {"gcs:tcp://ho st:1", "host name"},
+        {"gcs:tcp://127.0.0.1: 80", "port 1..65535"},
+        {"gcs:tcp://127.0.0.1:+80", "port 1..65535"},
+        {"gcs:tcp://h:1?unit=mm&unit=um", "unit= is given twice"},
+        {"gcs:tcp://h:1?timeout=1&axes=1,2&timeout=2", "timeout= is given twice"},
     };
     emu_check_bad_urls(bad, sizeof bad / sizeof bad[0]);
+    /* the one-line error escapes the string's control characters and other bytes */
+    CHECK(stage_url_check("gcs:tcp://h\n:1\x1b[2J", NULL, &err) == -EINVAL);
+    int controls = 0;
+    for (const char *p = err.msg; *p; p++)
+        controls += (unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f;
+    CHECK(controls == 0 && strstr(err.msg, "h\\x0a:1\\x1b[2J"));
+    CHECK(stage_url_check("gcs:tcp://h:1?sp\xff" "eed\r=1", NULL, &err) == -EINVAL &&
+          !strchr(err.msg, '\r') && strstr(err.msg, "sp\\xffeed\\x0d"));
+    CHECK(stage_url_check("gcs:tcp://[fe80::1%2]:50000", NULL, NULL) == 0);
     /* nobody listening: refused at once; a device that does not exist */
     stage_t *st;
     emu_t e;

@@ -1,7 +1,10 @@
 /* fuzz_stage_url.c: the stage string of ipsd --stage (instrument/stage.h, stage_url_check) on any
  * bytes (up to the first NUL): it answers 0 or -EINVAL, an error says what is wrong, and a string
  * it accepts is "sim" or starts with "gcs:tcp://", "gcs:serial:/", "zaber:tcp://" or
- * "zaber:serial:/" (a zaber one naming its step_um=). */
+ * "zaber:serial:/" (a zaber one naming its step_um=). The findings of attacking it: an error is one
+ * line of printable ASCII (the string's control characters escaped), an accepted TCP host has no
+ * bracket left in it, space or control character (parsed again by stage_url_parse), and no
+ * option key is accepted twice. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,6 +12,7 @@
 
 #include "fuzz_api.h"
 #include "instrument/stage.h"
+#include "stage_url.h" /* white-box: instrument/ internal (tests/fuzz.cmake) */
 
 static void must(int ok, const char *what)
 {
@@ -27,8 +31,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int is_sim = -1;
     int ret = stage_url_check(s, &is_sim, &err);
     must(ret == 0 || ret == -EINVAL, "stage_url_check answers 0 or -EINVAL");
-    if (ret)
+    if (ret) {
         must(err.msg[0] != 0, "an error says what is wrong");
+        for (const char *p = err.msg; *p; p++)
+            must((unsigned char)*p >= 0x20 && (unsigned char)*p < 0x7f,
+                 "an error is printable ASCII, control characters escaped");
+    }
     else if (is_sim)
         must(strcmp(s, "sim") == 0, "only 'sim' is the simulated stage");
     else
@@ -36,6 +44,21 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
                  ((strncmp(s, "zaber:tcp://", 12) == 0 || strncmp(s, "zaber:serial:/", 14) == 0) &&
                   strstr(s, "step_um=")),
              "an accepted stage string names a gcs or zaber link");
+    if (ret == 0 && !is_sim) {
+        stage_url_t u;
+        must(stage_url_parse(s, &u, &err) == 0, "stage_url_parse accepts what the check did");
+        for (const char *p = u.host; *p; p++)
+            must(*p > 0x20 && *p < 0x7f && *p != '[' && *p != ']' && *p != ' ',
+                 "an accepted host has no bracket, space or control character");
+        const char *q = strchr(s, '?');
+        /* no key twice: every "key=" at the start of an option occurs once */
+        for (const char *k = q; k; k = strchr(k + 1, '&')) {
+            size_t len = strcspn(k + 1, "=&");
+            for (const char *o = strchr(k + 1, '&'); o; o = strchr(o + 1, '&'))
+                must(!(strncmp(o + 1, k + 1, len) == 0 && o[1 + len] == '='),
+                     "no option key is accepted twice");
+        }
+    }
     free(s);
     return 0;
 }
