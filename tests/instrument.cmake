@@ -33,14 +33,14 @@ if(TARGET ipscam_libcamera)
         IPSD_TEST_CAM_MODULE_DIR="$<TARGET_FILE_DIR:ipscam_libcamera>")
 endif()
 
-# ips and ipsd load libcamera only when its backend is asked for: neither needs libcamera, nor
-# libstdc++ (ldd lists what the loader maps at start; libc proves ldd read the file). Sanitized
+# ips and ipsd load libcamera and Aravis only when their backend is asked for: neither needs
+# libcamera, Aravis or glib, nor libstdc++ (ldd lists what the loader maps at start; libc proves ldd read the file). Sanitized
 # builds are let off libstdc++: the UBSan run-time brings it. A static ips (IPSD_STATIC_CLI) maps
 # no library at all: ldd's "not a dynamic executable" passes for it.
 if(IPSD_SANITIZE)
-    set(ipsd_unwanted_libs "libcamera")
+    set(ipsd_unwanted_libs "libcamera|libaravis|libglib")
 else()
-    set(ipsd_unwanted_libs "libcamera|libstdc\\+\\+")
+    set(ipsd_unwanted_libs "libcamera|libaravis|libglib|libstdc\\+\\+")
 endif()
 foreach(exe ips ipsd)
     if(TARGET ${exe})
@@ -58,3 +58,14 @@ if(TARGET ips)
     set_tests_properties(test_simulate PROPERTIES TIMEOUT 1100)
 endif()
 ipsd_add_test(test_ptc_sim ipsinstr) # photon transfer on the simulated bench: 2 % of the truth
+
+# the Aravis backend (a module loaded at run time) against Aravis's own GigE Vision camera
+# emulator on 127.0.0.1, run inside the test (so the test, not ipsd, links Aravis). The emulator
+# binds the GigE Vision control port 3956: the tests that run one hold the lock "gige_emulator".
+if(TARGET ipscam_aravis)
+    pkg_check_modules(ARAVIS_TEST IMPORTED_TARGET aravis-0.8)
+    ipsd_add_test(test_cam_aravis ipsinstr PkgConfig::ARAVIS_TEST)
+    add_dependencies(test_cam_aravis ipscam_aravis)
+    # a camera that goes away costs Aravis's control timeouts (a few seconds); 4x under load
+    set_tests_properties(test_cam_aravis PROPERTIES TIMEOUT 120 RESOURCE_LOCK gige_emulator)
+endif()
