@@ -136,12 +136,12 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
 static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
                      srv_scan_params_t *p)
 {
-    static const char *const keys[] = {"sensor_id",   "poi",   "optics", "raster",
-                                       "exposure_us", "scene", "seed",   NULL};
+    static const char *const keys[] = {"sensor_id", "poi",  "optics", "raster", "exposure_us",
+                                       "scene",     "seed", "setup",  NULL};
     static const char *const poi_keys[] = {"col", "row", NULL};
     long long sensor_id, col, row;
     double seed = scan_fields[SCAN_F_SEED].def;
-    const char *scene = NULL;
+    const char *scene = NULL, *setup = NULL;
     json_t *poi;
     storage_sensor_t sn;
     *sc = (storage_scan_t){.exposure_us = scan_fields[SCAN_F_EXPOSURE_US].def};
@@ -158,8 +158,14 @@ static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
         api_get_int(q, poi, "col", "poi.col", 1, 0, 1000000, &col) ||
         api_get_int(q, poi, "row", "poi.row", 1, 0, 1000000, &row) || read_optics(q, o, sc) ||
         read_raster(q, o, sc) || get_field(q, o, SCAN_F_EXPOSURE_US, &sc->exposure_us) ||
-        api_get_str(q, o, "scene", "scene", 0, 31, &scene) || get_field(q, o, SCAN_F_SEED, &seed))
+        api_get_str(q, o, "scene", "scene", 0, 31, &scene) || get_field(q, o, SCAN_F_SEED, &seed) ||
+        api_get_str(q, o, "setup", "setup", 0, 31, &setup))
         return -1;
+    if (setup && strcmp(setup, "paper") && strcmp(setup, "none")) {
+        api_error(q, 422, "out_of_range", "setup", "setup must be paper or none (got '%s')", setup);
+        return -1;
+    }
+    p->setup_none = setup && strcmp(setup, "none") == 0;
     if (scene && strcmp(scene, "uniform") && strcmp(scene, "paperlike")) {
         api_error(q, 422, "out_of_range", "scene", "scene must be one of " SRV_SCENES " (got '%s')",
                   scene);

@@ -58,14 +58,3 @@ if(TARGET ips)
     set_tests_properties(test_simulate PROPERTIES TIMEOUT 1100)
 endif()
 ipsd_add_test(test_ptc_sim ipsinstr) # photon transfer on the simulated bench: 2 % of the truth
-
-# the Aravis backend (a module loaded at run time) against Aravis's own GigE Vision camera
-# emulator on 127.0.0.1, run inside the test (so the test, not ipsd, links Aravis). The emulator
-# binds the GigE Vision control port 3956: the tests that run one hold the lock "gige_emulator".
-if(TARGET ipscam_aravis)
-    pkg_check_modules(ARAVIS_TEST IMPORTED_TARGET aravis-0.8)
-    ipsd_add_test(test_cam_aravis ipsinstr PkgConfig::ARAVIS_TEST)
-    add_dependencies(test_cam_aravis ipscam_aravis)
-    # a camera that goes away costs Aravis's control timeouts (a few seconds); 4x under load
-    set_tests_properties(test_cam_aravis PROPERTIES TIMEOUT 120 RESOURCE_LOCK gige_emulator)
-endif()
