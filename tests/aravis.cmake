@@ -24,5 +24,17 @@ if(TARGET ipscam_aravis)
             RESOURCE_LOCK gige_emulator
             ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
             FIXTURES_SETUP api_records)
+        # a whole scan through the emulator drawing the simulated bench where the emulated PI
+        # controller is, against the same scan on --bench sim
+        add_test(NAME test_server_aravis_scene
+                 COMMAND ${Python3_EXECUTABLE} -B
+                         ${CMAKE_CURRENT_SOURCE_DIR}/test_server_aravis_scene.py
+                         $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> $<TARGET_FILE:arv_emulator>
+                         ${CMAKE_CURRENT_SOURCE_DIR}/gcs_emulator.py
+                 WORKING_DIRECTORY ${IPSD_TEST_DATA})
+        set_tests_properties(test_server_aravis_scene PROPERTIES TIMEOUT 300
+            RESOURCE_LOCK gige_emulator
+            ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
+            FIXTURES_SETUP api_records)
     endif()
 endif()
