@@ -114,6 +114,17 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
                   sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row, sn->n_cols, sn->n_rows);
         return -1;
     }
+    /* and on the camera ipsd holds, when it said its size at start (a GenICam camera) */
+    const cam_info_t *cam = srv_camera(q->srv);
+    if (cam->width > 0 && cam->height > 0 &&
+        (sc->poi_col + h >= cam->width || sc->poi_row + h >= cam->height)) {
+        api_error(q, 422, "out_of_range", sc->poi_col + h >= cam->width ? "poi.col" : "poi.row",
+                  "the %dx%d sub-frame around pixel (%d, %d) must lie on the %d x %d array of "
+                  "the camera (%s %s)",
+                  sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row, cam->width, cam->height,
+                  cam->backend, cam->id);
+        return -1;
+    }
     int nx;
     if (scan_check_raster(sn->pitch_um, sc->area_px, sc->step_um, "raster.step_um", &nx, &err)) {
         api_error(q, 422, "out_of_range", "raster.step_um", "%s", err.msg);

@@ -52,7 +52,17 @@ int srv_bench_check(const char *bench, const char *stage, cam_info_t *camera, er
                        "--bench %s: no camera '%s' found by %s (%zu other%s: see "
                        "ipsd --list-cameras)",
                        bench, id, kind, n, n == 1 ? "" : "s");
-    return 0;
+    if (strcmp(kind, "aravis") != 0) return 0;
+    /* a GenICam camera is opened once: one that cannot do what a scan needs (no monochrome
+     * pixel format, no exposure time) is refused now, naming the feature, and its array size
+     * and pixel format are known to the API's checks */
+    cam_t *cam;
+    err_t e;
+    if ((ret = cam_open(kind, camera->id, &cam, &e)))
+        return err_set(err, ret, "--bench %s: %s", bench, e.msg);
+    ret = cam_get_info(cam, camera, &e);
+    cam_close(cam);
+    return ret ? err_set(err, ret, "--bench %s: %s", bench, e.msg) : 0;
 }
 
 /* The simulated bench as the scan's sensor (from the database), optics, scene and seed. */

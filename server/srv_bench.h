@@ -29,7 +29,8 @@ typedef struct srv_bench {
 
 /* Checks at start-up that the bench can run: for a real camera, that its backend is built in and
  * finds the camera (the first one, or the one the bench string names), which *camera then
- * describes (the sim bench: backend "sim"); and that the stage (a stage string) answers: a real
+ * describes (the sim bench: backend "sim"; an aravis camera is opened and closed again, so that
+ * one without what a scan needs is refused naming the feature, and its size is known); and that the stage (a stage string) answers: a real
  * one is opened (connected, servo on, referenced if needed) and closed again. Returns 0,
  * -ENOTSUP, -ENODEV or the stage's error with a clear message. */
 int srv_bench_check(const char *bench, const char *stage, cam_info_t *camera, err_t *err);

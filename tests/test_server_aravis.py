@@ -4,7 +4,8 @@
 its own pattern (Aravis's diagonal ramp: in Mono16 at exposure 10000 us and GainRaw 0, the pixel
 at (x, y) of the frame with id F is 256 (x + y + F) mod 65535, x and y from the region's corner).
 
-Checks: --list-cameras names the camera; a bad "setup" is refused (422, field setup); GET
+Checks: --list-cameras names the camera; a bad "setup" is refused (422, field setup), and a
+sub-frame off the camera's array (422, poi.col, naming the camera); GET
 /api/health says which camera and stage ipsd holds; a scan with "setup": "none" stores frames
 equal to what the emulator sent, pixel for pixel (every frame the ramp, the frames of a point
 consecutive frame ids: one trigger, one frame), their means, the POI's centre as given, and the
@@ -93,6 +94,12 @@ def run(c, t, exe, emu, daemons):
             "exposure_us": 10000, "setup": "none"}
     c.error(d.post("/api/scans", dict(body, setup="quick")), 422, "setup", "a bad setup")
     c.error(d.post("/api/scans", dict(body, setup=1)), 400, "setup", "a setup not a string")
+    # a sensor larger than the camera's 2048 x 2048 array: the sub-frame must lie on the camera
+    big = d.post("/api/sensors", {"model": "large", "serial": "L1", "n_cols": 4096,
+                                  "n_rows": 4096}).json()["id"]
+    r = d.post("/api/scans", dict(body, sensor_id=big, poi={"col": 2047, "row": 50}))
+    c.error(r, 422, "poi.col", "a sub-frame off the camera's array")
+    c.ok("2048 x 2048" in r.text and DEVICE in r.text, "naming the camera: %r" % r.text)
     r = d.post("/api/scans", body)
     c.status(r, 202, "a scan through the camera, set up by hand")
     scan, job = r.json()["scan"]["id"], r.json()["job"]["id"]
