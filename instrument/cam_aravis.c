@@ -51,7 +51,7 @@ typedef struct av {
     ArvStream *stream;
     gulong lost_handler;
     atomic_int lost; /* Aravis said the control channel is lost */
-    int silent;      /* a command went unanswered: closing sends no more */
+    int silent;      /* a command went unanswered: closing sends no more (each waits it out) */
     cam_info_t info;
     const struct mono *fmt;
     ArvPixelFormat pixel_format; /* fmt's code, as frames carry it */
@@ -383,7 +383,7 @@ static int fit_axis(int lo, int len, int total, int oinc, int sinc, int smin, in
 /* Stops the acquisition and drops the stream (the region or the buffers change). */
 static void stop(av_t *a)
 {
-    if (a->acquiring && !a->silent && !atomic_load(&a->lost))
+    if (a->acquiring && !atomic_load(&a->lost))
         arv_camera_stop_acquisition(a->cam, NULL);
     a->acquiring = 0;
     if (a->stream) g_object_unref(a->stream);
@@ -483,7 +483,7 @@ static const char *status_text(ArvBufferStatus s)
 static int get_frame(av_t *a, ArvBuffer **out, err_t *err)
 {
     GError *e = NULL;
-    ArvBuffer *b;
+    ArvBuffer *b = NULL;
     while ((b = arv_stream_try_pop_buffer(a->stream))) /* an older frame is not this one */
         arv_stream_push_buffer(a->stream, b);
     if (a->trigger) {
@@ -495,7 +495,15 @@ static int get_frame(av_t *a, ArvBuffer **out, err_t *err)
         a->acquiring = 1;
     }
     double limit_s = a->timeout_s > 0 ? a->timeout_s : a->exposure_us * 1e-6 + 5;
-    b = arv_stream_timeout_pop_buffer(a->stream, (guint64)(limit_s * 1e6));
+    gint64 end_us = g_get_monotonic_time() + (gint64)(limit_s * 1e6), left_us;
+    /* a buffer handed back still cleared holds no frame at all (the emulator's stream gave one
+     * once in a long scan): not this frame, nor a faulty one; the wait goes on */
+    while ((left_us = end_us - g_get_monotonic_time()) > 0 &&
+           (b = arv_stream_timeout_pop_buffer(a->stream, (guint64)left_us)) &&
+           arv_buffer_get_status(b) == ARV_BUFFER_STATUS_CLEARED) {
+        arv_stream_push_buffer(a->stream, b);
+        b = NULL;
+    }
     if (!a->trigger) {
         arv_camera_stop_acquisition(a->cam, NULL);
         a->acquiring = 0;
