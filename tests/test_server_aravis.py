@@ -11,7 +11,9 @@ equal to what the emulator sent, pixel for pixel (every frame the ramp, the fram
 consecutive frame ids: one trigger, one frame), their means, the POI's centre as given, and the
 camera's provenance in the stored setup (vendor, model, serial, firmware, Mono16 at 16 bits).
 The camera goes away mid-scan (the scan held at the failpoint scan.point while the emulator is
-stopped): the job fails with the camera's own words, nothing stays running and ipsd answers; the
+stopped): the job fails with the camera's own words, nothing stays running and ipsd answers;
+resumed while another camera is on the network, it fails again (the named camera is not there;
+restarted with --bench aravis, the first camera found, it is refused naming both cameras); the
 camera comes back, the scan resumes (POST /api/scans/ID/resume) and completes with every point
 exactly once. Python's sqlite3 reads the database."""
 import struct
@@ -64,12 +66,12 @@ def test(c, t, argv, daemons):
     exe, emu_exe = argv[1], argv[3]
     emu = Emulator(emu_exe, SERIAL)
     try:
-        run(c, t, exe, emu, daemons)
+        run(c, t, exe, emu_exe, emu, daemons)
     finally:
         emu.close()
 
 
-def run(c, t, exe, emu, daemons):
+def run(c, t, exe, emu_exe, emu, daemons):
     c.eq(emu.id, DEVICE, "the emulator's device id")
     ls = subprocess.run([exe, "--list-cameras"], stdout=subprocess.PIPE, text=True,
                         stderr=subprocess.PIPE, timeout=ipsd_http.DEADLINE_S)
@@ -118,6 +120,27 @@ def run(c, t, exe, emu, daemons):
          "its stored points stay")
     c.eq(db.val("SELECT count(*) FROM jobs WHERE state = 'running'"), 0, "nothing stays running")
     c.eq(d.get("/api/health").json().get("status"), "ok", "ipsd answers, healthy")
+
+    # another camera on the network: not the one the bench names, and a bench that takes the
+    # first camera refuses to resume on it
+    other = Emulator(emu_exe, "PLAIN2")
+    try:
+        c.status(d.post("/api/scans/%d/resume" % scan), 202, "resume with the camera gone")
+        j = d.wait_job(job, "failed")
+        err = (j or {}).get("error") or ""
+        c.ok("no camera '%s' found by Aravis" % DEVICE in err,
+             "the resumed job fails: the named camera is not there: %r" % err)
+        d.stop_term()
+        d.start("--bench", "aravis", "--camera-timeout", "2")
+        c.status(d.post("/api/scans/%d/resume" % scan), 202, "resume on the first camera found")
+        j = d.wait_job(job, "failed")
+        err = (j or {}).get("error") or ""
+        c.ok("taken with the aravis camera %s (serial %s)" % (DEVICE, SERIAL) in err and
+             "Aravis-Fake-PLAIN2" in err, "another camera is refused, naming both: %r" % err)
+    finally:
+        other.close()
+    c.eq(db.val("SELECT count(*) FROM frames WHERE scan_id = ?", scan), HOLD_AT,
+         "and nothing was stored meanwhile")
 
     # the camera is back: the scan resumes after its last stored point and completes
     emu.command("start", "ready")
