@@ -36,6 +36,11 @@ static json_t *degraded_reasons(const storage_health_t *h, int64_t unrec, const 
     return a;
 }
 
+static json_t *str_or_null(const char *s)
+{
+    return s && *s ? json_string(s) : json_null();
+}
+
 void api_h_health(api_req_t *q)
 {
     const srv_config_t *cfg = srv_config(q->srv);
@@ -75,6 +80,22 @@ void api_h_health(api_req_t *q)
                             json_pack("{s:I, s:I, s:I, s:I}", "hits", (json_int_t)hits, "misses",
                                       (json_int_t)misses, "entries", (json_int_t)entries, "bytes",
                                       (json_int_t)bytes));
+    /* the instrument ipsd holds: its camera as found at start, and the stage string */
+    const cam_info_t *cam = srv_camera(q->srv);
+    json_t *c = json_object();
+    if (c) {
+        json_object_set_new(c, "backend", str_or_null(cam->backend));
+        json_object_set_new(c, "id", str_or_null(cam->id));
+        json_object_set_new(c, "vendor", str_or_null(cam->vendor));
+        json_object_set_new(c, "model", str_or_null(cam->model));
+        json_object_set_new(c, "serial", str_or_null(cam->serial));
+    }
+    if (body) {
+        json_object_set_new(body, "camera", c ? c : json_null());
+        json_object_set_new(body, "stage", json_string(cfg->stage));
+    } else {
+        json_decref(c);
+    }
     json_decref(reasons);
     api_reply_json(q, 200, body);
 }

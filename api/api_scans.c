@@ -114,6 +114,17 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
                   sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row, sn->n_cols, sn->n_rows);
         return -1;
     }
+    /* and on the camera ipsd holds, when it said its size at start (a GenICam camera) */
+    const cam_info_t *cam = srv_camera(q->srv);
+    if (cam->width > 0 && cam->height > 0 &&
+        (sc->poi_col + h >= cam->width || sc->poi_row + h >= cam->height)) {
+        api_error(q, 422, "out_of_range", sc->poi_col + h >= cam->width ? "poi.col" : "poi.row",
+                  "the %dx%d sub-frame around pixel (%d, %d) must lie on the %d x %d array of "
+                  "the camera (%s %s)",
+                  sc->sub_px, sc->sub_px, sc->poi_col, sc->poi_row, cam->width, cam->height,
+                  cam->backend, cam->id);
+        return -1;
+    }
     int nx;
     if (scan_check_raster(sn->pitch_um, sc->area_px, sc->step_um, "raster.step_um", &nx, &err)) {
         api_error(q, 422, "out_of_range", "raster.step_um", "%s", err.msg);
@@ -136,12 +147,12 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
 static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
                      srv_scan_params_t *p)
 {
-    static const char *const keys[] = {"sensor_id",   "poi",   "optics", "raster",
-                                       "exposure_us", "scene", "seed",   NULL};
+    static const char *const keys[] = {"sensor_id", "poi",  "optics", "raster", "exposure_us",
+                                       "scene",     "seed", "setup",  NULL};
     static const char *const poi_keys[] = {"col", "row", NULL};
     long long sensor_id, col, row;
     double seed = scan_fields[SCAN_F_SEED].def;
-    const char *scene = NULL;
+    const char *scene = NULL, *setup = NULL;
     json_t *poi;
     storage_sensor_t sn;
     *sc = (storage_scan_t){.exposure_us = scan_fields[SCAN_F_EXPOSURE_US].def};
@@ -158,8 +169,14 @@ static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
         api_get_int(q, poi, "col", "poi.col", 1, 0, 1000000, &col) ||
         api_get_int(q, poi, "row", "poi.row", 1, 0, 1000000, &row) || read_optics(q, o, sc) ||
         read_raster(q, o, sc) || get_field(q, o, SCAN_F_EXPOSURE_US, &sc->exposure_us) ||
-        api_get_str(q, o, "scene", "scene", 0, 31, &scene) || get_field(q, o, SCAN_F_SEED, &seed))
+        api_get_str(q, o, "scene", "scene", 0, 31, &scene) || get_field(q, o, SCAN_F_SEED, &seed) ||
+        api_get_str(q, o, "setup", "setup", 0, 31, &setup))
         return -1;
+    if (setup && strcmp(setup, "paper") && strcmp(setup, "none")) {
+        api_error(q, 422, "out_of_range", "setup", "setup must be paper or none (got '%s')", setup);
+        return -1;
+    }
+    p->setup_none = setup && strcmp(setup, "none") == 0;
     if (scene && strcmp(scene, "uniform") && strcmp(scene, "paperlike")) {
         api_error(q, 422, "out_of_range", "scene", "scene must be one of " SRV_SCENES " (got '%s')",
                   scene);

@@ -1,8 +1,8 @@
 /* cam.c: the camera interface (cam.h) over a table of backends chosen by name at run time, as
  * SQLite picks a VFS: each entry is built in (the simulator's) or a module loaded with dlopen the
- * first time its backend is listed or opened (libcamera's: libipscam_libcamera.so, so that no
- * program pays for libcamera and its ~30 libraries unless it drives a real camera). How a backend
- * plugs in, and the module ABI: cam_impl.h.
+ * first time its backend is listed or opened (libcamera's: libipscam_libcamera.so; Aravis's:
+ * libipscam_aravis.so), so that no program pays for libcamera and its ~30 libraries, or glib and
+ * Aravis, unless it drives a real camera. How a backend plugs in, and the module ABI: cam_impl.h.
  *
  * Modules are looked for in the directories of $IPSD_CAM_MODULE_PATH (colon-separated) when it is
  * set, else in IPSD_CAM_MODULE_PATH_DEFAULT, compiled in by instrument/CMakeLists.txt: the build
@@ -34,6 +34,7 @@ static const struct slot {
 } slots[] = {
     {"sim", &cam_sim_backend, NULL},
     {"libcamera", NULL, "libipscam_libcamera.so"},
+    {"aravis", NULL, "libipscam_aravis.so"},
 };
 #define N_SLOTS (sizeof slots / sizeof slots[0])
 

@@ -10,6 +10,10 @@
  *                else the build tree and the install location; when it is missing or does not
  *                load, listing and opening fail with -ENOTSUP and the loader's reason. ID is
  *                libcamera's camera id, or NULL / "" for the first camera.
+ *   "aravis"     a GenICam camera (GigE Vision, USB3 Vision) driven by Aravis: a module
+ *                (libipscam_aravis.so, built when pkg-config finds aravis-0.8) loaded like
+ *                libcamera's. ID is Aravis's device id ("Vendor-Model-Serial", as
+ *                `ipsd --list-cameras` prints it), or NULL / "" for the first camera found.
  * A frame is a region of interest (ROI) of 16-bit DN values, row-major, with its metadata. A
  * handle is used by one thread at a time. */
 #ifndef IPSD_INSTRUMENT_CAM_H
@@ -29,7 +33,7 @@ typedef struct cam_roi {
 
 /* What a camera says about itself. Unknown numbers are NaN. */
 typedef struct cam_info {
-    char backend[16]; /* "sim" or "libcamera" */
+    char backend[16]; /* "sim", "libcamera" or "aravis" */
     char id[128];     /* the id cam_open takes */
     char model[64];
     int width, height;    /* full array, pixels */
@@ -40,6 +44,11 @@ typedef struct cam_info {
     double full_scale_dn; /* largest DN value the ADC gives */
     double exposure_min_us, exposure_max_us;
     double gain_min, gain_max; /* analogue gain range */
+    /* the camera's own description (GenICam cameras: DeviceVendorName, DeviceSerialNumber,
+     * DeviceFirmwareVersion or DeviceVersion); "" when the backend does not know it */
+    char vendor[64], serial[64], firmware[64];
+    char pixel_format[32]; /* the format frames are read in ("Mono16"; "" unknown) */
+    int bits;              /* bits per pixel value of that format, 0 unknown */
 } cam_info_t;
 
 /* One captured frame. dn and expected_dn are owned by the frame: release with cam_frame_free. */
@@ -56,10 +65,11 @@ typedef struct cam_frame {
                              timestamp, or the simulated bench's time */
     double temperature_c; /* sensor temperature, NaN if unknown */
     uint64_t sequence;    /* frame counter of this handle */
+    uint64_t camera_frame_id; /* the camera's own frame id (GigE Vision block id), 0 if none */
 } cam_frame_t;
 
-/* Lists the cameras of backend ("sim" or "libcamera"). *infos (n entries) is owned by the caller
- * (free()). Returns 0 (possibly with n = 0), -ENOTSUP for a backend whose module is not built or
+/* Lists the cameras of backend ("sim", "libcamera" or "aravis"). *infos (n entries) is owned by
+ * the caller (free()). Returns 0 (possibly with n = 0), -ENOTSUP for a backend whose module is not built or
  * does not load, -EINVAL for an unknown backend, or another negative errno from the backend. */
 int cam_list(const char *backend, cam_info_t **infos, size_t *n, err_t *err);
 

@@ -2,16 +2,16 @@
  * table (struct cam_backend): its name, how to list its cameras, how to open one, and the
  * operations on what it opened. cam.c keeps one entry per backend, built in (the simulator's,
  * cam_sim.c) or provided by a module loaded at run time when first asked for (libcamera's,
- * cam_libcamera.cpp): a shared object whose one exported symbol, ipsd_cam_backend_v2(), returns
- * its table. A module needs nothing from the program that loads it (it is linked with
- * --no-undefined and carries its own copies of err_set and cam_roi_check), so this header is its
- * whole interface, hence the extern "C" for the C++ module.
+ * cam_libcamera.cpp; Aravis's, cam_aravis.c): a shared object whose one exported symbol,
+ * ipsd_cam_backend_v3(), returns its table. A module needs nothing from the program that loads
+ * it (it is linked with --no-undefined and carries its own copies of err_set and cam_roi_check),
+ * so this header is its whole interface, hence the extern "C" for the C++ module.
  *
- * The ABI of version 1 is this table, the operations, and the layouts of cam_info_t,
- * cam_frame_t, cam_roi_t and err_t (cam.h, base/err.h), whose sizes the table states so that a
- * stale module is refused rather than misread. Memory a backend hands over (the list of
- * cam_list, a frame's dn and expected_dn) is malloc'ed: the caller frees it with free(). Any
- * change of these is a new version: a new entry point ipsd_cam_backend_v2. */
+ * The ABI is this table, the operations, and the layouts of cam_info_t, cam_frame_t, cam_roi_t
+ * and err_t (cam.h, base/err.h), whose sizes the table states so that a stale module is refused
+ * rather than misread. Memory a backend hands over (the list of cam_list, a frame's dn and
+ * expected_dn) is malloc'ed: the caller frees it with free(). Any change of these is a new
+ * version: a new entry point (ipsd_cam_backend_v4 next). */
 #ifndef IPSD_INSTRUMENT_CAM_IMPL_H
 #define IPSD_INSTRUMENT_CAM_IMPL_H
 
@@ -21,8 +21,10 @@ extern "C" {
 
 #include "instrument/cam.h" /* C declarations, err.h's included: C linkage for the C++ module */
 
-#define CAM_BACKEND_ABI 2 /* 2: cam_ops.set_timeout */
-#define CAM_BACKEND_ENTRY "ipsd_cam_backend_v2" /* the symbol cam.c looks up in a module */
+#define CAM_BACKEND_ABI 3 /* 2: cam_ops.set_timeout; 3: the camera's description in cam_info_t
+                             (vendor, serial, firmware, pixel format, bits), its frame id in
+                             cam_frame_t */
+#define CAM_BACKEND_ENTRY "ipsd_cam_backend_v3" /* the symbol cam.c looks up in a module */
 
 /* What can be done with an opened camera (impl: what the backend's open gave). */
 struct cam_ops {
@@ -51,9 +53,9 @@ struct cam_backend {
     CAM_BACKEND_ABI, (unsigned)sizeof(cam_info_t), (unsigned)sizeof(cam_frame_t),                  \
         (unsigned)sizeof(err_t)
 
-/* The entry point of a backend module (cam_libcamera.cpp): its table, static. */
+/* The entry point of a backend module (cam_libcamera.cpp, cam_aravis.c): its table, static. */
 typedef const struct cam_backend *(*cam_backend_entry_fn)(void);
-const struct cam_backend *ipsd_cam_backend_v2(void);
+const struct cam_backend *ipsd_cam_backend_v3(void);
 
 /* ---- inside the library only (not for modules) ---- */
 

@@ -1,7 +1,7 @@
 /* cam_libcamera.cpp: the "libcamera" camera backend (cam.h), the only C++ file of ipsd: a narrow
  * shim over libcamera, built as a module of its own (libipscam_libcamera.so) that cam.c loads
  * with dlopen only when the backend is listed or opened, so that ips and ipsd link neither
- * libcamera nor libstdc++. Its one exported symbol is ipsd_cam_backend_v2() (cam_impl.h); it needs
+ * libcamera nor libstdc++. Its one exported symbol is ipsd_cam_backend_v3() (cam_impl.h); it needs
  * nothing from the program that loads it (err_set and cam_roi_check are compiled into it). Every
  * difference between libcamera releases is kept behind the <libcamera/version.h> checks in this
  * file (Debian 12 ships 0.0.3; newer releases build too).
@@ -407,7 +407,7 @@ const struct cam_backend lc_backend = {CAM_BACKEND_HEADER, "libcamera", lc_list,
 
 /* The module's entry point (cam_impl.h), the one symbol it exports. */
 extern "C" __attribute__((visibility("default"))) const struct cam_backend *
-ipsd_cam_backend_v2(void)
+ipsd_cam_backend_v3(void)
 {
     return &lc_backend;
 }

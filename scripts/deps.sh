@@ -15,6 +15,10 @@ IPSD_PACKAGES=(
     libmicrohttpd-dev                       # api/
     nettle-dev                              # server/: SHA-256 of the bearer tokens
     libcamera-dev                           # instrument/ libcamera backend (optional at build)
+    libaravis-dev libusb-1.0-0-dev          # instrument/ Aravis backend for GenICam cameras
+                                            # (optional at build; Debian's aravis-0.8.pc needs
+                                            # libusb-1.0.pc, which libaravis-dev does not pull);
+                                            # its GigE Vision emulator runs the camera tests
     curl wrk python3                        # HTTP tests, load benchmark, test scripts
     libcfitsio-dev                          # export/: FITS files of the maps
     python3-astropy                         # the FITS test reads the files back with astropy

@@ -94,8 +94,9 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
     int ret = 0;
     if ((ret = srv_failpoints_open(getenv("IPSD_FAILPOINTS"), getenv("IPSD_FAILPOINT_DIR"),
                                    &srv->failpoints, err)) ||
-        (ret = srv_bench_check(cfg->bench, cfg->stage, err)) || (ret = lock_db(srv, err)) ||
-        (ret = storage_gate_new(&srv->gate)) || (ret = arm_storage_hooks(srv, err)) ||
+        (ret = srv_bench_check(cfg->bench, cfg->stage, &srv->camera, err)) ||
+        (ret = lock_db(srv, err)) || (ret = storage_gate_new(&srv->gate)) ||
+        (ret = arm_storage_hooks(srv, err)) ||
         (ret = srv_dbpool_open(cfg->db_path, srv->gate, &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||
         (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
@@ -162,6 +163,11 @@ void srv_close(srv_t *srv)
 const srv_config_t *srv_config(const srv_t *srv)
 {
     return &srv->cfg;
+}
+
+const cam_info_t *srv_camera(const srv_t *srv)
+{
+    return &srv->camera;
 }
 int srv_stopping(const srv_t *srv)
 {

@@ -15,6 +15,7 @@
 #include <stdint.h>
 
 #include "base/err.h"
+#include "instrument/cam.h"
 #include "server/srv_config.h"
 #include "server/srv_events.h"
 #include "server/srv_params.h"
@@ -37,6 +38,8 @@ void srv_stop(srv_t *srv);
 void srv_close(srv_t *srv);
 
 const srv_config_t *srv_config(const srv_t *srv);
+/* The bench's camera as ipsd found it at start (backend "sim" for the simulated bench). */
+const cam_info_t *srv_camera(const srv_t *srv);
 /* Non-zero once srv_stop has begun: the API answers writes with 503. */
 int srv_stopping(const srv_t *srv);
 srv_events_t *srv_events(srv_t *srv);

@@ -2,6 +2,7 @@
 #include "srv_bench.h"
 
 #include <errno.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,18 +19,50 @@ static int check_stage(const char *stage, err_t *err)
     return ret ? err_set(err, ret, "--stage: %s", e.msg) : 0;
 }
 
-int srv_bench_check(const char *kind, const char *stage, err_t *err)
+const char *srv_bench_split(const char *bench, char *kind, size_t kind_size)
 {
+    size_t len = strcspn(bench, ":");
+    snprintf(kind, kind_size, "%.*s", (int)len, bench);
+    return bench[len] == ':' ? bench + len + 1 : NULL;
+}
+
+int srv_bench_check(const char *bench, const char *stage, cam_info_t *camera, err_t *err)
+{
+    char kind[32];
+    const char *id = srv_bench_split(bench, kind, sizeof kind);
+    memset(camera, 0, sizeof *camera);
     int ret = check_stage(stage, err);
     if (ret) return ret;
-    if (strcmp(kind, "sim") == 0) return 0;
+    if (strcmp(kind, "sim") == 0) {
+        snprintf(camera->backend, sizeof camera->backend, "sim");
+        snprintf(camera->model, sizeof camera->model, "simulated bench");
+        return 0;
+    }
     cam_info_t *infos = NULL;
-    size_t n = 0;
+    size_t n = 0, i = 0;
     ret = cam_list(kind, &infos, &n, err);
-    free(infos);
     if (ret) return ret;
-    if (n == 0) return err_set(err, -ENODEV, "--bench %s: no camera found by libcamera", kind);
-    return 0;
+    while (id && i < n && strcmp(infos[i].id, id) != 0)
+        i++;
+    if (i < n) *camera = infos[i];
+    free(infos);
+    if (n == 0) return err_set(err, -ENODEV, "--bench %s: no camera found by %s", bench, kind);
+    if (i == n)
+        return err_set(err, -ENODEV,
+                       "--bench %s: no camera '%s' found by %s (%zu other%s: see "
+                       "ipsd --list-cameras)",
+                       bench, id, kind, n, n == 1 ? "" : "s");
+    if (strcmp(kind, "aravis") != 0) return 0;
+    /* a GenICam camera is opened once: one that cannot do what a scan needs (no monochrome
+     * pixel format, no exposure time) is refused now, naming the feature, and its array size
+     * and pixel format are known to the API's checks */
+    cam_t *cam;
+    err_t e;
+    if ((ret = cam_open(kind, camera->id, &cam, &e)))
+        return err_set(err, ret, "--bench %s: %s", bench, e.msg);
+    ret = cam_get_info(cam, camera, &e);
+    cam_close(cam);
+    return ret ? err_set(err, ret, "--bench %s: %s", bench, e.msg) : 0;
 }
 
 /* The simulated bench as the scan's sensor (from the database), optics, scene and seed. */
@@ -61,12 +94,14 @@ static int open_sim(const storage_sensor_t *sn, const storage_scan_t *sc,
     return 0;
 }
 
-int srv_bench_open(const char *kind, const char *stage, const storage_sensor_t *sn,
+int srv_bench_open(const char *bench, const char *stage, const storage_sensor_t *sn,
                    const storage_scan_t *sc, const srv_scan_params_t *p,
                    int (*frame_fault)(void *, unsigned long long), void *ctx, double timeout_s,
                    srv_bench_t *b, err_t *err)
 {
     memset(b, 0, sizeof *b);
+    char kind[32];
+    const char *id = srv_bench_split(bench, kind, sizeof kind);
     int ret, sim_stage_only = 1;
     if ((ret = stage_url_check(stage, &sim_stage_only, err))) return ret;
     if (strcmp(kind, "sim") == 0) {
@@ -78,7 +113,7 @@ int srv_bench_open(const char *kind, const char *stage, const storage_sensor_t *
         if ((ret = stage_open_url(stage, &lead, err))) return ret;
         return stage_open_follow(lead, sim_stage(b->sim), &b->stage, err);
     }
-    ret = cam_open(kind, NULL, &b->cam, err);
+    ret = cam_open(kind, id, &b->cam, err);
     if (ret == 0) ret = cam_set_timeout(b->cam, timeout_s, err);
     if (ret == 0) ret = stage_open_url(stage, &b->stage, err);
     /* no calibrated mount: the POI's centre in stage coordinates is its sensor position */

@@ -25,8 +25,13 @@ static const char usage[] =
     "  --listen ADDR:PORT   address to serve HTTP on (default 127.0.0.1:8080; [::1]:PORT for\n"
     "                       IPv6; port 0 picks a free port)\n"
     "  --db FILE            SQLite database (default var/ipsd.db; its directory must exist)\n"
-    "  --bench sim|libcamera  the instrument: the simulated bench (default) or a libcamera\n"
-    "                       camera (fails at start when none is found)\n"
+    "  --bench BENCH        the instrument: sim (the simulated bench, default), libcamera (a\n"
+    "                       V4L2 sensor) or aravis (a GenICam camera: GigE Vision, USB3\n"
+    "                       Vision), the first camera found, or libcamera:ID / aravis:ID for\n"
+    "                       the camera of that id (see --list-cameras); fails at start when\n"
+    "                       the camera is not found\n"
+    "  --list-cameras       prints the cameras every camera backend finds, one a line\n"
+    "                       (BACKEND:ID, vendor, model, serial), and exits\n"
     "  --stage STAGE        the motion stage the bench's camera works with: sim (default) or a\n"
     "                       PI GCS 2.0 controller, gcs:tcp://HOST:PORT[?OPTIONS] or\n"
     "                       gcs:serial:/dev/DEVICE[?OPTIONS] (OPTIONS: unit=mm|um, axes=A,B[,C],\n"
@@ -47,14 +52,16 @@ static const char usage[] =
     "                       the kernel's (Linux 6.12+; a short slice preempts busy threads on\n"
     "                       wakeup; default 0)\n"
     "  --token FILE         writes (POST, DELETE) need 'Authorization: Bearer TOKEN', TOKEN one\n"
-    "                       of the file's lines: a token, or sha256:HEX of one (see --hash-token);\n"
+    "                       of the file's lines: a token, or sha256:HEX of one (see "
+    "--hash-token);\n"
     "                       blank and # lines skipped; may be given more than once\n"
     "  --read-token FILE    reads under /api (but /api/health and /api/openapi.json) need a read\n"
     "                       token of FILE or a write token (needs --token); default: reads open\n"
     "  --hash-token         print the sha256:HEX line of the token read from stdin, and exit\n"
     "  --access-log FILE    one line per request (time, client, method, path, status, bytes,\n"
     "                       ms) appended to FILE; '-' stderr (default), 'off' none\n"
-    "  --cors-origin ORIGIN allow cross-origin requests from ORIGIN (e.g. https://lab.example:8443,\n"
+    "  --cors-origin ORIGIN allow cross-origin requests from ORIGIN (e.g. "
+    "https://lab.example:8443,\n"
     "                       or *); default: no CORS headers, browsers refuse other origins\n"
     "  --backup-dir DIR     POST /api/backup writes online backups of the database into DIR\n"
     "                       (default: none, the endpoint answers 409)\n"
@@ -198,6 +205,7 @@ enum {
     O_CORS,
     O_BACKUPDIR,
     O_BACKUP,
+    O_LISTCAMERAS,
     O_WEB,
     O_MAXBODY,
     O_MAXSCAN,
@@ -236,6 +244,7 @@ static const struct option opts[] = {
     {"cors-origin", required_argument, NULL, O_CORS},
     {"backup-dir", required_argument, NULL, O_BACKUPDIR},
     {"backup", required_argument, NULL, O_BACKUP},
+    {"list-cameras", no_argument, NULL, O_LISTCAMERAS},
     {"web", required_argument, NULL, O_WEB},
     {"max-body", required_argument, NULL, O_MAXBODY},
     {"max-scan-bytes", required_argument, NULL, O_MAXSCAN},
@@ -287,10 +296,20 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
         return copy_path("backup-dir", arg, cfg->backup_dir, sizeof cfg->backup_dir, err);
     case O_BACKUP:
         return copy_path("backup", arg, cfg->backup_out, sizeof cfg->backup_out, err);
-    case O_BENCH:
-        if (strcmp(arg, "sim") && strcmp(arg, "libcamera"))
-            return err_set(err, -EINVAL, "--bench must be sim or libcamera (got '%s')", arg);
+    case O_BENCH: {
+        size_t kind = strcspn(arg, ":");
+        int named = arg[kind] == ':';
+        if (!((kind == 3 && !strncmp(arg, "sim", 3) && !named) ||
+              (kind == 9 && !strncmp(arg, "libcamera", 9)) ||
+              (kind == 6 && !strncmp(arg, "aravis", 6))) ||
+            (named && !arg[kind + 1]) || strlen(arg) >= sizeof cfg->bench)
+            return err_set(err, -EINVAL,
+                           "--bench must be sim, libcamera[:ID] or aravis[:ID] (got '%s')", arg);
         snprintf(cfg->bench, sizeof cfg->bench, "%s", arg);
+        return 0;
+    }
+    case O_LISTCAMERAS:
+        cfg->list_cameras = 1;
         return 0;
     case O_STAGE: {
         err_t e;

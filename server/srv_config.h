@@ -25,7 +25,8 @@ typedef struct srv_config {
     char host[64];                /* numeric IPv4 or IPv6 address to bind ("127.0.0.1") */
     int port;                     /* 0: any free port (see port_file) */
     char db_path[SRV_PATH_MAX];   /* "var/ipsd.db" */
-    char bench[16];               /* "sim" or "libcamera" */
+    char bench[160];              /* --bench: "sim", or a camera backend ("libcamera", "aravis")
+                                     with ":DEVICE-ID" when one camera is named */
     char stage[1024];             /* --stage: "sim" or a stage string (instrument/stage.h) */
     int workers;                  /* fit worker threads (2) */
     int http_threads;             /* HTTP thread pool size (2) */
@@ -41,6 +42,7 @@ typedef struct srv_config {
     char backup_dir[SRV_PATH_MAX]; /* where POST /api/backup writes, "" backups off */
     char backup_out[SRV_PATH_MAX]; /* --backup OUT: back the database up to OUT and exit */
     int hash_token;               /* --hash-token: print the hash line of stdin's token, exit */
+    int list_cameras;             /* --list-cameras: print every backend's cameras, exit */
     char web_dir[SRV_PATH_MAX];   /* static files of the dashboard */
     char port_file[SRV_PATH_MAX]; /* where to write the bound port, "" for nowhere */
     size_t max_body;              /* request body limit in bytes (4 MiB) */

@@ -6,6 +6,7 @@
 #include <pthread.h>
 #include <stdatomic.h>
 
+#include "instrument/cam.h"
 #include "server/srv.h"
 #include "srv_dbpool.h"
 
@@ -37,6 +38,7 @@ struct srv {
     atomic_int backup_running;    /* a POST /api/backup is copying (srv_backup.c) */
     int64_t unrecorded_job;       /* under mu: a scan job failed whose failure the storage */
     char unrecorded_msg[256];     /* refuses to record yet (srv_scanner.c), and its error */
+    cam_info_t camera;            /* the bench's camera as found at start (srv_bench_check) */
 };
 
 /* A worker's life: claims jobs of the kinds (a mask of STORAGE_JOB_BIT) in queue order and runs
@@ -84,6 +86,8 @@ void srv_ptc_run_job(srv_worker_t *w, storage_job_t *job);
 /* The one-shot modes of ipsd (srv_tools.c): --hash-token (reads stdin) and --backup OUT.
  * Each returns the process exit code: 0, 1 (failed), 2 (bad input). */
 int srv_tool_hash_token(void);
+/* --list-cameras: every backend's cameras on stdout (0, or 1 when stdout fails). */
+int srv_tool_list_cameras(void);
 int srv_tool_backup(const srv_config_t *cfg);
 
 #endif

@@ -20,7 +20,8 @@ srv_scan_params_t srv_scan_params_default(void)
 
 char *srv_scan_params_dump(const srv_scan_params_t *p)
 {
-    json_t *o = json_pack("{s:s, s:I}", "scene", p->scene, "seed", (json_int_t)p->seed);
+    json_t *o = json_pack("{s:s, s:I, s:s}", "scene", p->scene, "seed", (json_int_t)p->seed,
+                          "setup", p->setup_none ? "none" : "paper");
     char *text = o ? json_dumps(o, JSON_COMPACT) : NULL;
     json_decref(o);
     return text;
@@ -29,7 +30,7 @@ char *srv_scan_params_dump(const srv_scan_params_t *p)
 int srv_scan_params_parse(const char *text, srv_scan_params_t *p, err_t *err)
 {
     *p = srv_scan_params_default();
-    json_t *o = json_loads(text, 0, NULL), *scene, *seed;
+    json_t *o = json_loads(text, 0, NULL), *scene, *seed, *setup;
     if (!json_is_object(o)) {
         json_decref(o);
         return err_set(err, -EINVAL, "scan job params: not a JSON object");
@@ -38,6 +39,8 @@ int srv_scan_params_parse(const char *text, srv_scan_params_t *p, err_t *err)
         snprintf(p->scene, sizeof p->scene, "%s", json_string_value(scene));
     if ((seed = json_object_get(o, "seed")) && json_is_integer(seed))
         p->seed = (unsigned long)json_integer_value(seed);
+    if ((setup = json_object_get(o, "setup")) && json_is_string(setup))
+        p->setup_none = strcmp(json_string_value(setup), "none") == 0;
     json_decref(o);
     return 0;
 }

@@ -19,6 +19,8 @@
 typedef struct srv_scan_params {
     char scene[32];     /* "paperlike" (default) or "uniform" */
     unsigned long seed; /* noise of the simulated frames (1) */
+    int setup_none;     /* "setup": "none": no exposure, centring or focus search: the POI's
+                           centre and exposure_us as given (0: the paper's procedure) */
 } srv_scan_params_t;
 
 srv_scan_params_t srv_scan_params_default(void);

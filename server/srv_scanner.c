@@ -39,6 +39,7 @@ struct scan_run {
     storage_scan_t scan;
     storage_sensor_t sensor;
     srv_bench_t bench;
+    srv_scan_params_t params;
     scan_config_t cfg;
     scan_setup_t setup;
     int first;            /* first raster point captured by this run */
@@ -131,6 +132,25 @@ static void make_config(struct scan_run *r)
     /* the default 16000 DN of a 14-bit ADC, scaled to this sensor's full scale */
     c->saturation_dn = r->sensor.full_scale_dn * (16000.0 / 16383.0);
     c->spot_radius_um = r->scan.spot_radius_um;
+    if (r->params.setup_none) /* the POI's centre and the exposure as given */
+        c->do_exposure = c->do_centre = c->do_focus = 0;
+}
+
+/* A resumed scan runs on the camera that took its stored points: another one (or another
+ * backend) is refused naming both. A setup stored without a camera (an older ipsd) passes. */
+static int same_camera(struct scan_run *r, const char *stored)
+{
+    cam_info_t was, now;
+    if (srv_setup_camera(stored, &was) || cam_get_info(r->bench.cam, &now, &r->err)) return 0;
+    if (strcmp(was.backend, now.backend) == 0 && strcmp(was.serial, now.serial) == 0 &&
+        (strcmp(was.backend, "sim") == 0 || strcmp(was.id, now.id) == 0))
+        return 0;
+    return err_set(&r->err, -EINVAL,
+                   "scan %lld was taken with the %s camera %s (serial %s); the bench now has the "
+                   "%s camera %s (serial %s): resume it with that camera",
+                   (long long)r->scan.id, was.backend, was.id[0] ? was.id : "-",
+                   was.serial[0] ? was.serial : "-", now.backend, now.id[0] ? now.id : "-",
+                   now.serial[0] ? now.serial : "-");
 }
 
 /* The stored setup, or a new one from scan_prepare, stored before the raster starts. */
@@ -141,12 +161,16 @@ static int setup(struct scan_run *r, const scan_hooks_t *hooks)
     if (ret) return ret;
     if (text) {
         ret = srv_setup_parse(text, &r->setup, &r->err);
+        if (ret == 0) ret = same_camera(r, text);
         free(text);
         return ret;
     }
-    if ((ret = scan_prepare(r->bench.cam, r->bench.stage, &r->cfg, hooks, &r->setup, &r->err)))
+    cam_info_t cam;
+    if ((ret = scan_prepare(r->bench.cam, r->bench.stage, &r->cfg, hooks, &r->setup, &r->err)) ||
+        (ret = cam_get_info(r->bench.cam, &cam, &r->err)))
         return ret;
-    if (!(text = srv_setup_dump(&r->setup))) return err_set(&r->err, -ENOMEM, "out of memory");
+    if (!(text = srv_setup_dump_provenance(&r->setup, &cam, r->params.setup_none)))
+        return err_set(&r->err, -ENOMEM, "out of memory");
     ret = storage_scan_set_setup(r->st, r->scan.id, text, &r->err);
     free(text);
     return ret;
@@ -180,10 +204,10 @@ static int finish_done(struct scan_run *r)
 /* Loads the scan and its sensor, opens the bench, and marks the scan running. */
 static int begin(struct scan_run *r)
 {
-    srv_scan_params_t p;
+    srv_scan_params_t *p = &r->params;
     int ret;
     if (!r->job->scan_id) return err_set(&r->err, -EINVAL, "scan job without a scan");
-    if ((ret = srv_scan_params_parse(r->job->params, &p, &r->err)) ||
+    if ((ret = srv_scan_params_parse(r->job->params, p, &r->err)) ||
         (ret = storage_scan_get(r->st, r->job->scan_id, &r->scan, &r->err)) ||
         (ret = storage_sensor_get(r->st, r->scan.sensor_id, &r->sensor, &r->err)))
         return ret;
@@ -191,7 +215,7 @@ static int begin(struct scan_run *r)
     /* the job must still be ours (not cancelled meanwhile) before the scan is marked running */
     if ((ret = storage_job_heartbeat(r->st, r->job->id, r->job->progress, r->job->points_done,
                                      &r->err)) ||
-        (ret = srv_bench_open(r->srv->cfg.bench, r->srv->cfg.stage, &r->sensor, &r->scan, &p,
+        (ret = srv_bench_open(r->srv->cfg.bench, r->srv->cfg.stage, &r->sensor, &r->scan, p,
                               r->srv->failpoints ? srv_failpoint_frame : NULL, r->srv,
                               r->srv->cfg.camera_timeout_s, &r->bench, &r->err)))
         return ret;

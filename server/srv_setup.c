@@ -26,6 +26,58 @@ static json_t *num(double v)
     return isfinite(v) ? json_real(v) : json_null();
 }
 
+static json_t *str_or_null(const char *s)
+{
+    return s && *s ? json_string(s) : json_null();
+}
+
+char *srv_setup_dump_provenance(const scan_setup_t *su, const cam_info_t *cam, int setup_none)
+{
+    char *text = srv_setup_dump(su);
+    json_t *o = text ? json_loads(text, 0, NULL) : NULL;
+    free(text);
+    if (!o) return NULL;
+    json_t *c = json_object();
+    if (c) {
+        json_object_set_new(c, "backend", str_or_null(cam->backend));
+        json_object_set_new(c, "id", str_or_null(cam->id));
+        json_object_set_new(c, "vendor", str_or_null(cam->vendor));
+        json_object_set_new(c, "model", str_or_null(cam->model));
+        json_object_set_new(c, "serial", str_or_null(cam->serial));
+        json_object_set_new(c, "firmware", str_or_null(cam->firmware));
+        json_object_set_new(c, "pixel_format", str_or_null(cam->pixel_format));
+        json_object_set_new(c, "bits", cam->bits > 0 ? json_integer(cam->bits) : json_null());
+    }
+    json_object_set_new(o, "camera", c ? c : json_null());
+    json_object_set_new(o, "setup", json_string(setup_none ? "none" : "paper"));
+    text = json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    json_decref(o);
+    return text;
+}
+
+int srv_setup_camera(const char *text, cam_info_t *cam)
+{
+    json_t *o = json_loads(text, 0, NULL), *c = json_object_get(o, "camera");
+    memset(cam, 0, sizeof *cam);
+    int ret = json_is_object(c) ? 0 : -ENOENT;
+#define STR(f)                                                                                     \
+    do {                                                                                           \
+        json_t *v_ = json_object_get(c, #f);                                                       \
+        if (json_is_string(v_)) snprintf(cam->f, sizeof cam->f, "%s", json_string_value(v_));      \
+    } while (0)
+    STR(backend);
+    STR(id);
+    STR(vendor);
+    STR(model);
+    STR(serial);
+    STR(firmware);
+    STR(pixel_format);
+#undef STR
+    cam->bits = (int)json_integer_value(json_object_get(c, "bits"));
+    json_decref(o);
+    return ret;
+}
+
 char *srv_setup_dump(const scan_setup_t *su)
 {
     json_t *o = json_pack("{s:[o, o, o], s:i, s:i}", "centre_um", num(su->centre.x_um),

@@ -17,6 +17,15 @@
  * Returns a malloc'ed string (caller frees) or NULL when out of memory. */
 char *srv_setup_dump(const scan_setup_t *su);
 
+/* The same with the scan's provenance: what took its frames, "camera": {backend, id, vendor,
+ * model, serial, firmware, pixel_format, bits} (null members unknown), and "setup": "paper" (the
+ * paper's exposure, centring and focus) or "none" (the POI's centre and exposure as given). */
+char *srv_setup_dump_provenance(const scan_setup_t *su, const cam_info_t *cam, int setup_none);
+
+/* The camera of a stored setup (what srv_setup_dump_provenance wrote) into *cam; -ENOENT when
+ * the setup has none (stored by an older ipsd). */
+int srv_setup_camera(const char *text, cam_info_t *cam);
+
 /* Parses text made by srv_setup_dump. Returns 0 or -EINVAL naming the missing field. */
 int srv_setup_parse(const char *text, scan_setup_t *su, err_t *err);
 

@@ -1,13 +1,39 @@
 /* srv_tools.c: ipsd's one-shot modes, run instead of the server: --hash-token prints the line a
  * token file may hold instead of the token (srv_token.h), --backup OUT makes an online backup of
- * --db (storage_backup) that may run while an ipsd serves the same database. */
+ * --db (storage_backup) that may run while an ipsd serves the same database, --list-cameras
+ * prints the cameras of every camera backend (the --bench values that name them). */
 #include <errno.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
+#include "instrument/cam.h"
 #include "server/srv_token.h"
 #include "srv_int.h"
+
+int srv_tool_list_cameras(void)
+{
+    /* the simulated bench is always there; then each real backend's cameras, one a line:
+     * the --bench value, vendor, model, serial, tab-separated ("-" unknown) */
+    printf("sim\tipsd\tsimulated bench\t-\n");
+    for (const char *const *b = cam_backends(); *b; b++) {
+        if (strcmp(*b, "sim") == 0) continue;
+        cam_info_t *l = NULL;
+        size_t n = 0;
+        err_t err = {{0}};
+        if (cam_list(*b, &l, &n, &err)) {
+            fprintf(stderr, "ipsd: --list-cameras: %s: %s\n", *b, err.msg);
+            continue;
+        }
+        for (size_t i = 0; i < n; i++)
+            printf("%s:%s\t%s\t%s\t%s\n", *b, l[i].id, l[i].vendor[0] ? l[i].vendor : "-",
+                   l[i].model[0] ? l[i].model : "-", l[i].serial[0] ? l[i].serial : "-");
+        if (n == 0) fprintf(stderr, "ipsd: --list-cameras: %s: no camera found\n", *b);
+        free(l);
+    }
+    return fflush(stdout) == 0 ? 0 : 1;
+}
 
 int srv_tool_hash_token(void)
 {

@@ -33,14 +33,14 @@ if(TARGET ipscam_libcamera)
         IPSD_TEST_CAM_MODULE_DIR="$<TARGET_FILE_DIR:ipscam_libcamera>")
 endif()
 
-# ips and ipsd load libcamera only when its backend is asked for: neither needs libcamera, nor
-# libstdc++ (ldd lists what the loader maps at start; libc proves ldd read the file). Sanitized
+# ips and ipsd load libcamera and Aravis only when their backend is asked for: neither needs
+# libcamera, Aravis or glib, nor libstdc++ (ldd lists what the loader maps at start; libc proves ldd read the file). Sanitized
 # builds are let off libstdc++: the UBSan run-time brings it. A static ips (IPSD_STATIC_CLI) maps
 # no library at all: ldd's "not a dynamic executable" passes for it.
 if(IPSD_SANITIZE)
-    set(ipsd_unwanted_libs "libcamera")
+    set(ipsd_unwanted_libs "libcamera|libaravis|libglib")
 else()
-    set(ipsd_unwanted_libs "libcamera|libstdc\\+\\+")
+    set(ipsd_unwanted_libs "libcamera|libaravis|libglib|libstdc\\+\\+")
 endif()
 foreach(exe ips ipsd)
     if(TARGET ${exe})

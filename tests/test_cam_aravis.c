@@ -1,0 +1,249 @@
+/* test_cam_aravis.c: the Aravis camera backend (instrument/cam_aravis.c, a module cam.c loads at
+ * run time) against Aravis's own GigE Vision camera emulator (ArvGvFakeCamera) on 127.0.0.1 in
+ * this process: the real protocol (GVCP control, GVSP streaming, the GenICam XML) over loopback.
+ *
+ * The emulator's frames are drawn by this test's fill pattern, a value that depends on the
+ * sensor position and the camera's frame id, so every frame ipsd reads is checked pixel for pixel
+ * against what the emulator sent. Then: the camera's description (vendor, model, serial,
+ * firmware, Mono16 at 16 bits), exposure reaching the camera, one trigger one frame (consecutive
+ * frame ids), regions inside the current one reused, and the faults, each an error and never a
+ * hang: a frame that does not come (-ETIMEDOUT, and the next capture is good), a frame of another
+ * size than the region set (-EIO, "size mismatch"), a frame losing packets (-EIO or -ETIMEDOUT), a
+ * camera gone (an error with Aravis's words) and back (opened again), and a camera without a
+ * monochrome format (refused at open naming PixelFormat). The emulator binds the GigE Vision
+ * control port 3956: ctest runs the tests that use it one at a time (RESOURCE_LOCK). */
+#include <arv.h>
+#include <errno.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "instrument/cam.h"
+#include "check.h"
+
+#define SERIAL "IPSDTEST1"
+#define DEVICE_ID "Aravis-Fake-" SERIAL /* Aravis's id: vendor, model, serial */
+
+static atomic_uint seen_exposure_us, fills;
+
+/* What the emulator sends at sensor column x, row y in frame fid. */
+static uint16_t pattern(int x, int y, uint64_t fid)
+{
+    return (uint16_t)((unsigned)x * 7u + (unsigned)y * 131u + (unsigned)fid * 977u);
+}
+
+static void fill(ArvBuffer *buffer, void *data, guint32 exposure_us, guint32 gain,
+                 ArvPixelFormat format)
+{
+    (void)data;
+    (void)gain;
+    atomic_store(&seen_exposure_us, exposure_us);
+    gint x0, y0, w, h;
+    arv_buffer_get_image_region(buffer, &x0, &y0, &w, &h);
+    /* the emulator's own buffer, allocated for the region and format its registers say (the
+     * size it reports is what a pattern has filled so far: none yet) */
+    uint8_t *p = (uint8_t *)arv_buffer_get_data(buffer, NULL);
+    if (format != ARV_PIXEL_FORMAT_MONO_16) return;
+    uint64_t fid = arv_buffer_get_frame_id(buffer);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            uint16_t v = pattern(x0 + x, y0 + y, fid);
+            p[2 * ((size_t)y * w + x)] = (uint8_t)(v & 0xff); /* GigE Vision: little-endian */
+            p[2 * ((size_t)y * w + x) + 1] = (uint8_t)(v >> 8);
+        }
+    atomic_fetch_add(&fills, 1);
+}
+
+static ArvGvFakeCamera *emulator(const char *genicam)
+{
+    ArvGvFakeCamera *gv = arv_gv_fake_camera_new_full("127.0.0.1", SERIAL, genicam);
+    if (!arv_gv_fake_camera_is_running(gv)) {
+        fprintf(stderr, "the GigE Vision emulator does not run (port 3956 in use?)\n");
+        exit(1);
+    }
+    ArvFakeCamera *fake = arv_gv_fake_camera_get_fake_camera(gv);
+    arv_fake_camera_set_fill_pattern(fake, fill, NULL);
+    arv_fake_camera_set_trigger_frequency(fake, 1000); /* a software trigger is seen within 1 ms */
+    return gv;
+}
+
+/* Every pixel of f is what the emulator sent in the frame f says it is. */
+static int frame_is_pattern(const cam_frame_t *f)
+{
+    if (!f->dn || f->camera_frame_id == 0) return 0;
+    for (int y = 0; y < f->roi.height; y++)
+        for (int x = 0; x < f->roi.width; x++)
+            if (f->dn[y * f->roi.width + x] !=
+                pattern(f->roi.col + x, f->roi.row + y, f->camera_frame_id)) {
+                fprintf(stderr, "frame %llu (%d, %d): %u, sent %u\n",
+                        (unsigned long long)f->camera_frame_id, f->roi.col + x, f->roi.row + y,
+                        f->dn[y * f->roi.width + x],
+                        pattern(f->roi.col + x, f->roi.row + y, f->camera_frame_id));
+                return 0;
+            }
+    return 1;
+}
+
+static int listed(const char *id)
+{
+    cam_info_t *l = NULL;
+    size_t n = 0;
+    err_t err;
+    int found = 0;
+    if (cam_list("aravis", &l, &n, &err) != 0) return 0;
+    for (size_t i = 0; i < n; i++)
+        found |= strcmp(l[i].id, id) == 0 && strcmp(l[i].backend, "aravis") == 0 &&
+                 strcmp(l[i].serial, SERIAL) == 0;
+    free(l);
+    return found;
+}
+
+/* The emulator's GenICam XML without its monochrome formats, written to path. */
+static int xml_without_mono(const char *path)
+{
+    ArvFakeCamera *fake = arv_fake_camera_new("X");
+    size_t n;
+    const char *xml = arv_fake_camera_get_genicam_xml(fake, &n);
+    char *copy = g_strndup(xml, n);
+    g_object_unref(fake);
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    for (char *line = strtok(copy, "\n"); line; line = strtok(NULL, "\n")) {
+        /* an EnumEntry of Mono8 or Mono16: its three lines go */
+        if (strstr(line, "EnumEntry Name=\"Mono")) {
+            strtok(NULL, "\n");
+            strtok(NULL, "\n");
+            continue;
+        }
+        fprintf(f, "%s\n", line);
+    }
+    g_free(copy);
+    return fclose(f);
+}
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec + t.tv_nsec * 1e-9;
+}
+
+int main(void)
+{
+    double t0 = now_s();
+    err_t err = {{0}};
+    cam_t *cam = NULL;
+    cam_info_t info;
+    cam_frame_t f = {0}, g = {0};
+    ArvGvFakeCamera *gv = emulator(NULL);
+
+    /* ---- found, opened, described ---- */
+    CHECK(listed(DEVICE_ID));
+    CHECK(cam_open("aravis", "Aravis-Fake-NOSUCH", &cam, &err) == -ENODEV && cam == NULL);
+    CHECK(strstr(err.msg, "Aravis-Fake-NOSUCH") != NULL);
+    CHECK(cam_open("aravis", DEVICE_ID, &cam, &err) == 0 && cam != NULL);
+    if (!cam) {
+        fprintf(stderr, "%s\n", err.msg);
+        CHECK_DONE();
+    }
+    CHECK(cam_get_info(cam, &info, &err) == 0);
+    CHECK(strcmp(info.backend, "aravis") == 0 && strcmp(info.id, DEVICE_ID) == 0);
+    CHECK(strcmp(info.vendor, "Aravis") == 0 && strcmp(info.model, "Fake") == 0);
+    CHECK(strcmp(info.serial, SERIAL) == 0);
+    CHECK(strcmp(info.firmware, ARAVIS_VERSION) == 0);                  /* its DeviceVersion */
+    CHECK(strcmp(info.pixel_format, "Mono16") == 0 && info.bits == 16); /* deeper than Mono8 */
+    CHECK(info.full_scale_dn == 65535);
+    CHECK(info.width == ARV_FAKE_CAMERA_SENSOR_WIDTH &&
+          info.height == ARV_FAKE_CAMERA_SENSOR_HEIGHT);
+    CHECK(info.exposure_min_us == 10 && info.exposure_max_us == 1e7); /* its ExposureTimeAbs */
+    printf("opened %s: %s %s serial %s firmware %s, %s\n", info.id, info.vendor, info.model,
+           info.serial, info.firmware, info.pixel_format);
+
+    /* ---- frames pixel for pixel, exposure, one trigger one frame ---- */
+    CHECK(cam_set_exposure(cam, 2500, &err) == 0);
+    CHECK(cam_set_exposure(cam, 5, &err) == -ERANGE);
+    CHECK(cam_set_gain(cam, 1, &err) == 0);
+    CHECK(cam_set_gain(cam, 2, &err) == -ERANGE && strstr(err.msg, "GainRaw"));
+    cam_roi_t roi = {1000, 1200, 9, 9};
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0);
+    CHECK(frame_is_pattern(&f));
+    CHECK(f.exposure_us == 2500 && atomic_load(&seen_exposure_us) == 2500);
+    CHECK(f.gain == 1 && f.timestamp_ns > 0);
+    CHECK(cam_capture(cam, &roi, &g, &err) == 0 && frame_is_pattern(&g));
+    CHECK(g.camera_frame_id == f.camera_frame_id + 1); /* nothing in between: one per trigger */
+    cam_frame_free(&g);
+    cam_roi_t inner = {1002, 1203, 3, 3}; /* inside the region set: cut out of it */
+    CHECK(cam_capture(cam, &inner, &g, &err) == 0 && frame_is_pattern(&g));
+    CHECK(g.roi.col == 1002 && g.roi.row == 1203 && g.roi.width == 3);
+    cam_frame_free(&g);
+    cam_roi_t outside = {2040, 0, 9, 9};
+    CHECK(cam_capture(cam, &outside, &g, &err) == -EINVAL);
+    cam_roi_t corner = {2039, 2039, 9, 9}; /* a new region, at the sensor's far corner */
+    CHECK(cam_capture(cam, &corner, &g, &err) == 0 && frame_is_pattern(&g));
+    cam_frame_free(&g);
+    cam_frame_free(&f);
+
+    printf("frames: %.2f s\n", now_s() - t0);
+    /* ---- a frame that does not come (every packet lost): -ETIMEDOUT, then good frames ---- */
+    CHECK(cam_set_timeout(cam, 0.3, &err) == 0);
+    g_object_set(gv, "gvsp-lost-ratio", 1.0, NULL);
+    CHECK(cam_capture(cam, &roi, &f, &err) == -ETIMEDOUT && f.dn == NULL);
+    CHECK(strstr(err.msg, DEVICE_ID) && strstr(err.msg, "no frame within 0.3 s"));
+    g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
+    CHECK(cam_set_timeout(cam, 0, &err) == 0);
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f));
+    cam_frame_free(&f);
+
+    /* ---- a frame of another size than the region set: size mismatch ---- */
+    ArvFakeCamera *fake = arv_gv_fake_camera_get_fake_camera(gv);
+    arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, 8);
+    CHECK(cam_capture(cam, &roi, &f, &err) == -EIO && strstr(err.msg, "size mismatch"));
+    printf("size mismatch: %s\n", err.msg);
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f)); /* region set anew */
+    cam_frame_free(&f);
+
+    /* ---- packets lost on the way: an incomplete frame is an error ---- */
+    cam_roi_t big = {0, 0, 256, 256}; /* 128 KiB: ~90 packets */
+    CHECK(cam_set_timeout(cam, 2, &err) == 0);
+    g_object_set(gv, "gvsp-lost-ratio", 0.5, NULL);
+    int rc = cam_capture(cam, &big, &f, &err);
+    CHECK((rc == -EIO || rc == -ETIMEDOUT) && f.dn == NULL);
+    printf("packets lost: %s\n", err.msg);
+    g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
+    CHECK(cam_capture(cam, &big, &f, &err) == 0 && frame_is_pattern(&f));
+    cam_frame_free(&f);
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f)); /* its region again */
+    cam_frame_free(&f);
+
+    printf("faults: %.2f s\n", now_s() - t0);
+    /* ---- the camera goes away: an error in Aravis's words, never a hang; then back ---- */
+    g_object_unref(gv);
+    rc = cam_capture(cam, &roi, &f, &err);
+    CHECK((rc == -EIO || rc == -ETIMEDOUT) && strstr(err.msg, DEVICE_ID));
+    printf("camera gone: %s\n", err.msg);
+    printf("gone: %.2f s\n", now_s() - t0);
+    cam_close(cam);
+    printf("closed: %.2f s\n", now_s() - t0);
+    gv = emulator(NULL);
+    CHECK(cam_open("aravis", DEVICE_ID, &cam, &err) == 0);
+    CHECK(cam && cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f));
+    cam_frame_free(&f);
+    cam_close(cam);
+    g_object_unref(gv);
+
+    /* ---- a camera without a monochrome format: refused, naming PixelFormat ---- */
+    char xml[] = "/tmp/ipsd-arv-XXXXXX";
+    int fd = mkstemp(xml);
+    CHECK(fd >= 0 && close(fd) == 0 && xml_without_mono(xml) == 0);
+    gv = emulator(xml);
+    CHECK(cam_open("aravis", DEVICE_ID, &cam, &err) == -ENOTSUP && cam == NULL);
+    CHECK(strstr(err.msg, "PixelFormat") && strstr(err.msg, "RGB8") &&
+          !strstr(err.msg, "offers Mono"));
+    printf("refused: %s\n", err.msg);
+    g_object_unref(gv);
+    unlink(xml);
+    CHECK_DONE();
+}
