@@ -111,6 +111,8 @@ json_t *api_enc_fit(const storage_fit_t *f, int with_result)
                       (json_int_t)f->map_sensor_id, "pixel", "col", f->map_col, "row", f->map_row,
                       "r", f->map_r, "current", f->pixel_calib_id && f->pixel_calib_fit_id == f->id,
                       "current_calibration_id", id_or_null(f->pixel_calib_id));
+    if (f->map_sensor_id && cal)
+        json_object_set_new(cal, "map", json_string(storage_map_name((storage_map_t)f->map_kind)));
     if (o)
         json_object_set_new(o, "calibration", cal);
     else

@@ -80,7 +80,8 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         api_get_num(q, o, "read_noise_e", "read_noise_e", 0, 0, 1e6, 0, &p->read_noise_e) ||
         api_get_str(q, o, "map", "map", 0, 16, &map))
         return -1;
-    int which = map ? storage_map_parse(map) : STORAGE_MAP_RECOMMENDED;
+    /* without "map", ipsd's --calibration-map (the kriged map unless told otherwise) */
+    int which = map ? storage_map_parse(map) : srv_config(q->srv)->calibration_map;
     if (which < 0) {
         api_error(q, 422, "out_of_range", "map", "map must be " STORAGE_MAP_WORDS " (got '%s')",
                   map);

@@ -53,9 +53,10 @@ static const char usage[] =
     "  --fit-geometry      fit the spot radius and the scan-grid offset first (at --geometry-r)\n"
     "                      and fit the maps with them\n"
     "  --geometry-r N      r of the geometry fit (1..32, default " GEOMETRY_R_TEXT ")\n"
-    "  --krige             add the kriged map: a Gaussian-process estimate of the sensitivity\n"
-    "                      on a fine grid, with the recommended r's grids in its prior\n"
-    "                      (kriged_map; docs/numerics.md \"The kriged map\")\n"
+    "  --no-krige          leave out the kriged map (kriged_map: a Gaussian-process estimate\n"
+    "                      of the sensitivity on a fine grid, the map ipsd stores as the\n"
+    "                      calibration; docs/numerics.md \"The kriged map\"); --krige (the\n"
+    "                      default) adds it\n"
     "  --threads N         fit the r of the sweep on N threads (1..64; default: the CPUs this\n"
     "                      process may run on, at most " STR(THREADS_DEFAULT_MAX) "); the results do not depend on N\n"
     "  --table             print a report for people instead of JSON\n"
@@ -81,12 +82,12 @@ struct fit_args {
     fit_wiener_nsr_t wiener_method;
     double wiener_nsr; /* --wiener-nsr X */
     int threads;       /* --threads N */
-    int krige;         /* --krige */
+    int krige;         /* 1 unless --no-krige */
 };
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
        OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
-       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_THREADS, OPT_KRIGE, OPT_HELP };
+       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_THREADS, OPT_KRIGE, OPT_NO_KRIGE, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -109,6 +110,7 @@ static const struct option long_opts[] = {
     {"pixels", required_argument, NULL, OPT_PIXELS},
     {"threads", required_argument, NULL, OPT_THREADS},
     {"krige", no_argument, NULL, OPT_KRIGE},
+    {"no-krige", no_argument, NULL, OPT_NO_KRIGE},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -192,6 +194,7 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
     case OPT_TABLE: a->table = 1; return 0;
     case OPT_FIT_GEOMETRY: a->fit_geometry = 1; return 0;
     case OPT_KRIGE: a->krige = 1; return 0;
+    case OPT_NO_KRIGE: a->krige = 0; return 0;
     case OPT_GEOMETRY_R: return opts_int32("geometry-r", arg, 1, R_LIMIT, &a->geometry_r, err);
     case OPT_THREADS: return opts_int32("threads", arg, 1, THREADS_LIMIT, &a->threads, err);
     case OPT_PIXELS:
@@ -252,7 +255,7 @@ static int default_threads(void)
 /* Parses argv into a; returns 0, -1 after printing the help, or the exit code of bad input. */
 static int parse_args(int argc, char **argv, struct fit_args *a)
 {
-    *a = (struct fit_args){.r_min = 1, .r_max = 8, .opts = fit_options_default(), .ftest_r = 7,
+    *a = (struct fit_args){.r_min = 1, .r_max = 8, .opts = fit_options_default(), .ftest_r = 7, .krige = 1,
                            .threads = default_threads()};
     struct parse_state ps = {.a = a, .argc = argc, .argv = argv};
     err_t err;

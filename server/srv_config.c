@@ -89,10 +89,11 @@ static const char usage[] =
     "                       radial evaluations (default 40000000, ~1 s); more get 422\n"
     "  --camera-timeout S   a camera that delivers no frame within S seconds fails the scan\n"
     "                       (default 0: the camera's own, the exposure time + 5 s)\n"
-    "  --calibration-map M  the map the automatic fit of a scan stores as its calibration:\n"
-    "                       recommended (default: the recommended r's own), shrunk or kriged\n"
-    "                       (the kriged map, closest to the truth; adds 0.1-5 s a fit; see\n"
-    "                       docs/numerics.md \"The kriged map\")\n"
+    "  --calibration-map M  the map a fit stores as its calibration when its request names\n"
+    "                       none (the automatic fit of every scan, re-fits): kriged (default:\n"
+    "                       the kriged map, closest to the truth; see docs/numerics.md \"The\n"
+    "                       kriged map\"), recommended (the paper's recommended r's own) or\n"
+    "                       shrunk\n"
     "SIGINT / SIGTERM stop gracefully: running scans resume at the next start.\n";
 
 const char *srv_config_usage(void)
@@ -117,7 +118,8 @@ srv_config_t srv_config_default(void)
                       .max_attempts = 3,
                       .max_fit_points = 10000,
                       .max_fit_r = 32,
-                      .max_jitter_evals = 40000000};
+                      .max_jitter_evals = 40000000,
+                      .calibration_map = STORAGE_MAP_KRIGED};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
     snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
     snprintf(c.bench, sizeof c.bench, "sim");

@@ -59,8 +59,9 @@ typedef struct srv_config {
     int max_jitter_evals;         /* largest estimated Airy integration of a jitter request, in
                                      radial evaluations (fit_jitter_cost; 40000000, ~1 s) */
     double camera_timeout_s;      /* a frame not delivered within fails the scan (0: camera's) */
-    /* --calibration-map: the map the automatic fit of a scan stores as its POI's calibration
-       (a storage_map_t: 0 recommended, the default; 1 shrunk; 2 kriged) */
+    /* --calibration-map: the map a fit stores as its calibration when its request names none
+       (the automatic fit of a scan, re-fits without "map"; a storage_map_t: 0 recommended;
+       1 shrunk; 2 kriged, the default) */
     int calibration_map;
 } srv_config_t;
 

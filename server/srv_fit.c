@@ -132,6 +132,26 @@ static int keep_map(const fit_sweep_t *sw, storage_map_t map, srv_fit_out_t *out
     return 0;
 }
 
+/* The document's stored_map: which map the fit offers as its pixel's calibration, its grid, and
+ * when it is not the map the request asked for (no kriged map: no signal, too few points), why,
+ * in one sentence. */
+static int stored_map(json_t *doc, storage_map_t asked, const srv_fit_out_t *out,
+                      const char *kriged_error)
+{
+    json_t *o = json_pack("{s:s, s:i}", "map", storage_map_name(out->map), "r", out->r);
+    if (!o) return -1;
+    if (asked != out->map) {
+        char why[400];
+        snprintf(why, sizeof why, "No %s map could be made (%s), so the calibration is the "
+                 "recommended r = %d map.", storage_map_name(asked),
+                 asked == STORAGE_MAP_KRIGED && kriged_error[0] ? kriged_error
+                                                                : "the sweep has none",
+                 out->r);
+        json_object_set_new(o, "why", json_string(why));
+    }
+    return json_object_set_new(doc, "stored_map", o);
+}
+
 int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit_hooks_t *hooks,
                 srv_fit_out_t *out, err_t *err)
 {
@@ -165,6 +185,8 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
     }
     ret = keep_map(&pl.sweep, p->map, out, err);
     if (ret == 0 && !(out->result = document(scan, p, &pl, t0)))
+        ret = err_set(err, -ENOMEM, "out of memory encoding the fit");
+    if (ret == 0 && out->r && stored_map(out->result, p->map, out, pl.kriged_error))
         ret = err_set(err, -ENOMEM, "out of memory encoding the fit");
     fit_pipeline_free(&pl);
     return ret;

@@ -124,8 +124,9 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
         json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
     if (p->all_pixels) json_object_set_new(o, "pixels", json_string("all"));
     if (p->krige) json_object_set_new(o, "krige", json_true());
-    if (p->map != STORAGE_MAP_RECOMMENDED)
-        json_object_set_new(o, "map", json_string(storage_map_name(p->map)));
+    /* always written: a job stored without it (before the kriged map became the default) meant
+     * the recommended map, and still does when it runs (srv_fit_params_parse) */
+    json_object_set_new(o, "map", json_string(storage_map_name(p->map)));
     if (isfinite(p->gain_e_per_dn))
         json_object_set_new(o, "gain_e_per_dn", json_real(p->gain_e_per_dn));
     if (isfinite(p->read_noise_e))

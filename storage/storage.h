@@ -397,6 +397,7 @@ typedef struct storage_fit {
      * (kept with the fit, promotable) and that pixel's current calibration */
     int64_t map_sensor_id;   /* 0: the fit offers no map (none admissible, or no sensor pixel) */
     int map_col, map_row, map_r;
+    int map_kind;            /* which map it is (a storage_map_t) */
     int64_t pixel_calib_id;  /* the current calibration of that pixel, 0: none */
     int64_t pixel_calib_fit_id; /* the fit it came from (== id: this fit is the calibration) */
 } storage_fit_t;

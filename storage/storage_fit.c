@@ -51,6 +51,7 @@ static int read_fit(sqlite3_stmt *s, void *item)
     o->map_r = sqlite3_column_int(s, 14);
     o->pixel_calib_id = stg_col_id(s, 15);
     o->pixel_calib_fit_id = stg_col_id(s, 16);
+    o->map_kind = stg_col_map(s, 17);
     if (oom) storage_fit_free(o);
     return oom ? -ENOMEM : 0;
 }

@@ -97,7 +97,7 @@ enum stg_id {
 #define STG_FIT_COLS                                                                              \
     "f.id, f.scan_id, f.dcol, f.drow, f.noise_model, f.best_r_aic, f.best_r_bic, f.f_value, "     \
     "f.p_value, f.result, f.created_ms, m.sensor_id, m.pixel_col, m.pixel_row, m.r, c.id, "       \
-    "c.fit_id"
+    "c.fit_id, m.map"
 /* the map a fit offers, read as a calibration (storage_fit.c, stg_fit_map_load) */
 #define STG_FIT_MAP_COLS                                                                          \
     "m.fit_id, m.sensor_id, m.pixel_col, m.pixel_row, m.r, m.s, m.s_err, m.i0, m.chi2_red, "      \

@@ -4,9 +4,9 @@ the ips binary, against the simulator's truth (`ips simulate --truth`): on grade
 bench's light and a tenth of it the kriged map keeps its smooth part and is closer to the truth
 than the recommended r's map on every scan, by at least a quarter over all; its grid is the
 smallest multiple of the recommended r with at least 24 cells, S has mean 1 and positive S_err;
-a flat pixel (recommended r = 1) gets a flat kriged map without the smooth part; without
---krige the document has no kriged_map; --table prints it as a shaded picture with its likelihood
-ratio (and nothing of it without --krige). `ips export --kriged`
+a flat pixel (recommended r = 1) gets a flat kriged map without the smooth part; the kriged map
+is there by default (as with --krige) and --no-krige leaves it out; --table prints it as a shaded
+picture with its likelihood ratio (and nothing of it with --no-krige). `ips export --kriged`
 writes the document's kriged map as FITS (read back by astropy, an independent reader): its S and
 S_err on the F x F grid, OVERSAMP F, IPSMAP 'kriged', the recommended fit's I0; a document without
 one, or --kriged with --r / --shrunk, exits 2 with one line."""
@@ -81,7 +81,8 @@ with tempfile.TemporaryDirectory() as tmp:
           kr.get("length_um") is None and kr.get("levels") == [] and
           max(abs(s - 1) for s in kr.get("S", [9])) < 1e-9,
           "flat pixel: a flat 24 x 24 kriged map without the smooth part")
-    check("kriged_map" not in fit(flat, "--r-max", "8"), "without --krige: no kriged_map")
+    check(fit(flat, "--r-max", "8").get("kriged_map") == kr, "without --krige: the same kriged_map")
+    check("kriged_map" not in fit(flat, "--r-max", "8", "--no-krige"), "--no-krige: no kriged_map")
     table = subprocess.run([IPS, "fit", scan, "--sigma", "shot+read", "--r-max", "8", "--krige",
                             "--table"], capture_output=True, text=True, check=True).stdout
     kr = last_doc["kriged_map"]
@@ -94,17 +95,18 @@ with tempfile.TemporaryDirectory() as tmp:
                                if "(max 1-sigma" in ln) == kr["grid"],
           "--table: the kriged map's line (%s...) and its %d picture rows"
           % (want[:40], kr["grid"]))
-    plain = subprocess.run([IPS, "fit", scan, "--sigma", "shot+read", "--r-max", "8", "--table"],
+    plain = subprocess.run([IPS, "fit", scan, "--sigma", "shot+read", "--r-max", "8", "--table",
+                            "--no-krige"],
                            capture_output=True, text=True, check=True).stdout
     check("Kriged map" not in plain and "kriged" not in plain.lower(),
-          "--table without --krige: no kriged map")
+          "--table --no-krige: no kriged map")
 
     # ips export --kriged: the last graded scan's kriged map as FITS
     doc_path, plain_path, out = (os.path.join(tmp, n) for n in ("k.json", "p.json", "k.fits"))
     with open(doc_path, "w") as f:
         json.dump(last_doc, f)
     with open(plain_path, "w") as f:
-        json.dump(fit(flat, "--r-max", "8"), f)
+        json.dump(fit(flat, "--r-max", "8", "--no-krige"), f)
     kr, rec = last_doc["kriged_map"], last_doc["recommended_r"]
     F = kr["grid"]
     p = subprocess.run([IPS, "export", doc_path, "--pitch", "6", "-o", out, "--kriged"],

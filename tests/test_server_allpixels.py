@@ -89,7 +89,7 @@ def test(c, t, argv, daemons):
     truth = truth_maps(argv[2], t)
     d = Ipsd(argv[1], t)
     daemons.append(d)
-    d.start(failpoints="fit.pixel=hold@3")
+    d.start("--calibration-map", "recommended", failpoints="fit.pixel=hold@3")
     db = Db(d.db)
     r = d.post("/api/sensors", {"model": "IMX-A", "serial": "all-1", "pitch_um": 6})
     c.status(r, 201, "create a sensor")
@@ -151,7 +151,7 @@ def test(c, t, argv, daemons):
 
     # ---- crash after 5 pixels, resume ----
     # held after the 5th pixel first, crashing when released (the 202 comes before the crash)
-    d.start(failpoints="fit.pixel=hold@5;fit.pixel=crash@5")
+    d.start("--calibration-map", "recommended", failpoints="fit.pixel=hold@5;fit.pixel=crash@5")
     fits1 = db.val("SELECT max(id) FROM fits")
     r = d.post(url, {"pixels": "all", "r_max": 8, "promote": True, "by": "test"})
     c.status(r, 202, "fit every pixel, promoted (to crash)")
@@ -165,7 +165,7 @@ def test(c, t, argv, daemons):
          "5 calibrations stored")
     # the restart holds the job after its first pixel of the new run, so the event stream is
     # subscribed before the rest (the 6th pixel's event may come before it: not checked)
-    d.start(failpoints="fit.pixel=hold@1")
+    d.start("--calibration-map", "recommended", failpoints="fit.pixel=hold@1")
     c.ok(d.wait_held("fit.pixel", job), "resumed and held after its 6th pixel")
     c.eq(db.val("SELECT points_done FROM jobs WHERE id = ?", job), 6, "6 pixels done")
     sse = EventStream(d.port, "/api/events?job=%d" % job)

@@ -72,7 +72,7 @@ def test(c, t, argv, daemons):
     ref = Ipsd(exe, os.path.join(t, "sim"))
     os.makedirs(ref.tmp)
     daemons.append(ref)
-    ref.start()
+    ref.start("--calibration-map", "recommended")  # r x r maps the truth file holds
     cal_sim, s_sim, _ = scan_and_fit(c, ref, "sim")
     ref.stop_term()
 
@@ -88,7 +88,7 @@ def test(c, t, argv, daemons):
         emu = Emulator(emu_exe, SERIAL, "--scene", "paperlike", "--gcs-log", log_path)
         d = Ipsd(exe, t)
         daemons.append(d)
-        d.start("--bench", "aravis:" + DEVICE, "--stage",
+        d.start("--calibration-map", "recommended", "--bench", "aravis:" + DEVICE, "--stage",
                 "gcs:tcp://127.0.0.1:%d?poll_ms=1" % port)
         cal_arv, s_arv, sc = scan_and_fit(c, d, "aravis")
         d.stop_term()

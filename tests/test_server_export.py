@@ -119,7 +119,7 @@ def test(c, t, argv, daemons):
     ips = argv[2]
     d = Ipsd(argv[1], t)
     daemons.append(d)
-    d.start()
+    d.start("--calibration-map", "recommended")  # the recommended map carries S_res
     sensor = d.post("/api/sensors", {"model": "IMX-F", "serial": "fits-1", "n_cols": 96,
                                      "n_rows": 64, "pitch_um": PITCH}).json()["id"]
     r = d.post("/api/scans", {"sensor_id": sensor, "poi": {"col": POI[0], "row": POI[1]},

@@ -31,24 +31,30 @@ def ips_fit(ips, scan_path, out_path, *opts):
 def compare_with_ips(scan, ips, cal, fit, csv_text, db):
     """The stored calibration (JSON, CSV, database) and fit document against `ips fit`'s output on
     the downloaded raster. Returns the list of differences."""
-    # the calibration is the recommended map (fit/recommend.h), the one `ips fit` recommends
+    # the calibration is the kriged map (fit/krige.h), the one `ips fit` prints as kriged_map;
+    # I0 and the status are the recommended r's fit's (fit/recommend.h)
     rec = ips["recommended_r"]
     best = [f for f in ips["fits"] if f["r"] == rec][0]
+    km = ips["kriged_map"]
+    g = km["grid"]
     fails = []
 
     def near(a, b, what):
         if len(a) != len(b) or any(abs(x - y) > 1e-9 for x, y in zip(a, b)):
             fails.append(what)
-    if cal["r"] != rec:
-        fails.append("calibration r %d != ips fit recommended r %d" % (cal["r"], rec))
-    near(cal["S"], best["S"], "S vs ips fit")
-    near(cal["S_err"], best["S_err"], "S_err vs ips fit")
+    if cal["r"] != g or cal.get("map") != "kriged":
+        fails.append("calibration r %d map %s != ips fit's kriged map on %d x %d"
+                     % (cal["r"], cal.get("map"), g, g))
+    near(cal["S"], km["S"], "S vs ips fit")
+    near(cal["S_err"], km["S_err"], "S_err vs ips fit")
     if abs(cal["I0"] - best["I0"]) > 1e-9 * abs(best["I0"]):
         fails.append("I0")
     if cal["status"] != best["status"] or cal["scan_id"] != scan:
         fails.append("status/provenance")
     if fit["best_r"] != ips["best_r"]:
         fails.append("fit best_r")
+    if fit["result"].get("stored_map") != {"map": "kriged", "r": g}:
+        fails.append("result.stored_map %r" % fit["result"].get("stored_map"))
     # the stored document follows the `ips fit` schema: the same fits, key for key (timing aside)
     def strip(f):
         return {k: v for k, v in f.items() if k != "timing_ms"}
@@ -61,27 +67,21 @@ def compare_with_ips(scan, ips, cal, fit, csv_text, db):
     if abs(fit["result"]["ftest"]["F"] - ips["ftest"]["F"]) > 1e-9 * ips["ftest"]["F"]:
         fails.append("F")
     near(fit["result"]["wiener"]["S"], ips["wiener"]["S"], "Wiener S")
-    # CSV: one line per sub-pixel, row-major j*r + i
+    # CSV: one line per cell, row-major j*g + i
     rows = list(csv.DictReader(io.StringIO(csv_text)))
-    if len(rows) != rec * rec:
+    if len(rows) != g * g:
         fails.append("CSV lines")
-    near([float(r["S"]) for r in rows], [best["S"][int(r["j"]) * rec + int(r["i"])] for r in rows],
+    near([float(r["S"]) for r in rows], [km["S"][int(r["j"]) * g + int(r["i"])] for r in rows],
          "CSV S")
-    # S_res, the last column (an addition): ips fit's shrunk map's resolution error of that r
-    sh = ips.get("shrunk_map")
-    want_res = sh["S_res"] if sh and sh["r"] == rec else None
+    # S_res, the last column (an addition): none for the kriged map, whose S_err is its whole error
     if rows and list(rows[0].keys())[-1] != "S_res":
         fails.append("CSV: S_res is not the last column")
-    elif want_res is None:
-        if any(r["S_res"] != "" for r in rows):
-            fails.append("CSV S_res where ips fit has none")
-    else:
-        near([float(r["S_res"]) for r in rows],
-             [want_res[int(r["j"]) * rec + int(r["i"])] for r in rows], "CSV S_res")
+    elif any(r["S_res"] != "" for r in rows):
+        fails.append("CSV S_res on the kriged map")
     # the database, read by Python's sqlite3 (little-endian float64 BLOBs, docs/schema.md)
     r, s = db.one("SELECT r, s FROM calibrations WHERE pixel_col = 50 AND pixel_row = 60 "
                   "AND superseded_by IS NULL")
-    near(struct.unpack("<%dd" % (r * r), s), best["S"], "database S")
+    near(struct.unpack("<%dd" % (r * r), s), km["S"], "database S")
     return fails
 
 
@@ -232,10 +232,11 @@ def test(c, t, argv, daemons):
     cal10 = d.get("/api/sensors/%d/pixels/51/60/calibration" % sensor).json()
     with open(os.path.join(t, "ips10.json")) as f:
         ips10 = json.load(f)
-    best = [f for f in ips10["fits"] if f["r"] == ips10["recommended_r"]][0]
-    c.ok(cal10["r"] == best["r"] and cal10["noise_model"] == "shot+read" and
-         max(abs(a - b) for a, b in zip(cal10["S"], best["S"])) < 1e-9,
-         "pixel (+1, 0) fitted with shot+read, r <= 4, = ips fit")
+    km = ips10["kriged_map"]  # without "map", a re-fit stores the kriged map too
+    c.ok(cal10["r"] == km["grid"] and cal10["map"] == "kriged" and
+         cal10["noise_model"] == "shot+read" and len(cal10["S"]) == len(km["S"]) and
+         max(abs(a - b) for a, b in zip(cal10["S"], km["S"])) < 1e-9,
+         "pixel (+1, 0) fitted with shot+read, r <= 4, = ips fit's kriged map")
 
     # an uploaded scan file (the same pixel's data) becomes the new calibration of (50, 60)
     upload = {"scan": pixel, "sensor_id": sensor, "pixel": {"col": 50, "row": 60},

@@ -16,8 +16,10 @@
 - "map": "kriged" stores the result's kriged map (fit/krige.h) on its fine grid: the calibration's
   r is that grid, its S the result's kriged_map.S, its map word "kriged" (schema 8), and its FITS
   file samples that grid; promoted again it is the same map;
-- ipsd --calibration-map kriged: the automatic fit of a scan stores the kriged map (an unknown
-  word: exit status 2 naming the option);
+- by default (and with --calibration-map kriged) the automatic fit of a scan and a re-fit without
+  "map" store the kriged map, the fit document's stored_map and the fit's calibration say so, and
+  "map": "recommended" keeps the paper's recommended map (an unknown word: exit status 2 naming
+  the option); the parts before run with --calibration-map recommended;
 - an upload with a target pixel still becomes the calibration by default, unless
   "promote": false."""
 import struct
@@ -41,7 +43,7 @@ def test(c, t, argv, daemons):
     d = Ipsd(argv[1], t)
     daemons.append(d)
     # the automatic fit (the first fit to run) is held at its first step
-    d.start(failpoints="fit.step=hold@1")
+    d.start("--calibration-map", "recommended", failpoints="fit.step=hold@1")
     db = Db(d.db)
     sensor = d.post("/api/sensors", {"model": "IMX-P", "serial": "promote-1", "n_cols": 128,
                                      "n_rows": 96}).json()["id"]
@@ -74,7 +76,7 @@ def test(c, t, argv, daemons):
     f1 = d.get("/api/fits/%d" % fit1).json()
     c.eq(f1["calibration"], {"sensor_id": sensor, "pixel": {"col": POI[0], "row": POI[1]},
                              "r": map_of(f1)[0], "current": True,
-                             "current_calibration_id": cal1["id"]},
+                             "current_calibration_id": cal1["id"], "map": "recommended"},
          "the automatic fit's JSON: its map is the current calibration")
     sh1 = f1.get("result", {}).get("shrunk_map")
     c.eq((cal1.get("map"), cal1.get("S_res")),
@@ -282,13 +284,13 @@ def test(c, t, argv, daemons):
 
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
-    # ---- ipsd --calibration-map kriged: the automatic fit stores the kriged map ----
+    # ---- by default the automatic fit stores the kriged map ----
     bad = subprocess.run([argv[1], "--calibration-map", "smooth"], capture_output=True,
                          text=True, timeout=60)
     c.ok(bad.returncode == 2 and "--calibration-map" in bad.stderr and
          len(bad.stderr.strip().splitlines()) == 1,
          "--calibration-map smooth: exit status 2, one line naming the option")
-    d.start("--calibration-map", "kriged")
+    d.start()
     poi2 = (POI[0] + 10, POI[1])
     r = d.post("/api/scans", {"sensor_id": sensor, "poi": {"col": poi2[0], "row": poi2[1]},
                               "raster": {"area_px": 3, "step_um": 0.6, "sub_px": 3, "frames": 2},
@@ -307,6 +309,25 @@ def test(c, t, argv, daemons):
          ("kriged", ka.get("grid"), ka.get("S"), "ipsd"),
          "the automatic calibration is the kriged map on its grid")
     c.ok(isinstance(ka.get("grid"), int) and ka["grid"] >= 24, "its grid has >= 24 cells a side")
+    c.eq(fa.get("result", {}).get("stored_map"), {"map": "kriged", "r": ka.get("grid")},
+         "the fit document's stored_map: kriged, on its grid")
+    c.eq((fa.get("calibration") or {}).get("map"), "kriged", "the fit's calibration: map kriged")
+    # a re-fit without "map" stores the kriged map; "map": "recommended" the paper's map
+    for body, want in (({"r_max": 5, "promote": True}, "kriged"),
+                       ({"r_max": 5, "promote": True, "map": "recommended"}, "recommended")):
+        r = d.post("/api/scans/%d/fits" % scan2, body)
+        j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+        fr = d.get("/api/fits/%d" % (j["fit_id"] if j else 0)).json()
+        res = fr.get("result", {})
+        if want == "kriged":
+            grid = (res.get("kriged_map") or {}).get("grid")
+        else:
+            grid = res.get("recommended_r")
+        cal = d.get("/api/sensors/%d/pixels/%d/%d/calibration" % (sensor, poi2[0], poi2[1])).json()
+        c.eq((j["params"].get("map") if j else None, cal.get("fit_id"), cal.get("map"),
+              cal.get("r"), res.get("stored_map")),
+             (want, j and j["fit_id"], want, grid, {"map": want, "r": grid}),
+             "a re-fit with %s stores the %s map" % (body, want))
     db.close()
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
