@@ -134,7 +134,7 @@ export function storedContent(fit, info, pitch) {
         ? [' ', h('span', { 'data-testid': 'stored-no-kriged' }, whyNot)] : [];
     const source = {
         calibration: `the pixel's calibration #${info.cal?.id} holds it`,
-        job: `as the fit's request asked (job #${info.job?.id})`,
+        job: `the map the fit's request, job #${info.job?.id}, asked for`,
         grid: 'told from its grid: neither a calibration nor the job of this fit was found',
     }[info.source];
     const m = info.kind ? storedMap(res, info.kind) : storedMap(res, 'recommended');
@@ -145,11 +145,12 @@ export function storedContent(fit, info, pitch) {
     }
     const sentence = h('p', { class: 'lead', 'data-testid': 'stored-sentence',
         dataset: { map: info.kind ?? 'none', source: info.source } },
-    info.kind ? null : 'This fit stores no calibration (an uploaded scan file without a sensor ' +
-        'pixel). The map it recommends: ', mapSentence(res, m), ...noKriged);
+    info.kind ? mapSentence(res, m) : 'This fit stores no calibration (an uploaded scan file ' +
+        'without a sensor pixel). The map it recommends: ' +
+        mapSentence(res, m).replace(/^The /, 'the '), ...noKriged);
     const f = m.fit;
     const facts = h('p', { class: 'muted small', 'data-testid': 'stored-facts' },
-        info.kind ? `Stored as the calibration's map (${source}). ` : '',
+        info.kind ? `The map this fit offers as its pixel's calibration (${source}). ` : '',
         `Fit status ${f.status}, χ²/dof ${fmt(f.chi2_red)}, I₀ = ${fmt(f.I0, 6)} DN ` +
         `(the recommended r = ${f.r}'s fit${m.kind === 'recommended' ? '' : ', which the ' +
             'calibration records with this map'}).`);
