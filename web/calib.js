@@ -4,7 +4,8 @@
 // downloads (JSON, and CSV with positions in µm and the pitch), two maps compared side by side
 // with their difference (calib_maps.js), and the pixel's history (GET .../calibration and
 // .../history) as small multiples and a table: who made each map current, when and why, the map
-// it superseded, and which map of its fit each is (recommended, shrunk or kriged).
+// it superseded, and which map of its fit each is (recommended, shrunk or kriged: named in the
+// current map's heading, figure and sentence on how it was made, and in every history row).
 import { get } from './api.js';
 import {
     clearError, errorBox, failure, field, fill, fmt, fmtTime, formBody, h, showError,
@@ -12,6 +13,7 @@ import {
 import { cellSource, compareFigure, historyFigure, mapFigure, wienerSource } from './calib_maps.js';
 import { purgeIn } from './charts.js';
 import { errFigure, surfaceFigure } from './fit_maps.js';
+import { kindTitle, mapSentence, storedMap } from './fit_stored.js';
 
 const LIMIT = 50;
 const FILTERS = ['sensor', 'model', 'status', 'current', 'col_min', 'col_max', 'row_min',
@@ -42,6 +44,23 @@ function mapWord(c) {
         ? Math.sqrt(c.S_res.reduce((a, v) => a + v * v, 0) / c.S_res.length) : null;
     return res === null ? which : `${which}; resolution error S_res rms ${fmt(res, 3)} ` +
         '(add in quadrature to S_err)';
+}
+
+// A calibration's map kind and grid in a few words: "kriged 24 × 24" (calibrations stored before
+// schema 7 have no map: the recommended one).
+const kindGrid = (c) => `${c.map || 'recommended'} ${c.r} × ${c.r}`;
+
+// How the calibration's map was made, in the Fit view's sentence (fit_stored.js), from its fit's
+// result: filled into el when the fit is read; left empty when it cannot be (no fit, or the fit's
+// map of that kind is not on the calibration's grid).
+async function howMade(el, cal) {
+    if (!cal.fit_id) return;
+    const f = await get(`/api/fits/${cal.fit_id}`);
+    const res = f.result || {};
+    const m = storedMap(res, cal.map || 'recommended');
+    if (!m || m.r !== cal.r) return;
+    el.textContent = `How it was made (fit #${cal.fit_id}): ${mapSentence(res, m)}`;
+    el.hidden = false;
 }
 
 function provenance(c) {
@@ -207,7 +226,7 @@ function comparePanel(hist, cur, pitch) {
     const options = new Map(); // value -> {label, load: () => source}
     const date = (ms) => fmtTime(ms).slice(0, 16);
     const addCal = (c, extra = '') => options.set(`cal:${c.id}`, { label: `#${c.id}${extra}, ` +
-        `r = ${c.r}, ${date(c.created_ms)}${c.current ? ' (current)' : ''}`,
+        `${kindGrid(c)}, ${date(c.created_ms)}${c.current ? ' (current)' : ''}`,
     load: async () => cellSource(`#${c.id} (r = ${c.r})`, c.S, c.r, w, c.S_err) });
     for (const c of hist.items) addCal(c);
     if (cur.fit_id) {
@@ -296,17 +315,22 @@ export function renderPixel(root, sensorId, col, row) {
             return;
         }
         const hist = await get(`${base}/history`);
+        const kind = cur.map || 'recommended';
+        const how = h('p', { class: 'sub', 'data-testid': 'current-how', hidden: true });
+        howMade(how, cur).catch(() => {});
         purgeIn(root);
         fill(root, ...title,
             h('section', { class: 'panel', 'aria-labelledby': 'cur-h' },
-                h('h3', { id: 'cur-h' }, `Current calibration #${cur.id}`),
+                h('h3', { id: 'cur-h' }, `Current calibration #${cur.id}: the `,
+                    h('span', { 'data-testid': 'current-kind', dataset: { map: kind } }, kind),
+                    ` map, ${cur.r} × ${cur.r}`),
                 h('p', { class: 'sub' }, `r = ${cur.r}, status ${cur.status}, χ²/dof ` +
                     `${fmt(cur.chi2_red)}, I₀ = ${fmt(cur.I0, 6)} DN, ` +
                     `${cur.noise_model} noise, ` +
                     `λ = ${fmt(cur.optics.wavelength_nm)} nm, NA = ${fmt(cur.optics.na)}, ` +
                     `ipsd ${cur.software_version} · ${fmtTime(cur.created_ms)} · from `,
                 provenance(cur)),
-                h('p', { class: 'sub', 'data-testid': 'current-map' }, mapWord(cur)),
+                h('p', { class: 'sub', 'data-testid': 'current-map' }, mapWord(cur)), how,
                 h('p', { class: 'sub', 'data-testid': 'current-why' }, `Made current by ` +
                     `${cur.by ?? '–'}: ${cur.reason ?? '–'}`, cur.supersedes
                     ? ` (replaced #${cur.supersedes})` : ''),
@@ -327,7 +351,7 @@ export function renderPixel(root, sensorId, col, row) {
                         `pitch ${fmt(pitch)} µm)`)),
                 h('div', { class: 'maps' },
                     mapFigure(cellSource('current', cur.S, cur.r, pitch, cur.S_err), pitch,
-                        'plot-cal-S', `Fitted sensitivity S (${cur.r}×${cur.r})`),
+                        'plot-cal-S', `${kindTitle(kind)} S (${cur.r}×${cur.r})`),
                     surfaceFigure(`/api/calibrations/${cur.id}/interp`, pitch),
                     cur.S_err ? errFigure(cur, pitch) : null)),
             h('section', { class: 'panel', 'aria-labelledby': 'cmp-h' },
@@ -343,13 +367,15 @@ export function renderPixel(root, sensorId, col, row) {
                     download: `pixel-${sensorId}-${col}-${row}-history.csv` }, 'history as CSV')),
                 h('div', { class: 'table-wrap' }, h('table', { class: 'list',
                     'data-testid': 'history-table' },
-                h('thead', {}, h('tr', {}, ['#', 'r', 'Status', 'χ²/dof',
+                h('thead', {}, h('tr', {}, ['#', 'r', 'Map', 'Status', 'χ²/dof',
                     'Made current', 'By', 'Why', 'Replaced', 'State', 'From', '']
                     .map((t) => h('th', { scope: 'col' }, t)))),
                 h('tbody', {}, hist.items.map((c) => h('tr',
                     { class: c.current ? 'current' : null },
                     h('td', {}, c.id),
-                    h('td', {}, c.r), h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
+                    h('td', {}, c.r), h('td', { 'data-testid': 'history-map', title: mapWord(c) },
+                        c.map || 'recommended'),
+                    h('td', {}, c.status), h('td', {}, fmt(c.chi2_red)),
                     h('td', {}, fmtTime(c.created_ms)), h('td', {}, c.by ?? '–'),
                     h('td', { class: 'small' }, c.reason ?? '–'),
                     h('td', {}, c.supersedes ? `#${c.supersedes}` : '–'),

@@ -9,7 +9,8 @@
 //     over its whole cell, the model's own assumption, paper eq. 2). n is the least common
 //     multiple of the two r when it is at most MAX_COMMON, so both maps are exact on it. The
 //     figure says which was done;
-//   - the history of a pixel as small multiples: every map on one colour scale, newest first.
+//   - the history of a pixel as small multiples: every map on one colour scale, newest first,
+//     each titled with its map kind (recommended, shrunk, kriged) and grid.
 // A "map source" is {label, S (row-major y then x), nx, ny, xs, ys (node centres, µm), cell
 // (true: S_ij holds over sub-pixel cells; false: values at nodes), r (cells only)}.
 import { DIVERGING, VIRIDIS, cellAxes, jointRange, outline, pixelFrame, plotFigure, rows,
@@ -166,8 +167,9 @@ export function historyFigure(all, pitch, cols = 4) {
             `<extra>#${c.id}</extra>` }));
     const date = (ms) => new Date(ms).toISOString().slice(0, 10);
     // two short lines, so that two columns of them fit a phone
-    const titles = items.map((c, k) => ({ ...subTitle(k ? k + 1 : '', `#${c.id} · r = ${c.r}` +
-        `${c.current ? ' · current' : ''}<br>${date(c.created_ms)}`), font: { size: 10 } }));
+    const titles = items.map((c, k) => ({ ...subTitle(k ? k + 1 : '', `#${c.id} · ` +
+        `${c.map || 'recommended'} ${c.r}×${c.r}${c.current ? ' · current' : ''}<br>` +
+        `${date(c.created_ms)}`), font: { size: 10 } }));
     const layout = { ...big.lay, annotations: titles, margin: { l: 40, r: 20, t: 40, b: 30 },
         coloraxis: { colorscale: VIRIDIS, cmin, cmax, colorbar: { title: { text: 'S' },
             thickness: 12 } },

@@ -1,12 +1,15 @@
-// fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document): the chosen map S
-// (the recommended r by default, any r selectable) beside the Wiener-deconvolution baseline on one
-// colour scale, its uncertainties S_err, the interpolated map as a 3-D surface, and the measured
-// signal, the fitted model and the normalised residuals at the spot positions (Plotly figures on
-// um axes, fit_maps.js); the goodness of fit in words; the model-selection figure (AIC, BIC, chi2
-// and the cross-validation chi2 against r, the recommended r marked and its reason in words,
-// fit_select.js) with its table, the F-test verdict (paper: reject H0 when p < 0.05), whether the
-// fit's map is its pixel's current calibration, with the action that makes it so (POST
-// /api/fits/{id}/promote, with a reason), and a re-fit with other settings (fit_form.js).
+// fit.js: the Fit view: one fit (GET /api/fits/{id}, the `ips fit` document). First the map the
+// fit stores as its pixel's calibration (recommended, shrunk or kriged: fit_stored.js): one
+// sentence on how it was made, its grid S and S_err, and whether it is the pixel's current
+// calibration, with the action that makes it so (POST /api/fits/{id}/promote, with a reason).
+// Then the fit's result and the F-test verdict (paper: reject H0 when p < 0.05), and the
+// Comparison: any map of the fit (the sweep's r x r maps, the shrunk map, the kriged map) beside
+// the Wiener-deconvolution baseline on one colour scale, its uncertainties S_err, the interpolated
+// map as a 3-D surface, and the measured signal, the fitted model and the normalised residuals at
+// the spot positions (Plotly figures on um axes, fit_maps.js), the goodness of fit in words; the
+// model-selection figure (AIC, BIC, chi2 and the cross-validation chi2 against r, the recommended
+// r marked and its reason in words, fit_select.js) with its table; and a re-fit with other
+// settings (fit_form.js).
 import { get, post } from './api.js';
 import { errorBox, failure, field, fill, fmt, fmtTime, h, onSubmit } from './dom.js';
 import { purgeIn } from './charts.js';
@@ -15,6 +18,7 @@ import {
     errFigure, fitPoints, mapPairFigure, resFigure, residualFigure, surfaceFigure,
 } from './fit_maps.js';
 import { goodness, reasonText, selectionFigure } from './fit_select.js';
+import { storedContent, storedKind } from './fit_stored.js';
 import { requestRules, ruleAttrs } from './rules.js';
 
 const ALPHA = 0.05; // the paper's significance level for the F-test
@@ -104,10 +108,11 @@ function ftestPanel(t) {
             h('dt', {}, 'Status'), h('dd', {}, t.status)));
 }
 
-// The fit's place in the lab database (fit.calibration, docs/api.md): whether its map is the
-// pixel's current calibration and, when it is not, a form with a reason that makes it so. After a
-// promotion the panel is read again and the focus goes to its new state.
-function calibrationPanel(fit) {
+// The fit's place in the lab database (fit.calibration, docs/api.md): whether its map (kind:
+// recommended, shrunk or kriged, fit_stored.js) is the pixel's current calibration and, when it
+// is not, a form with a reason that makes it so. After a promotion the panel is read again and
+// the focus goes to its new state.
+function calibrationPanel(fit, kind) {
     const box = h('div', { 'data-testid': 'fit-calibration' });
     const show = async (f, focus) => {
         const c = f.calibration;
@@ -118,16 +123,14 @@ function calibrationPanel(fit) {
                 '(no admissible map, or an uploaded scan file without a sensor pixel).'));
             return;
         }
-        // a kriged map (a request's "map": "kriged") is offered on its own fine grid
-        const kr = f.result?.kriged_map;
-        const kriged = kr && kr.grid === c.r && c.r !== f.result?.recommended_r;
         const pixel = h('a', { href: `#/sensors/${c.sensor_id}/pixels/${c.pixel.col}/` +
             `${c.pixel.row}` }, `pixel (${c.pixel.col}, ${c.pixel.row})`);
         const st = c.current
-            ? state('ok', 'true', `Its ${kriged ? 'kriged ' : ''}${c.r} × ${c.r} map is the ` +
+            ? state('ok', 'true', `Its ${kind ? `${kind} ` : ''}${c.r} × ${c.r} map is the ` +
                 'current calibration of ', pixel,
                 ` (calibration #${c.current_calibration_id}).`)
-            : state(null, 'false', 'Stored as a fit, not the calibration of ', pixel,
+            : state(null, 'false', `Stored as a fit: its ${kind ? `${kind} ` : ''}${c.r} × ` +
+                `${c.r} map is not the calibration of `, pixel,
                 c.current_calibration_id ? ` (the current one is calibration ` +
                     `#${c.current_calibration_id}).` : ' (which has none).');
         let form = null;
@@ -165,10 +168,12 @@ export function renderFit(root, id, ctx) {
         const sensorId = scan?.sensor_id ?? fit.calibration?.sensor_id;
         const sensor = sensorId ? await get(`/api/sensors/${sensorId}`).catch(() => null) : null;
         const pitch = sensor?.pitch_um;
+        // which map the fit stores as its pixel's calibration (fit_stored.js)
+        const stored = await storedKind(fit);
         const best = res.best_r || {};
         const fits = res.fits || [];
-        // the map shown first is the recommended one, the map the calibration stores (fits stored
-        // before the recommendation existed stored the best-BIC map)
+        // the recommended r (fits stored before the recommendation existed: the best BIC), the
+        // map the Comparison shows first
         const rec = res.recommended_r !== undefined ? res.recommended_r : best.bic;
         // the shrunk map (fit/shrink.h): the recommended map's detail over r - 1 kept where it
         // stands above its noise, offered as one more choice of the selector
@@ -183,9 +188,13 @@ export function renderFit(root, id, ctx) {
             sh ? h('option', { value: 'shrunk' }, `r = ${sh.r}, shrunk toward r = ${sh.toward_r}`)
                 : null,
             kr ? h('option', { value: 'kriged' }, `kriged, ${kr.grid} × ${kr.grid}`) : null);
-        const facts = h('dl', { class: 'facts' });
+        const facts = h('dl', { class: 'facts' }); // of the map the Comparison shows
         const note = h('p', { class: 'muted small', 'data-testid': 'selection-note' });
         const maps = h('div', { class: 'maps' });
+        // the map stored, in the note's words
+        const storedWords = stored.kind === 'kriged' ? 'the kriged map'
+            : stored.kind === 'shrunk' ? 'the shrunk map'
+                : stored.kind ? `the recommended r = ${rec ?? '–'}'s own map` : null;
         // the spot positions of the residuals, read once (fit_maps.js)
         const points = fitPoints(fit);
         points.catch(() => {});
@@ -205,18 +214,6 @@ export function renderFit(root, id, ctx) {
                 return;
             }
             fill(facts,
-                h('dt', {}, 'Recommended r'),
-                h('dd', { 'data-testid': 'recommended-r', title: res.recommended_reason || '' },
-                    rec ?? '–'),
-                res.recommended_reason ? [h('dt', {}, 'Why'), h('dd', { class: 'small',
-                    'data-testid': 'recommended-reason' }, res.recommended_reason)] : null,
-                res.range_edge ? [h('dt', {}, 'Note'), h('dd', { class: 'warn',
-                    'data-testid': 'range-edge' }, 'AIC or BIC picked the largest r the sweep or ' +
-                    'the points allow: their choice sits at the edge of the searched range')] : null,
-                h('dt', {}, 'Best r (AIC)'),
-                h('dd', { 'data-testid': 'best-r-aic' }, best.aic ?? '–'),
-                h('dt', {}, 'Best r (BIC)'),
-                h('dd', { 'data-testid': 'best-r-bic' }, best.bic ?? '–'),
                 h('dt', {}, 'Map shown'), h('dd', { 'data-testid': 'shown-r' }, shrunk
                     ? `r = ${f.r}, shrunk toward r = ${sh.toward_r} ` +
                         `(${fmt(100 * sh.factor, 2)} % of the detail kept)`
@@ -234,25 +231,20 @@ export function renderFit(root, id, ctx) {
                         dataset: { poor: String(g.poor) } }, g.text);
                 })(),
                 h('dt', {}, 'I₀ (DN)'), h('dd', {}, `${fmt(f.I0, 6)} ± ${fmt(f.I0_err, 2)}`),
-                h('dt', {}, 'Condition number'), h('dd', {}, fmt(f.cond, 3)),
-                h('dt', {}, 'Points used'),
-                h('dd', {}, `${res.N ?? '–'} of ${res.n_points ?? '–'}`),
-                h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
-                    `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`));
+                h('dt', {}, 'Condition number'), h('dd', {}, fmt(f.cond, 3)));
+            const storedNote = storedWords ? ` The map the fit stores as its pixel's ` +
+                `calibration is ${storedWords} (first on this page).` : '';
             fill(note, `Best r by AIC: ${best.aic ?? '–'}, by BIC: ${best.bic ?? '–'}; ` +
                 `recommended: ${rec ?? '–'}. The maps above ` + (kriged ? 'are the kriged ' +
                 `map: a Gaussian-process estimate on a ${kr.grid} × ${kr.grid} grid with the ` +
                 `recommended r = ${rec ?? '–'}'s grid in its prior (about half the best r's ` +
-                'error in the fidelity harness); the fit offers the recommended r\'s own map ' +
-                'as its pixel\'s calibration.'
+                'error in the fidelity harness).'
                 : shrunk ? `are the shrunk ` +
                 `map: r = ${f.r}'s detail over r = ${sh.toward_r} kept where it stands above ` +
                 `its noise (closer to the truth than the recommended map in the fidelity ` +
-                `harness); a fit offers it as its pixel's calibration when asked ("map": ` +
-                `"shrunk"), else the recommended r = ${rec ?? '–'}.`
-                : `are r = ${f.r}` + (f.r === rec ? ', the recommended r: the map the fit offers ' +
-                'as its pixel\'s calibration.' : `; the map the fit offers as its pixel's ` +
-                `calibration is the recommended r = ${rec ?? '–'}.`)));
+                `harness).`
+                : `are r = ${f.r}` + (f.r === rec ? ', the recommended r.' : `; the recommended ` +
+                `r is ${rec ?? '–'}.`)) + storedNote);
             purgeIn(maps);
             if (!f.S) {
                 fill(maps, h('p', { class: 'muted' }, `The r = ${f.r} fit has no map ` +
@@ -279,6 +271,10 @@ export function renderFit(root, id, ctx) {
         const calLink = scan ? h('a', { href: `#/sensors/${scan.sensor_id}/pixels/` +
             `${scan.poi.col + fit.dcol}/${scan.poi.row + fit.drow}` }, 'calibration history')
             : null;
+        const axesNote = () => h('p', { class: 'muted small' }, 'Axes in µm (pixel widths when ' +
+            'the sensor\'s pitch is unknown) from the pixel\'s top-left corner (y grows downward; ' +
+            'the pixel outlined). Point at a map for its values, drag to zoom, double-click to ' +
+            'reset; each figure\'s bar saves it as PNG (camera) or SVG (disk).');
         fill(root,
             h('p', { class: 'crumbs' }, h('a', { href: fit.scan_id ? `#/scans/${fit.scan_id}`
                 : '#/scans' }, fit.scan_id ? `← Scan #${fit.scan_id}` : '← Scans')),
@@ -286,25 +282,47 @@ export function renderFit(root, id, ctx) {
             h('p', { class: 'sub' }, 'Of ', where, ` · ${fmtTime(fit.created_ms)} · `,
                 h('a', { href: `/api/fits/${fit.id}`, download: `fit-${fit.id}.json` }, 'JSON'),
                 calLink ? [' · ', calLink] : null),
+            h('section', { class: 'panel', 'aria-labelledby': 'stored-h',
+                'data-testid': 'stored-section', dataset: { map: stored.kind ?? 'none' } },
+            h('h3', { id: 'stored-h' }, stored.kind ? `The calibration: the ${stored.kind} map`
+                : 'The map'),
+            storedContent(fit, stored, pitch), axesNote(),
+            h('h4', { id: 'cal-h' }, 'Calibration'), calibrationPanel(fit, stored.kind)),
             h('div', { class: 'two-col fit-top' },
                 h('section', { class: 'panel', 'aria-labelledby': 'sum-h' },
                     h('h3', { id: 'sum-h' }, 'Result'),
-                    h('label', { class: 'fld inline', for: 'r-select' },
-                        h('span', { class: 'lbl' }, 'Map resolution '), rSel), facts),
-                h('div', {},
-                    h('section', { class: 'panel', 'aria-labelledby': 'ft-h' },
-                        h('h3', { id: 'ft-h' }, 'F-test: is the centre of the pixel flat?'),
-                        ftestPanel(res.ftest)),
-                    h('section', { class: 'panel', 'aria-labelledby': 'cal-h' },
-                        h('h3', { id: 'cal-h' }, 'Calibration'), calibrationPanel(fit)))),
-            h('section', { class: 'panel', 'aria-labelledby': 'maps-h' },
-                h('h3', { id: 'maps-h' }, 'IPS maps'),
-                h('p', { class: 'muted small' }, 'Axes in µm (pixel widths when the sensor\'s ' +
-                    'pitch is unknown) from the pixel\'s top-left corner (y grows downward; the ' +
-                    'pixel outlined). Point at a map for its values, drag ' +
-                    'to zoom, double-click to reset; each figure\'s bar saves it as PNG (camera) ' +
-                    'or SVG (disk).'),
-                maps),
+                    h('dl', { class: 'facts' },
+                        h('dt', {}, 'Recommended r'),
+                        h('dd', { 'data-testid': 'recommended-r',
+                            title: res.recommended_reason || '' }, rec ?? '–'),
+                        res.recommended_reason ? [h('dt', {}, 'Why'), h('dd', { class: 'small',
+                            'data-testid': 'recommended-reason' }, res.recommended_reason)]
+                            : null,
+                        res.range_edge ? [h('dt', {}, 'Note'), h('dd', { class: 'warn',
+                            'data-testid': 'range-edge' }, 'AIC or BIC picked the largest r the ' +
+                            'sweep or the points allow: their choice sits at the edge of the ' +
+                            'searched range')] : null,
+                        h('dt', {}, 'Best r (AIC)'),
+                        h('dd', { 'data-testid': 'best-r-aic' }, best.aic ?? '–'),
+                        h('dt', {}, 'Best r (BIC)'),
+                        h('dd', { 'data-testid': 'best-r-bic' }, best.bic ?? '–'),
+                        h('dt', {}, 'Points used'),
+                        h('dd', {}, `${res.N ?? '–'} of ${res.n_points ?? '–'}`),
+                        h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
+                            `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`))),
+                h('section', { class: 'panel', 'aria-labelledby': 'ft-h' },
+                    h('h3', { id: 'ft-h' }, 'F-test: is the centre of the pixel flat?'),
+                    ftestPanel(res.ftest))),
+            h('section', { class: 'panel', 'aria-labelledby': 'maps-h',
+                'data-testid': 'comparison' },
+            h('h3', { id: 'maps-h' }, 'Comparison'),
+            h('p', { class: 'muted small' }, 'Every map of this fit: the sweep\'s r × r maps, ' +
+                'the shrunk map and the kriged map where the fit has them, each beside the ' +
+                'Wiener-deconvolution baseline.'),
+            h('div', { class: 'two-col even' },
+                h('div', {}, h('label', { class: 'fld inline', for: 'r-select' },
+                    h('span', { class: 'lbl' }, 'Map '), rSel)), facts),
+            axesNote(), maps),
             h('section', { class: 'panel', 'aria-labelledby': 'sel-h' },
                 h('h3', { id: 'sel-h' }, 'Model selection'), fits.length ? selection(res, rec, note)
                     : h('p', { class: 'muted' }, 'No sweep in this fit.')),

@@ -77,10 +77,10 @@ export function mapPairFigure(f, wiener, pitch) {
     return fig;
 }
 
-// S_err, 1 sigma, on its own scale.
-export function errFigure(f, pitch) {
+// S_err, 1 sigma, on its own scale (testid: the graph's, another one for a second such figure).
+export function errFigure(f, pitch, testid = 'plot-Serr') {
     const fr = pixelFrame(pitch), r = f.r;
-    const fig = plotFigure({ title: 'Uncertainty S_err (1σ)', testid: 'plot-Serr', height: 320,
+    const fig = plotFigure({ title: 'Uncertainty S_err (1σ)', testid, height: 320,
         name: `S_err-r${r}`,
         data: [{ type: 'heatmap', ...cellAxes(r, fr.w), z: rows(f.S_err, r, r),
             colorscale: MAGMA,
@@ -94,10 +94,10 @@ export function errFigure(f, pitch) {
 
 // S_res, the resolution error of an r grid's sub-pixel values (fit/shrink.h: structure finer
 // than the grid, which S_err does not count; add the two in quadrature), on its own scale.
-export function resFigure(sRes, r, pitch) {
+export function resFigure(sRes, r, pitch, testid = 'plot-Sres') {
     const fr = pixelFrame(pitch);
     const fig = plotFigure({ title: 'Resolution error S_res (add in quadrature to S_err)',
-        testid: 'plot-Sres', height: 320, name: `S_res-r${r}`,
+        testid, height: 320, name: `S_res-r${r}`,
         data: [{ type: 'heatmap', ...cellAxes(r, fr.w), z: rows(sRes, r, r),
             colorscale: MAGMA,
             colorbar: { title: { text: 'S_res' }, thickness: 14 },

@@ -218,6 +218,70 @@ async function plotly(page, testid, more = '') {
         dataset: { ...g.dataset } })));
 }
 const axisTitle = (ax) => ax?.title?.text ?? ax?.title ?? '';
+const sameNumbers = (a, b) => Array.isArray(a) && Array.isArray(b) && a.length === b.length &&
+    a.every((v, k) => near(v, b[k], 1e-12));
+
+// The Fit view opened on fit (the API's document) leads with the map it stores as its pixel's
+// calibration (web/fit_stored.js): the view's first section, above the Comparison, of kind (the
+// API's word: a calibration's `map`, or what the fit's request asked for); its sentence names
+// that kind with the API's own numbers (the kriged map's grid, points and divisor grids, whether
+// its smooth part was kept; the recommended r and its reason; the shrunk map's r and toward_r;
+// and the result's reason why no kriged map could be made, when it gives one), and its heat map
+// and S_err are the API's map of that kind (and the calibration's, cal, when given).
+async function checkStoredMap(page, fit, kind, what, cal = null) {
+    const res = fit.result;
+    const sec = page.locator(`[data-testid="stored-section"][data-map="${kind}"]`);
+    await sec.waitFor({ timeout: WAIT });
+    const order = await page.$$eval('#view section.panel', (ss) => ss.map((x) =>
+        x.dataset.testid ?? ''));
+    check(order[0] === 'stored-section' && order.indexOf('comparison') > 0,
+        `${what}: the stored map's section comes first, the Comparison below it`,
+        JSON.stringify(order));
+    const sentence = (await sec.locator('[data-testid="stored-sentence"]').textContent()).trim();
+    const rec = res.recommended_r;
+    let want, map;
+    if (kind === 'kriged') {
+        const kr = res.kriged_map;
+        map = { r: kr.grid, S: kr.S, S_err: kr.S_err };
+        want = [`Kriged map on a ${kr.grid} × ${kr.grid} grid from ${res.N} points`,
+            ...kr.levels.map((l) => `${l.q} × ${l.q}`),
+            kr.smooth ? 'a smooth part (amplitude' : 'without a smooth part'];
+    } else if (kind === 'shrunk') {
+        const sh = res.shrunk_map;
+        map = { r: sh.r, S: sh.S, S_err: sh.S_err };
+        want = [`Shrunk map: the paper's r = ${sh.r} map`, `over r = ${sh.toward_r} shrunk`];
+    } else {
+        const f = res.fits.find((x) => x.r === rec);
+        map = { r: rec, S: f.S, S_err: f.S_err };
+        want = [`The paper's r = ${rec} map (least squares from ${res.N} points), the ` +
+            'recommended r', res.recommended_reason];
+    }
+    if (kind !== 'kriged' && typeof res.kriged_map?.error === 'string') {
+        want.push(`No kriged map could be made: ${res.kriged_map.error}`);
+    }
+    check(want.every((w) => sentence.includes(w)), `${what}: the stored map's sentence names ` +
+        `the ${kind} map with the API's numbers`, `"${sentence}" vs ${JSON.stringify(want)}`);
+    check(await sec.locator('h3').textContent() === `The calibration: the ${kind} map`,
+        `${what}: the section's heading names the ${kind} map`);
+    const g = await plotly(page, 'plot-stored');
+    check(g.data[0].z.length === map.r && sameNumbers(g.data[0].z.flat(), map.S) &&
+        axisTitle(g.layout.xaxis).includes('µm'), `${what}: the stored map's heat map is the ` +
+        `API's ${kind} map on its ${map.r} × ${map.r} grid (µm axes)`,
+    JSON.stringify(g.data[0].z).slice(0, 160));
+    if (cal) {
+        check(cal.map === kind && cal.r === map.r && sameNumbers(cal.S, map.S) &&
+            sameNumbers(cal.S_err, map.S_err), `${what}: it is the calibration's map ` +
+            `(#${cal.id}, ${cal.map}, r = ${cal.r})`);
+    }
+    const e = await plotly(page, 'plot-stored-Serr');
+    check(sameNumbers(e.data[0].z.flat(), map.S_err), `${what}: the stored map's S_err ` +
+        'plotted is the API\'s');
+    const top = (t) => page.$eval(`[data-testid="${t}"]`, (x) => x.getBoundingClientRect().top +
+        window.scrollY);
+    const [yStored, yCmp] = [await top('plot-stored'), await top('plot-maps')];
+    check(yStored < yCmp, `${what}: the stored map is drawn above the ` +
+        'comparison\'s maps', JSON.stringify([yStored, yCmp]));
+}
 
 // The text of the file a click on locator downloads.
 async function download(page, locator) {
@@ -489,6 +553,13 @@ async function run(base, page, api) {
     const fit = (await api('GET', `/api/fits/${fitId}`)).body;
     const res = fit.result;
     check(fit.scan_id === scan.id, 'the fit opened is a fit of the scan');
+    // first on the page: the map the automatic fit stored as the POI's calibration, of the kind
+    // the calibration names (ipsd's --calibration-map)
+    const autoCal = (await api('GET', `/api/sensors/${sensor.id}/pixels/${scan.poi.col}/` +
+        `${scan.poi.row}/calibration`)).body;
+    check(autoCal.fit_id === fitId && fit.calibration?.current === true,
+        'the automatic fit is the POI\'s calibration', JSON.stringify([autoCal.fit_id, fitId]));
+    await checkStoredMap(page, fit, autoCal.map, 'automatic fit', autoCal);
     const text = async (id) => (await page.locator(`[data-testid="${id}"]`).textContent()).trim();
     check(await text('best-r-aic') === String(res.best_r.aic), 'best r (AIC) matches the API',
         `${await text('best-r-aic')} vs ${res.best_r.aic}`);
@@ -509,7 +580,7 @@ async function run(base, page, api) {
         .waitFor({ timeout: WAIT });
     const note2 = await text('selection-note');
     check(note2.includes(`are r = ${other.r};`) &&
-        note2.includes(`is the recommended r = ${best.r}`),
+        note2.includes(`the recommended r is ${best.r}`),
         'after choosing another r the note names it and the recommended one', note2);
     await page.locator('[data-testid="r-select"]').selectOption(String(best.r));
     await page.locator('[data-testid="shown-r"]', { hasText: new RegExp(`^r = ${best.r}$`) })
@@ -733,8 +804,12 @@ async function run(base, page, api) {
 
     check((await page.locator('[data-testid="current-why"]').textContent())
         .includes(`automatic fit of scan ${scan.id}`), 'the pixel view says why its map is current');
-    check(cals[0].map === 'recommended' && (await page.locator('[data-testid="current-map"]')
-        .textContent()).includes(`recommended r's own least-squares map (r = ${cals[0].r})`),
+    const mapPhrase = { recommended: `recommended r's own least-squares map (r = ${cals[0].r})`,
+        shrunk: `shrunk map: r = ${cals[0].r}'s detail`,
+        kriged: `kriged map on a fine ${cals[0].r} × ${cals[0].r} grid` }[cals[0].map];
+    check(mapPhrase && (await page.locator('[data-testid="current-map"]').textContent())
+        .includes(mapPhrase) && await page.locator('[data-testid="current-kind"]')
+        .getAttribute('data-map') === cals[0].map,
     'the pixel view says which map of its fit the calibration holds (the API\'s map)',
     cals[0].map);
     const mapText = await page.locator('[data-testid="current-map"]').textContent();
@@ -757,6 +832,14 @@ async function run(base, page, api) {
     check((await calState.textContent()).includes(`calibration #${calId}`),
         'the re-fit\'s view: stored as a fit, the current calibration is the automatic fit\'s',
         await calState.textContent());
+    // its stored map is the one its request asked for (the job's params: no "map", so the
+    // recommended one), although it has a kriged map too
+    const refitDoc = (await api('GET', `/api/fits/${refit}`)).body;
+    const refitAsked = (await api('GET', `/api/jobs/${refitJob.id}`)).body.params.map ??
+        'recommended';
+    await checkStoredMap(page, refitDoc, refitAsked, 'a re-fit stored as a fit');
+    check(await page.locator('[data-testid="stored-sentence"]').getAttribute('data-source') ===
+        'job', 'a fit that is no calibration: its map kind is told by its job\'s request');
     // the re-fit asked for the kriged map (fit/krige.h): one more choice of the selector, its
     // heat map the API's kriged_map.S on its grid, named in "Map shown"
     const kr = (await api('GET', `/api/fits/${refit}`)).body.result.kriged_map;
@@ -818,6 +901,34 @@ async function run(base, page, api) {
         'on its grid as the calibration', JSON.stringify([calNow.map, calNow.r,
         pk?.grid, pk?.error]));
 
+    // its Fit view leads with the kriged map it stored, the calibration's
+    await page.goto(`${base}/#/fits/${promotedFit}`);
+    await checkStoredMap(page, pf, calNow.map, 'the re-fit stored as the kriged map', calNow);
+
+    // a fit that can store no map (r = 12 alone: more parameters than the 121 points) asked for
+    // the kriged map: its first section says so, with the result's own reason why no kriged map
+    // could be made
+    const noneJob = (await api('POST', `/api/scans/${scan.id}/fits`, { r_min: 12, r_max: 12,
+        map: 'kriged' })).body.job;
+    const noneFit = (await until(async () => {
+        const j = (await api('GET', `/api/jobs/${noneJob.id}`)).body;
+        return j.state === 'done' && j;
+    }, 'the r = 12 fit to be done', LONG_WAIT)).fit_id;
+    const noneDoc = (await api('GET', `/api/fits/${noneFit}`)).body;
+    const whyNot = noneDoc.result.kriged_map?.error;
+    check(noneDoc.calibration === null && typeof whyNot === 'string',
+        'the r = 12 fit offers no map and its result says why it has no kriged map',
+        JSON.stringify([noneDoc.calibration, noneDoc.result.kriged_map]));
+    await page.goto(`${base}/#/fits/${noneFit}`);
+    const noneSec = page.locator('[data-testid="stored-section"][data-map="none"]');
+    await noneSec.waitFor({ timeout: WAIT });
+    const noneText = await noneSec.locator('[data-testid="stored-sentence"]').textContent();
+    check(noneText.includes('no map to store as a calibration') &&
+        noneText.includes(`No kriged map could be made: ${whyNot}`) &&
+        await noneSec.locator('[data-testid="plot-stored"]').count() === 0,
+    'a fit without a map: its first section says so and why no kriged map could be made, ' +
+        'in the API\'s words', noneText);
+
     // the pixel view: its current map as Plotly figures, two maps compared, the CSV download
     const pixelView = `#/sensors/${sensor.id}/pixels/${scan.poi.col}/${scan.poi.row}`;
     await page.goto(`${base}/${pixelView}`);
@@ -855,6 +966,23 @@ async function run(base, page, api) {
     check(hist.data.length === histApi.length && hist.data.every((d, k) =>
         same(flat(d.z), histApi[k].S)), `the history as ${histApi.length} small multiples, the ` +
         'API\'s maps newest first');
+    // the pixel view names each map's kind, the API's `map`: the current one's heading, its
+    // sentence on how it was made (from its fit), each history row and small multiple
+    check(await page.locator('[data-testid="current-kind"]').getAttribute('data-map') ===
+        calNow.map && (await page.locator('#cur-h').textContent()).includes(`the ${calNow.map} ` +
+        `map, ${calNow.r} × ${calNow.r}`), 'the pixel view\'s heading names the current map\'s ' +
+        `kind (${calNow.map})`, await page.locator('#cur-h').textContent());
+    const how = page.locator('[data-testid="current-how"]:not([hidden])');
+    await how.waitFor({ timeout: WAIT });
+    check((await how.textContent()).includes(`Kriged map on a ${calNow.r} × ${calNow.r} grid ` +
+        `from ${pf.result.N} points`), 'the pixel view says how the kriged map was made, in the ' +
+        'Fit view\'s words', await how.textContent());
+    const histKinds = await page.locator('[data-testid="history-map"]').allTextContents();
+    check(JSON.stringify(histKinds) === JSON.stringify(histApi.map((c) => c.map)),
+        'the history table names each calibration\'s map kind (the API\'s)',
+        JSON.stringify(histKinds));
+    check(hist.layout.annotations.every((a, k) => a.text.includes(`${histApi[k].map} ` +
+        `${histApi[k].r}×${histApi[k].r}`)), 'each small multiple is titled with its map kind');
     const calSurf = await graph('plot-surface');
     const calIp = (await api('GET', `/api/calibrations/${A.id}/interp?n=100`)).body;
     check(same(flat(calSurf.data[0].z), calIp.S), 'the pixel view\'s surface is the ' +
