@@ -8,9 +8,11 @@
  * one-dimensional kernels, exp(-|dx| / l) exp(-|dy| / l) (pixel layouts are rectilinear); B_q
  * spreads a q x q grid's cells over the fine cells (each fine cell's share of each q-cell), for
  * the prior's grids q (fit_krige_prior_t; F is a multiple of its r, so r's divisor grids lie
- * exactly on fine cells). The data are d = A T + e, e ~ N(0, diag sigma^2), with A the fine
- * grid's design matrix (design.h; grid q's own design for the q-cells' part) and sigma the
- * noise model's. The hyperparameters (a, l, tau_q) maximise the restricted likelihood (mu
+ * exactly on fine cells; other grids get their own design and a fractional spread). The fit job
+ * takes the prior from its sweep (fit_krige_prior_for_sweep: the recommended r's divisor grids,
+ * docs/numerics.md "The prior from the sweep"). The data are d = A T + e, e ~ N(0, diag
+ * sigma^2), with A the fine grid's design matrix (design.h; grid q's own design for the q-cells'
+ * part) and sigma the noise model's. The hyperparameters (a, l, tau_q) maximise the restricted likelihood (mu
  * integrated out; Patterson and Thompson) by Fisher scoring with the average information and
  * the analytic gradient in a trust region (krige_opt.c); the map is the posterior mean,
  * T = mu 1 + K A^T P d, with its covariance, both normalised to S = T / mean T (as
@@ -77,6 +79,11 @@ typedef struct fit_kriged {
  * (opts->stop) with err. */
 int fit_krige_with(const fit_scan_t *scan, const fit_krige_prior_t *prior,
                    const fit_options_t *opts, fit_kriged_t *out, err_t *err);
+
+/* The prior of the kriged map the fit job stores (fit/pipeline.h) and the fidelity harness
+ * scores, chosen from sweep sw: the divisor grids of its recommended r (r = 1 without one).
+ * Priors holding every grid of the sweep measured worse against the truth (krige_prior.c). */
+fit_krige_prior_t fit_krige_prior_for_sweep(const fit_sweep_t *sw);
 
 /* fit_krige_with the divisor grids of r. */
 int fit_krige(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_kriged_t *out,
