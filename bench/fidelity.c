@@ -24,8 +24,9 @@
 #include "base/parse.h"
 #include "instrument/fidelity.h"
 
-static const char *const scenes[] = {"paperlike", "uniform", "gradient", "dip",
-                                     "deadcorner", "edge",   "softedge"};
+static const char *const scenes[] = {"paperlike", "uniform", "gradient", "dip",     "deadcorner",
+                                     "edge",      "softedge", "ring",   "busline", "diagedge",
+                                     "bowl",      "twodips"};
 static const struct raster {
     const char *name;
     int grid;
@@ -321,6 +322,9 @@ static void print_case(const fid_case_t *c, const char *raster, const fid_result
            f->r_bic ? f->rms[f->r_bic] : NAN, f->r_rec[0] ? f->rms[f->r_rec[0]] : NAN,
            f->r_best ? f->rms[f->r_best] : NAN, f->rms_shrunk, f->shrunk_factor, f->rms_wiener);
     for (int r = 1; r <= r_max; r++) printf(" %.3f", f->rms[r]);
+    if (isfinite(f->rms_kriged)) /* --krige: the kriged map's rms, grid, smooth part, ms, ratio */
+        printf(" | kriged %.5f %d %d %.0f %.4f", f->rms_kriged, f->kriged_grid, f->kriged_smooth,
+               f->kriged_ms, f->r_best > 0 ? f->rms_kriged / fmax(f->rms[f->r_best], 1e-3) : NAN);
     printf("\n");
     fflush(stdout);
 }

@@ -55,7 +55,8 @@ static void print_usage(void)
 {
     fputs("usage: ips simulate [options] -o FILE\n"
           "  --scene S           uniform | paperlike | gradient | dip | deadcorner | edge |\n"
-          "                      softedge (each [:M], M x M cells) | map:FILE (default paperlike)\n",
+          "                      softedge | ring | busline | diagedge | bowl | twodips\n"
+          "                      (each [:M], M x M cells) | map:FILE (default paperlike)\n",
           stdout);
     for (size_t i = 0; i < sizeof field_usage / sizeof field_usage[0]; i++) {
         const scan_field_t *f = &scan_fields[field_usage[i].id];

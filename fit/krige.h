@@ -8,12 +8,14 @@
  * one-dimensional kernels, exp(-|dx| / l) exp(-|dy| / l) (pixel layouts are rectilinear); B_q
  * spreads a q x q grid's cells over the fine cells (each fine cell's share of each q-cell), for
  * the prior's grids q (fit_krige_prior_t; F is a multiple of its r, so r's divisor grids lie
- * exactly on fine cells). The data are d = A T + e, e ~ N(0, diag sigma^2), with A the fine
- * grid's design matrix (design.h; grid q's own design for the q-cells' part) and sigma the
- * noise model's. The hyperparameters (a, l, tau_q) maximise the restricted likelihood (mu
- * integrated out; Patterson and Thompson) by Fisher scoring with the average information and
- * the analytic gradient in a trust region (krige_opt.c); the map is the posterior mean,
- * T = mu 1 + K A^T P d, with its covariance, both normalised to S = T / mean T (as
+ * exactly on fine cells; other grids get their own design and a fractional spread). The fit job
+ * takes the prior from its sweep (fit_krige_prior_for_sweep: the recommended r's divisor grids,
+ * docs/numerics.md "The prior from the sweep"). The data are d = A T + e, e ~ N(0, diag
+ * sigma^2), with A the fine grid's design matrix (design.h; grid q's own design for the q-cells'
+ * part) and sigma the noise model's. The hyperparameters (a, l, tau_q) maximise the restricted
+ * likelihood (mu integrated out; Patterson and Thompson) by Fisher scoring with the average
+ * information and the analytic gradient in a trust region (krige_opt.c); the map is the
+ * posterior mean, T = mu 1 + K A^T P d, with its covariance, both normalised to S = T / mean T (as
  * fit_result_t). The smooth part stays only when it raises the restricted likelihood
  * significantly, 2 (log L_1 - log L_0) >= FIT_KRIGE_LR against the prior of the grids alone
  * (or the flat map): where the truth is exactly piecewise (a dead corner on r = 3, a uniform
@@ -23,8 +25,9 @@
  * Cost: each model is evaluated in the points' space (one n x n factorisation a step) or in the
  * fine cells' space (the mixed-model equations: one p x p factorisation, p = 1 + F^2 + sum q^2,
  * however many points), whichever costs less (krige_int.h); 10-30 evaluations a model. On the
- * reference 81-point scan about 12 ms, 361 points about 0.1 s, the 2601 points of the whole
- * 51 x 51 raster about 0.5 s (docs/numerics.md "The kriged map's speed"). Pure, thread-safe. */
+ * reference 81-point scan about 10 ms, 361 points about 0.08 s, 1681 points 0.15 s, the 2601
+ * points of the whole 51 x 51 raster about 0.3 s (docs/numerics.md "The prior from the sweep").
+ * Pure, thread-safe. */
 #ifndef IPSD_FIT_KRIGE_H
 #define IPSD_FIT_KRIGE_H
 
@@ -77,6 +80,11 @@ typedef struct fit_kriged {
  * (opts->stop) with err. */
 int fit_krige_with(const fit_scan_t *scan, const fit_krige_prior_t *prior,
                    const fit_options_t *opts, fit_kriged_t *out, err_t *err);
+
+/* The prior of the kriged map the fit job stores (fit/pipeline.h) and the fidelity harness
+ * scores, chosen from sweep sw: the divisor grids of its recommended r (r = 1 without one).
+ * Priors holding every grid of the sweep measured worse against the truth (krige_prior.c). */
+fit_krige_prior_t fit_krige_prior_for_sweep(const fit_sweep_t *sw);
 
 /* fit_krige_with the divisor grids of r. */
 int fit_krige(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_kriged_t *out,

@@ -291,13 +291,15 @@ static int keep_shrunk(struct run *rn, fit_sweep_t *sw, double noise_scale, err_
     return 0;
 }
 
-/* The kriged map of the recommended r (krige.h) into sw->kriged; a scan it cannot serve (too
- * many points, no signal) leaves it NULL with the reason in rn->out->kriged_error. */
+/* The kriged map with the sweep's prior (krige.h, fit_krige_prior_for_sweep) into sw->kriged;
+ * a scan it cannot serve (too many points, no signal) leaves it NULL with the reason in
+ * rn->out->kriged_error. */
 static int keep_kriged(struct run *rn, fit_sweep_t *sw, err_t *err)
 {
     fit_kriged_t k;
     err_t e;
-    int rc = fit_krige(rn->scan, sw->recommended_r, &rn->o->fit, &k, &e);
+    fit_krige_prior_t pr = fit_krige_prior_for_sweep(sw);
+    int rc = fit_krige_with(rn->scan, &pr, &rn->o->fit, &k, &e);
     if (rc == -EINVAL || rc == -EDOM) {
         snprintf(rn->out->kriged_error, sizeof rn->out->kriged_error, "%s", e.msg);
         return 0;

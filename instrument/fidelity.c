@@ -110,14 +110,17 @@ static int posterior_pick(const fit_sweep_t *sw, const double *S, int F)
     return pick;
 }
 
-/* The kriged map of the recommended r (fit/krige.h): its error and S_err's honesty against the
- * truth's mean over each fine cell (both mean 1), and the sweep's r nearest it. */
+/* The kriged map the fit job stores (fit/krige.h, the sweep's prior fit_krige_prior_for_sweep;
+ * none when the rule recommends no r): its error and S_err's honesty against the truth's mean
+ * over each fine cell (both mean 1), and the sweep's r nearest it. */
 static void kriged(const fit_scan_t *scan, const fit_options_t *o, const fit_sweep_t *sw, int r,
                    const double *T, int m, fid_result_t *out)
 {
     fit_kriged_t k;
     err_t e;
-    if (r < 1 || fit_krige(scan, r, o, &k, &e)) return;
+    if (r < 1) return;
+    fit_krige_prior_t pr = fit_krige_prior_for_sweep(sw);
+    if (fit_krige_with(scan, &pr, o, &k, &e)) return;
     int F = k.grid;
     double *tc = malloc(sizeof(double) * F * F), mean = 0;
     out->rms_kriged = fid_map_rms(k.S, F, T, m, SAMPLES);

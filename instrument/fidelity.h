@@ -39,7 +39,7 @@ typedef struct fid_case {
     void (*on_sweep)(const fit_scan_t *scan, const fit_options_t *opts, const fit_sweep_t *sw,
                      void *ctx);
     void *on_sweep_ctx;
-    int krige;           /* also estimate the kriged map (fit/krige.h) of the recommended r */
+    int krige;           /* also estimate the kriged map the fit job stores (fit/krige.h) */
 } fid_case_t;
 
 typedef struct fid_result {

@@ -223,7 +223,7 @@ int scene_open(const char *spec, const scene_sensor_t *sensor, scene_t **out, er
     } else {
         return err_set(err, -EINVAL,
                        "unknown scene '%s' (uniform, paperlike, gradient, dip, deadcorner, edge, "
-                       "softedge [:M], or map:FILE)",
+                       "softedge, ring, busline, diagedge, bowl, twodips [:M], or map:FILE)",
                        spec);
     }
     if (rc == 0) rc = scene_open_map(map, m, sensor, name, out, err);

@@ -20,6 +20,11 @@
  *     deadcorner   the top-right third x third of the pixel at 5 %;
  *     edge         a sharp step: the left 45 % of the pixel at 70 %;
  *     softedge     the same step as a logistic of width p/20;
+ *     ring         a ring 20 % deep of radius 0.3 p and sigma p/20 about the centre;
+ *     busline      a line 0.5 um wide at x = 0.6 p passing 40 %;
+ *     diagedge     below the diagonal x + y = 0.9 p at 75 %;
+ *     bowl         85 % at the centre rising quadratically to 115 % at the corners;
+ *     twodips      two dips 20 % deep of sigma p/14 at (0.3, 0.35) p and (0.7, 0.65) p;
  *   map:FILE       a map read from a JSON file: {"S": [...], "r": m} or a bare array of m*m
  *                  numbers, any m in 1..256, values finite and >= 0.
  * The truth for an r x r fit (scene_truth) is the exact mean of this same representation over each

@@ -2,7 +2,9 @@
  * sensitivity S(x, y) over a pixel [0, p]^2 (y downward) that scene.c averages over M x M cells.
  * They span what a map must get right: the paper's pixel, smooth structure (a tilt, a central
  * microlens dip) and sharp structure (a dead corner, a step edge, a soft edge), so that choices
- * like the recommended r are measured on more than one kind of pixel. */
+ * like the recommended r are measured on more than one kind of pixel. Five more (a ring, a bus
+ * line 0.5 um wide, a diagonal edge, a bowl, two small dips) lie on no r x r grid of the sweep
+ * and test choices beyond the families they were tuned on. */
 #include "instrument/scene.h"
 
 #include <math.h>
@@ -65,6 +67,44 @@ static double softedge_value(double x, double y, double p)
     return 1.0 - 0.3 / (1.0 + exp((x - 0.45 * p) / (0.05 * p)));
 }
 
+/* A ring: 20 % deep, radius 0.3 p about the centre, Gaussian cross-section of sigma p / 20 (the
+ * rim of a microlens, say). */
+static double ring_value(double x, double y, double p)
+{
+    double dx = x / p - 0.5, dy = y / p - 0.5, d = sqrt(dx * dx + dy * dy) - 0.3, s = 0.05;
+    return 1.0 - 0.2 * exp(-(d * d) / (2 * s * s));
+}
+
+/* A bus line: a metal line 0.5 um wide (whatever the pitch) down the pixel at 0.6 p, passing
+ * 40 %. */
+static double busline_value(double x, double y, double p)
+{
+    (void)y;
+    double x0 = 0.6 * p;
+    return x >= x0 && x < x0 + 0.5 ? 0.4 : 1.0;
+}
+
+/* A diagonal step: below the line x + y = 0.9 p at 75 %. */
+static double diagedge_value(double x, double y, double p)
+{
+    return x + y < 0.9 * p ? 0.75 : 1.0;
+}
+
+/* A bowl: 85 % at the centre rising quadratically to 115 % at the corners. */
+static double bowl_value(double x, double y, double p)
+{
+    double dx = x / p - 0.5, dy = y / p - 0.5;
+    return 0.85 + 0.6 * (dx * dx + dy * dy);
+}
+
+/* Two small dips: 20 % deep, Gaussian of sigma p / 14, at (0.3, 0.35) p and (0.7, 0.65) p. */
+static double twodips_value(double x, double y, double p)
+{
+    double s = 1.0 / 14, ax = x / p - 0.3, ay = y / p - 0.35, bx = x / p - 0.7, by = y / p - 0.65;
+    return 1.0 - 0.2 * exp(-(ax * ax + ay * ay) / (2 * s * s)) -
+           0.2 * exp(-(bx * bx + by * by) / (2 * s * s));
+}
+
 static const struct family {
     const char *name;
     scene_fn fn;
@@ -72,6 +112,9 @@ static const struct family {
     {"paperlike", scene_paperlike_value}, {"gradient", gradient_value},
     {"dip", dip_value},                   {"deadcorner", deadcorner_value},
     {"edge", edge_value},                 {"softedge", softedge_value},
+    {"ring", ring_value},                 {"busline", busline_value},
+    {"diagedge", diagedge_value},         {"bowl", bowl_value},
+    {"twodips", twodips_value},
 };
 
 #define N_FAMILIES (sizeof families / sizeof families[0])

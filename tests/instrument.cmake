@@ -22,6 +22,8 @@ ipsd_add_test(test_scan ipsinstr)
 ipsd_add_test(test_scan_cover ipsinstr) # which pixels a raster covers (issue 12)
 ipsd_add_test(test_fidelity ipsinstr) # the short form of the fidelity harness
 set_tests_properties(test_fidelity PROPERTIES TIMEOUT 300) # busy, ASan: the kriged maps ~4x
+ipsd_add_test(test_krige_prior ipsinstr) # the kriged map's prior from the sweep, against the truth
+set_tests_properties(test_krige_prior PROPERTIES TIMEOUT 120) # 7 cases, ~1 s; busy, ASan ~4x
 set_tests_properties(test_scan PROPERTIES TIMEOUT 200) # busy, ASan: 47 s (optimised 6 s); 4x
 
 # the libcamera backend: a module loaded at run time; the test knows whether it was built and
