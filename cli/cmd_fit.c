@@ -27,7 +27,6 @@
 #define INTERP_LIMIT FIT_INTERP_MAX /* largest --interp grid */
 #define STR_(x) #x
 #define STR(x) STR_(x)
-#define GEOMETRY_R_TEXT STR(FIT_GEOMETRY_R_DEFAULT)
 #define THREADS_LIMIT 64      /* FIT_THREADS_MAX (fit/parfor.h, internal to fit/) */
 #define THREADS_DEFAULT_MAX 8 /* most threads by default: the sweep's r are only tens */
 
@@ -52,7 +51,8 @@ static const char usage[] =
     "  --design-tol T      design-matrix accuracy (default 1e-12)\n"
     "  --fit-geometry      fit the spot radius and the scan-grid offset first (at --geometry-r)\n"
     "                      and fit the maps with them\n"
-    "  --geometry-r N      r of the geometry fit (1..32, default " GEOMETRY_R_TEXT ")\n"
+    "  --geometry-r N      r of the geometry fit (1..32; default: picked from the data,\n"
+    "                      the smallest BIC over r = 3, 4, ...)\n"
     "  --no-krige          leave out the kriged map (kriged_map: a Gaussian-process estimate\n"
     "                      of the sensitivity on a fine grid, the map ipsd stores as the\n"
     "                      calibration; docs/numerics.md \"The kriged map\"); --krige (the\n"

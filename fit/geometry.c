@@ -12,6 +12,7 @@
 
 #include <errno.h>
 #include <gsl/gsl_blas.h>
+#include <gsl/gsl_cdf.h>
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_linalg.h>
 #include <gsl/gsl_multifit_nlinear.h>
@@ -35,6 +36,7 @@ const char *fit_geometry_status(unsigned flags)
     if (flags & FIT_GEOMETRY_NOT_CONVERGED) return "not_converged";
     if (flags & FIT_GEOMETRY_AT_BOUND) return "at_bound";
     if (flags & FIT_GEOMETRY_ILL_CONDITIONED) return "ill_conditioned";
+    if (flags & FIT_GEOMETRY_POOR_FIT) return "poor_fit";
     return "ok";
 }
 
@@ -340,7 +342,7 @@ int fit_geometry_run(const fit_scan_t *scan, int r, const fit_options_t *opts,
     out->r = r;
     out->params = r * r + 3;
     out->R_um = out->R_err_um = out->dx_um = out->dx_err_um = out->dy_um = out->dy_err_um = NAN;
-    out->chi2_fixed = out->chi2_fitted = out->chi2_red = NAN;
+    out->chi2_fixed = out->chi2_fitted = out->chi2_red = out->chi2_p = out->bic = NAN;
     for (int i = 0; i < 3; i++) out->corr[i] = NAN;
     fit_options_t o = opts ? *opts : fit_options_default();
     if (r < 1 || r > 32) return err_set(err, -EINVAL, "geometry r must be between 1 and 32 (got %d)", r);
@@ -365,7 +367,11 @@ int fit_geometry_run(const fit_scan_t *scan, int r, const fit_options_t *opts,
     if (rc == 0) rc = geo_covariance(&g, p, out);
     if (rc == 0) {
         out->R_um = p[0], out->dx_um = p[1], out->dy_um = p[2];
-        out->chi2_red = out->chi2_fitted / (double)(g.n - (size_t)out->params);
+        double dof = (double)(g.n - (size_t)out->params), nn = (double)g.n;
+        out->chi2_red = out->chi2_fitted / dof;
+        out->chi2_p = gsl_cdf_chisq_Q(out->chi2_fitted, dof);
+        if (out->chi2_p < FIT_POOR_FIT_P) out->flags |= FIT_GEOMETRY_POOR_FIT;
+        out->bic = nn * log(out->chi2_fitted / nn) + out->params * log(nn);
     }
     out->evaluations = g.evals;
     if (rc) err_set(err, rc, "%s", g.err.msg);

@@ -36,7 +36,22 @@ enum fit_geometry_flag {
     FIT_GEOMETRY_AT_BOUND = 1 << 1,      /* a parameter ran into its bound: no minimum inside */
     FIT_GEOMETRY_ILL_CONDITIONED = 1 << 2, /* the whole-problem Jacobian is (near) rank-deficient:
                                               the geometry is not determined by these points */
+    FIT_GEOMETRY_POOR_FIT = 1 << 3,      /* chi2_p < FIT_POOR_FIT_P (model.h): the r x r map and
+                                            the geometry do not describe the data, so the quoted
+                                            sigmas are not the error (the misfit is absorbed by R,
+                                            dx, dy). A warning: the geometry is still used */
 };
+
+/* The flags that make a geometry unusable (poor_fit alone does not). */
+#define FIT_GEOMETRY_UNUSABLE \
+    (FIT_GEOMETRY_NOT_CONVERGED | FIT_GEOMETRY_AT_BOUND | FIT_GEOMETRY_ILL_CONDITIONED)
+
+/* The geometry fit's r picked from the data (geometry_pick.c): the first r tried, the most
+ * tried, and how many degrees of freedom a fit must keep (at least n / FIT_GEOMETRY_DOF_DIV). */
+#define FIT_GEOMETRY_PICK_R_MIN 3
+#define FIT_GEOMETRY_PICK_R_MAX 16
+#define FIT_GEOMETRY_DOF_DIV 5
+#define FIT_GEOMETRY_PICK_PATIENCE 1 /* r past the best BIC tried before stopping, less one */
 
 typedef struct fit_geometry {
     int r;                     /* map resolution the geometry was fitted at */
@@ -50,12 +65,17 @@ typedef struct fit_geometry {
     double chi2_fixed;         /* chi2 of the r x r fit at the written geometry */
     double chi2_fitted;        /* and at the fitted one (<= chi2_fixed) */
     double chi2_red;           /* chi2_fitted / (n_used - params) */
+    double chi2_p;             /* upper tail of chi-square(n_used - params) at chi2_fitted */
+    double bic;                /* n ln(chi2_fitted / n) + params ln n (the pick's criterion) */
+    int r_picked;              /* 1: r picked from the data (fit_geometry_pick); 0: asked */
+    int r_first, r_last;       /* the r the pick fitted (0, 0 when r was asked) */
     double corr[3];            /* correlations R-dx, R-dy, dx-dy */
     int iterations;            /* LM iterations */
     int evaluations;           /* design matrices built (the cost) */
 } fit_geometry_t;
 
-/* "ok", or "not_converged" / "at_bound" / "ill_conditioned" (the first of flags). Static. */
+/* "ok", or "not_converged" / "at_bound" / "ill_conditioned" / "poor_fit" (the first of flags).
+ * Static. */
 const char *fit_geometry_status(unsigned flags);
 
 /* Fits R, dx, dy with the r x r map (1 <= r <= 32) from the written geometry of scan. Returns 0
@@ -64,6 +84,18 @@ const char *fit_geometry_status(unsigned flags);
  * -EDOM when the linear algebra or GSL's solver failed, -ENOMEM. */
 int fit_geometry_run(const fit_scan_t *scan, int r, const fit_options_t *opts,
                      fit_geometry_t *out, err_t *err);
+
+/* Fits the geometry at r = FIT_GEOMETRY_PICK_R_MIN, +1, ... and keeps the usable fit (flags
+ * without FIT_GEOMETRY_UNUSABLE) of smallest BIC = n ln(chi2/n) + (r*r + 3) ln n; stops when
+ * two r in a row have a BIC above the best so far (a pixel's structure can suit odd r better
+ * than even ones), or when a fit would keep fewer than
+ * n / FIT_GEOMETRY_DOF_DIV degrees of freedom, or at FIT_GEOMETRY_PICK_R_MAX. Why: a map too
+ * coarse for the pixel's structure biases R, dx, dy far beyond their sigmas (docs/numerics.md,
+ * "Geometry fit"); BIC does not depend on the noise model's scale. *out is the kept fit (with
+ * r_picked 1, r_first, r_last), or the last one tried when none is usable. Returns as
+ * fit_geometry_run (-ERANGE when not even the first r fits). */
+int fit_geometry_pick(const fit_scan_t *scan, const fit_options_t *opts, fit_geometry_t *out,
+                      err_t *err);
 
 /* The scan as the geometry says it was: *out is a copy of scan with positions x_um + dx_um,
  * y_um + dy_um written into x and y (scan->n each, caller-allocated; out borrows them) and radius

@@ -210,10 +210,14 @@ static void geometry_step(struct run *rn)
 {
     fit_part_t *p = &rn->out->geometry_part;
     fit_geometry_t *g = &rn->out->geometry;
-    int r = rn->o->geometry_r ? rn->o->geometry_r : FIT_GEOMETRY_R_DEFAULT;
+    int r = rn->o->geometry_r;
     const fit_scan_t *scan = rn->scan;
-    if ((p->rc = fit_geometry_run(scan, r, &rn->o->fit, g, &p->err))) return;
-    if (g->flags) {
+    /* r asked, or picked from the data (geometry.h: the smallest BIC over increasing r) */
+    if ((p->rc = r ? fit_geometry_run(scan, r, &rn->o->fit, g, &p->err)
+                   : fit_geometry_pick(scan, &rn->o->fit, g, &p->err)))
+        return;
+    r = g->r;
+    if (g->flags & FIT_GEOMETRY_UNUSABLE) { /* poor_fit alone: used, and said in its status */
         p->rc = err_set(&p->err, -EDOM,
                         "geometry fit at r = %d: %s (R %.4g um, dx %.4g um, dy %.4g um after %d "
                         "iterations); the written geometry is used",
@@ -321,9 +325,8 @@ static int run_steps(struct run *rn, err_t *err)
     sw->fits = calloc((size_t)(o->r_max - o->r_min + 1), sizeof *sw->fits);
     if (!sw->fits) return err_set(err, -ENOMEM, "out of memory");
     if (o->fit_geometry) {
-        int rc = part_step(rn, FIT_STEP_GEOMETRY, o->geometry_r ? o->geometry_r
-                                                                : FIT_GEOMETRY_R_DEFAULT,
-                           &out->geometry_part, geometry_step, err);
+        int rc = part_step(rn, FIT_STEP_GEOMETRY, o->geometry_r, &out->geometry_part,
+                           geometry_step, err);
         if (rc) return rc;
     }
     const fit_watch_t *w = rn->watch;

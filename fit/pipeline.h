@@ -49,7 +49,8 @@ typedef struct fit_pipeline_opts {
     fit_wiener_nsr_t wiener_method; /* how Wiener picks nsr when wiener_nsr <= 0 (spectral) */
     int fit_geometry;      /* fit R, dx, dy first (geometry.h) and run every later step on the
                               scan as the fitted geometry says it was (0) */
-    int geometry_r;        /* r of the geometry fit, 1..FIT_R_MAX; 0: FIT_GEOMETRY_R_DEFAULT */
+    int geometry_r;        /* r of the geometry fit, 1..FIT_R_MAX; 0: picked from the data
+                              (fit_geometry_pick) */
     int threads;           /* fit the sweep's r on up to this many threads, the caller's
                               included, when the run has no watch (a watch's functions run on
                               the caller's thread, so a watched sweep runs there); 0 or 1: the
@@ -61,7 +62,7 @@ typedef struct fit_pipeline_opts {
                               signal) sweep.kriged stays NULL and kriged_error says why */
 } fit_pipeline_opts_t;
 
-/* The r the geometry is fitted at unless asked (docs/numerics.md, "Geometry fit": measured). */
+/* The geometry fit's r before it was picked from the data; kept for callers that name it. */
 #define FIT_GEOMETRY_R_DEFAULT 5
 
 /* r 1..8 with fit_options_default(), no F-test (ftest_r 7), no Wiener, no interpolation. */

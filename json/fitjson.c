@@ -153,6 +153,11 @@ json_t *fitjson_geometry(const fit_geometry_t *g)
     json_object_set_new(o, "N", json_integer((json_int_t)g->n_used));
     json_object_set_new(o, "params", json_integer(g->params));
     json_object_set_new(o, "chi2_red", fitjson_num(g->chi2_red));
+    json_object_set_new(o, "chi2_p", fitjson_num(g->chi2_p));
+    json_object_set_new(o, "bic", fitjson_num(g->bic));
+    json_object_set_new(o, "r_from", json_string(g->r_picked ? "data" : "asked"));
+    json_object_set_new(o, "r_tried", g->r_picked ? json_pack("[i, i]", g->r_first, g->r_last)
+                                                  : json_null());
     json_object_set_new(o, "written_spot_radius_um", fitjson_num(g->R_written_um));
     json_object_set_new(o, "correlation",
                         json_pack("{s:o, s:o, s:o}", "R_dx", fitjson_num(g->corr[0]), "R_dy",

@@ -51,3 +51,6 @@ if(TARGET ips)
              WORKING_DIRECTORY ${IPSD_TEST_DATA})
     set_tests_properties(test_cli_ptc PROPERTIES TIMEOUT 120)
 endif()
+# the geometry fit's r picked from the data: recovered R, dx, dy against the simulator's truth on
+# structured pixels, and poor_fit at a map too coarse (~6 s optimised)
+ips_python_test(test_fit_geometry_pick 240)
