@@ -22,6 +22,7 @@ PATTERNS = [
     ("session", r"\bsessions?\b"),                       # a work session ("session 13")
     ("issue number", r"\bissues?\s*(?:#\s*)?\d+"),        # "issue 10", "issue #12", "issues 9"
     ("issue #", r"\bissue\s*#"),
+    ("the issue", r"\b(?:the|this|that) issue(?:'s)?\b"),  # a tracker's item, not a product term
     ("helper", r"\bhelpers?\b"),                         # who did the work
     ("work period", r"\bwork[- ]periods?\b"),
     ("work round", r"\b(?:%s)[- ]rounds?\b" % ORDINALS),  # "the fifth round", "3rd round"
