@@ -134,7 +134,7 @@ static int is_json_type(const char *ct)
     return n == 16 && strncasecmp(ct, "application/json", 16) == 0;
 }
 
-/* The request's own limits (defect 11 of issue 10): libmicrohttpd answers a request line or header
+/* The request's own limits: libmicrohttpd answers a request line or header
  * fields that overflow its per-connection buffer (MHD_OPTION_CONNECTION_MEMORY_LIMIT) itself,
  * with 414 or 431 and a short HTML body that no option of 0.9.75 replaces. So the buffer is
  * made larger than the limits ipsd enforces here: a target over API_MAX_TARGET or header fields

@@ -1,6 +1,6 @@
 /* api_input.c: reading request input with errors that name the field: query parameters, the JSON
  * body, typed members with ranges (wrong type 400, out of range 422), unknown members, path ids,
- * and the CSV choice. Each helper replies itself and returns -1 on bad input, so a handler just
+ * and the CSV choice. Each of these functions replies itself and returns -1 on bad input, so a handler just
  * returns. */
 #include <errno.h>
 #include <float.h>

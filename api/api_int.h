@@ -1,5 +1,5 @@
-/* api_int.h: what the files of api/ share: the request being served, the reply helpers, the
- * input helpers that name the offending field, and the handlers the router calls. */
+/* api_int.h: what the files of api/ share: the request being served, the reply functions, the
+ * input functions that name the offending field, and the handlers the router calls. */
 #ifndef IPSD_API_API_INT_H
 #define IPSD_API_API_INT_H
 

@@ -47,12 +47,12 @@ void api_h_health(api_req_t *q)
     size_t open = 0;
     uint64_t reaped = 0;
     if (q->conns) api_conns_counts(q->conns, &open, &reaped);
-    /* the storage's health from memory (issue 10): answers while the disk is full */
+    /* the storage's health from memory: answers while the disk is full */
     storage_health_t h;
     srv_storage_health(q->srv, &h);
     char unrec_msg[256];
     int64_t unrec = srv_scan_unrecorded(q->srv, unrec_msg, sizeof unrec_msg);
-    /* "degraded" (issue 10): reads answer, but the storage refuses writes or a job's failure is
+    /* "degraded": reads answer, but the storage refuses writes or a job's failure is
      * waiting to be written; "stopping" wins over it */
     json_t *reasons = degraded_reasons(&h, unrec, unrec_msg);
     const char *status = srv_stopping(q->srv) ? "stopping" : h.fault || unrec ? "degraded" : "ok";

@@ -116,7 +116,7 @@ void api_error_rc(api_req_t *q, int rc, const char *field, const char *msg)
     case -ESHUTDOWN:
         api_error(q, 503, "shutting_down", NULL, "%s", msg);
         break;
-    case -ENOSPC: /* the database's disk is full (issue 10): nothing was stored */
+    case -ENOSPC: /* the database's disk is full: nothing was stored */
         api_error(q, 507, "storage_full", NULL, "%s", msg);
         break;
     case -EROFS:

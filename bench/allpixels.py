@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """allpixels.py [BUILD_DIR]: pixels mapped per hour of bench time, and the fit time of every pixel
-of one scan (issue 12, item 1). Prints figures, never pass/fail. Standard library only.
+of one scan. Prints figures, never pass/fail. Standard library only.
 
 Starts BUILD_DIR/server/ipsd (default build/) with --bench sim on a temporary database and, RUNS
 times (3), scans the paper's raster (5 x 5 pixels of 6 um in 0.6 um steps, 2601 points, 9 x 9

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""cancel.py [BUILD_DIR]: how long a cancel and a SIGTERM take to stop a running fit (issue 10:
+"""cancel.py [BUILD_DIR]: how long a cancel and a SIGTERM take to stop a running fit (the goal:
 within a second, "between r and inside the long loops"); prints figures, never pass/fail.
 
 Starts BUILD_DIR/server/ipsd (default build/) with one fit worker on a free loopback port and a

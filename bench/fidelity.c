@@ -13,7 +13,7 @@
  * every case for studying rules offline; --explain prints, under every case whose recommendation
  * misses the best r by more than 1.1x, the criteria the rule weighed for each r: reduced chi2,
  * leave-one-out chi2 per point, noise, contrast, resolution error and expected error; --simcheck
- * scores the simulation-based check of the rule's pick, docs/numerics.md's fifth round; --krige
+ * scores the simulation-based check of the rule's pick, docs/numerics.md "The recommended r"; --krige
  * scores the kriged map, fit/krige.h). */
 #include <math.h>
 #include <stdio.h>
@@ -412,7 +412,7 @@ static void tally_sum(struct tally *sum, const struct tally *k)
 /* A configuration (scene, raster, light) over its seeds: the quadratic mean of each map's rms
  * over the seeds, so the best fixed r in hindsight is judged on the error a lab can expect of a
  * scene, not on one noise realisation (the per-case best r also chases the noise: numerics.md,
- * "The recommended r", ninth round). */
+ * "The recommended r", "Per configuration"). */
 struct conf {
     int seeds;
     double rms2[FID_R_MAX + 1]; /* sums of rms^2 over the seeds (NaN once one is missing) */

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# fuzz.sh [SECONDS] [TARGET...]: the long runs of the fuzz targets (tests/fuzz/, issue 10). Builds
+# fuzz.sh [SECONDS] [TARGET...]: the long runs of the fuzz targets (tests/fuzz/). Builds
 # the clang fuzz build (-DIPSD_FUZZ=ON: ASan + UBSan + libFuzzer) into build-fuzz/ (BUILD sets
 # another directory) and fuzzes each target SECONDS (default 600) at nice 19, JOBS (default 1) at
 # a time, from its seed corpus, its regressions and what earlier runs found (build-fuzz/fuzz-corpus,

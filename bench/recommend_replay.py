@@ -8,7 +8,7 @@ Usage: bench/recommend_replay.py [--tune-seeds A-B] [--check OUT] DUMP [DUMP ...
   --tune-seeds: the seeds the rules may be tuned on (default 1-15); every other seed is held out
   --check OUT: the bench's printed table for the same runs (stdout of ipsd-bench-fidelity, one
                file per dump, in order): asserts that the replay picks what the C rule picked
-Python 3 standard library only (the exploration of issue 9, docs/numerics.md "fifth round"); the
+Python 3 standard library only (docs/numerics.md, "The recommended r": the candidate rules); the
 rule's settings are fit_recommend_opts_default's. A script for study, not part of the suite.
 """
 import functools

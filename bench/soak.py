@@ -10,7 +10,7 @@ and runs, for DURATION seconds (60) or REQUESTS requests (200000), whichever com
     pixel's calibration, at most FITS (400).
 It samples ipsd's resident memory (VmRSS) every second and prints it at the start, the middle and
 the end of the load and after IDLE seconds (10) of no requests, with request rates, error counts
-and latency percentiles. Flat RSS is the goal (issue 10): allocator arenas trimmed when idle.
+and latency percentiles. Flat RSS is the goal: allocator arenas trimmed when idle.
 Environment: DURATION, REQUESTS, READERS, FITS, IDLE. Standard library only."""
 import http.client
 import json

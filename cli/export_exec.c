@@ -1,4 +1,4 @@
-/* export_exec.c: the ips commands that need cfitsio run a helper executable beside ips (found
+/* export_exec.c: the ips commands that need cfitsio run a companion executable beside ips (found
  * through /proc/self/exe) with the same arguments: `ips export` runs ips-export, `ips import-fits`
  * runs ips-import-fits. Why second programs: cli/CMakeLists.txt. */
 #include <errno.h>
@@ -11,7 +11,7 @@
 #include "commands.h"
 
 /* Replaces this process by the program prog beside ips; argv[0] stays the command's name (cmd),
- * which the helper's messages use. Returns only on failure. */
+ * which the companion's messages use. Returns only on failure. */
 static int exec_beside(const char *prog, const char *cmd, char **argv)
 {
     char self[PATH_MAX];

@@ -3,7 +3,7 @@
  * each r predicts the data; they do not see that the finest maps' checkerboards lie in the
  * spot's near-null space, so they pick the largest r the points allow and store noise. The rule
  * here was chosen by measuring every candidate against the simulator's truth over scene families,
- * rasters, photon levels and seeds (bench/fidelity.c; the table is in the README):
+ * rasters, photon levels and seeds (bench/fidelity.c; the tables are in docs/studies/maps.md):
  *   1. admissible maps: a map exists with no status flag that makes it untrustworthy
  *      (underdetermined, no_signal, ill_conditioned, unconstrained), and its own noise, the rms of
  *      S_err over the sub-pixels scaled to the data's scatter (see noise_scale in recommend.c), is
@@ -44,13 +44,10 @@
  *      biased by more than the next one's extra noise (narrow structure, such as the paper's
  *      edge dips, that the resolution estimate underrates); the error ratio keeps the
  *      checkerboard out (a noise-dominated r_cv + 1 that fits the points).
- * Measured (bench/fidelity.c, the README's table; seeds 1-3 chose the settings, 4-9 held out,
- * 10-12 held out until they showed the miss the near-misfit clause of step 3 fixes, 13-15 run once
- * after it and showed the dead-corner miss the one-standard-error rule fixes, 16-21 run once
- * after that; a fifth round, tuned on 1-15 and reported on 16-21, measured a risk estimate
- * against a richer map, a simulation-based self-consistency check, other scatter estimates and
- * the settings, and none beat this rule: bench/recommend_replay.py): see docs/numerics.md for
- * the tables.
+ * The settings (fit_recommend_opts_default) were chosen on seeds 1-3 of bench/fidelity.c and
+ * checked on held-out seeds; the tables, and the candidate rules measured against this one and
+ * rejected (bench/recommend_replay.py), are in docs/studies/maps.md and docs/numerics.md, "The
+ * recommended r".
  * Pure, thread-safe. */
 #ifndef IPSD_FIT_RECOMMEND_H
 #define IPSD_FIT_RECOMMEND_H

@@ -1,5 +1,5 @@
 /* scan_cover.h: which pixels of a scan's sub-frame its raster covers well enough to be fitted
- * (issue 12, "every pixel a scan covers"), decided by the raster alone.
+ * ("every pixel a scan covers"), decided by the raster alone.
  *
  * The rule (docs/instrument.md, "Which pixels a raster covers"): sub-frame pixel (dcol, drow) is
  * covered when

@@ -1,4 +1,4 @@
-/* srv_fitall.c: a fit job of every pixel a finished scan covers ("pixels": "all", issue 12). The
+/* srv_fitall.c: a fit job of every pixel a finished scan covers ("pixels": "all"). The
  * fit worker that claimed the job fits the covered pixels of the scan's sub-frame
  * (server/srv_cover.h: the rule of instrument/scan_cover.h) one after another, in row-major order
  * from the top left, each exactly as a fit of that one pixel (srv_pixel_scan over every stored

@@ -1,5 +1,5 @@
 /* srv_int.h: what the files of server/ share and the API does not see: the server struct, the
- * work queue's wake-up, the event helper, and the worker thread entry points. */
+ * work queue's wake-up, the event function, and the worker thread entry points. */
 #ifndef IPSD_SERVER_SRV_INT_H
 #define IPSD_SERVER_SRV_INT_H
 

@@ -30,7 +30,7 @@ static int write_port_file(const srv_config_t *cfg, int port, err_t *err)
 }
 
 /* glibc keeps what threads free in per-thread arenas and rarely gives it back: under hours of
- * mixed load RSS climbed to 211 MB and stayed there idle (issue 10; malloc_trim brought it to
+ * mixed load RSS climbed to 211 MB and stayed there idle (malloc_trim brought it to
  * 35 MB, so no leak). ipsd caps the arenas at start and trims them every MEM_TRIM_S seconds
  * from the main thread, which only waits for signals. bench/soak.py prints RSS over a run. */
 #define MEM_TRIM_S 10

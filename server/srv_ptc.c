@@ -1,4 +1,4 @@
-/* srv_ptc.c: photon-transfer jobs (srv_ptc.h; EMVA 1288, issue 12). The scan worker, the one
+/* srv_ptc.c: photon-transfer jobs (srv_ptc.h; EMVA 1288). The scan worker, the one
  * thread that owns the instrument, runs them between scans in queue order: the simulated bench
  * opened as the sensor (its constants from the database) with the flat-field lamp of
  * sim_set_flat and no spot, the series of flats and darks of instrument/ptc_run.h over the N x N

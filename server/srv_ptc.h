@@ -1,4 +1,4 @@
-/* srv_ptc.h: photon-transfer jobs (EMVA 1288, issue 12): what a request asks of a measurement
+/* srv_ptc.h: photon-transfer jobs (EMVA 1288): what a request asks of a measurement
  * (the series of exposures and the pixels measured), queueing it for the instrument's worker,
  * and the sensor's measured constants a fit uses for its sigma (eq. 5). Thread-safe. */
 #ifndef IPSD_SERVER_SRV_PTC_H

@@ -8,7 +8,7 @@
  * a graceful shutdown gives the job back to the queue. Photon-transfer measurements need the
  * instrument too: this worker takes them in queue order with the scans (srv_ptc.c runs them).
  *
- * Storage faults (disk full, read-only, I/O errors; issue 10): the point that cannot be stored
+ * Storage faults (disk full, read-only, I/O errors): the point that cannot be stored
  * fails the scan and its job with the database's error, the instrument is released, and the
  * worker takes the next job. When even recording the failure cannot be written, the failure is
  * kept in memory (srv_scan_unrecorded, shown by GET /api/health) and the worker retries writing

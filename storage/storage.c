@@ -53,7 +53,7 @@ static int64_t pragma_int(storage_t *st, enum stg_id id)
 }
 
 /* A write committed: the storage is healthy again, but after a "full" fault only when the
- * database has more room than it had at the fault (issue 10: an update in place, e.g. recording
+ * database has more room than it had at the fault (an update in place, e.g. recording
  * the failure, needs no new page and succeeds on a disk still full, and health then said ok).
  * More room: it grew past its size at the fault (the disk or the page cap gave pages), or it
  * has more free pages than then (data was deleted). Unknown sizes: any write clears it. */

@@ -58,7 +58,7 @@ void storage_set_gate(storage_t *st, storage_gate_t *g);
  * gate (then changes cannot be seen: do not cache). Writes by other processes are not counted. */
 int storage_calib_generation(storage_t *st, uint64_t *gen);
 
-/* The storage's health as the gate saw it (issue 10, "Storage faults"): every handle sharing the
+/* The storage's health as the gate saw it ("Storage faults"): every handle sharing the
  * gate records there a write (or read) that failed because of the storage itself - SQLITE_FULL
  * (fault -ENOSPC, "full"), SQLITE_READONLY (-EROFS, "read-only"), SQLITE_IOERR / SQLITE_CORRUPT /
  * SQLITE_CANTOPEN (-EIO, "io-error") - and a write that commits clears it ("full": only when the
@@ -215,13 +215,13 @@ int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, in
  * first time; entering done/failed/cancelled stamps finished_ms. -ENOENT for an unknown scan. */
 int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, const char *error,
                            err_t *err);
-/* Resumes a failed scan (issue 10: after a storage or camera fault): the scan and its latest
+/* Resumes a failed scan (after a storage or camera fault): the scan and its latest
  * scan job are queued again in one transaction, keeping every stored point, the setup and the
  * job's progress (the job's error, end time and attempts are cleared); the scan worker continues
  * after the last stored point. *job_id: that job. -ENOENT unknown scan; -ESTALE when the scan
  * or its job is not failed. */
 int storage_scan_resume(storage_t *st, int64_t id, int64_t *job_id, err_t *err);
-/* The end of a scan whose points are all stored, in one transaction (issue 10: as three, a user's
+/* The end of a scan whose points are all stored, in one transaction (as three, a user's
  * re-fit queued between the scan becoming done and the automatic fit made the automatic fit be
  * skipped): the scan becomes done, the automatic fit (fit_params_json) is queued for it, and its
  * running scan job job_id ends as done. The fit is queued when the scan becomes done here, or when

@@ -99,7 +99,7 @@ int stg_calib_check(storage_t *st, const storage_calib_t *c, err_t *err)
     return ret;
 }
 
-/* Single-row helper: steps bound q expecting one integer (0 when there is no row). */
+/* Single row: steps bound q expecting one integer (0 when there is no row). */
 static int one_id(storage_t *st, sqlite3_stmt *q, int rc, int64_t *v, err_t *err, const char *what)
 {
     int ret = rc == SQLITE_OK ? stg_row(st, q, err, what) : stg_error(st, rc, err, what);

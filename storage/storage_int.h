@@ -1,6 +1,6 @@
 /* storage_int.h: what the files of storage/ share and nobody else sees: the handle, the ids of
  * the prepared statements (their SQL is in storage_sql.c), the column lists the row readers
- * depend on, and small checked helpers for binding, reading, transactions and BLOBs. */
+ * depend on, and small checked functions for binding, reading, transactions and BLOBs. */
 #ifndef IPSD_STORAGE_INT_H
 #define IPSD_STORAGE_INT_H
 

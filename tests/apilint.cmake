@@ -1,5 +1,5 @@
-# tests/apilint.cmake: the OpenAPI document against the ecosystem's tools and the server (issue 13,
-# docs/api.md "Checking the document").
+# tests/apilint.cmake: the OpenAPI document against the ecosystem's tools and the server
+# (docs/api.md "Checking the document").
 #   openapi_lint       Redocly's CLI, recommended rules: zero errors and zero warnings, on the file
 #                      and on the document a real ipsd serves
 #   openapi_examples   every example in the document validates against its schema (ajv)
@@ -19,7 +19,7 @@ add_test(NAME openapi_lint
 add_test(NAME openapi_examples
          COMMAND ${IPSD_NODE} ${IPSD_APILINT}/validate.mjs ${PROJECT_SOURCE_DIR}/api/openapi.json
                  --examples)
-# 20 of the document's operations are reached by the HTTP tests today; fewer means a test stopped
+# 20 of the document's operations are reached by the HTTP tests; fewer means a test stopped
 # recording (or lost its coverage)
 add_test(NAME openapi_answers
          COMMAND ${IPSD_NODE} ${IPSD_APILINT}/validate.mjs ${PROJECT_SOURCE_DIR}/api/openapi.json

@@ -1,4 +1,4 @@
-# tests/fuzz.cmake: the fuzz targets of tests/fuzz/ (issue 10: hostile input), one per parser of
+# tests/fuzz.cmake: the fuzz targets of tests/fuzz/ (hostile input), one per parser of
 # outside input: the scan-file reader, each JSON request validator of the API, the URL router,
 # the query parsing of the list endpoints, base/'s text parsers, the stage string, and the
 # POSITIONS table of a FITS scan cube (tests/fuzz/README.md).

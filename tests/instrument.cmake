@@ -19,7 +19,7 @@ if(Python3_Interpreter_FOUND)
 endif()
 ipsd_add_test(test_cam_sim ipsinstr)
 ipsd_add_test(test_scan ipsinstr)
-ipsd_add_test(test_scan_cover ipsinstr) # which pixels a raster covers (issue 12)
+ipsd_add_test(test_scan_cover ipsinstr) # which pixels a raster covers
 ipsd_add_test(test_fidelity ipsinstr) # the short form of the fidelity harness
 set_tests_properties(test_fidelity PROPERTIES TIMEOUT 300) # busy, ASan: the kriged maps ~4x
 ipsd_add_test(test_krige_prior ipsinstr) # the kriged map's prior from the sweep, against the truth

@@ -6,7 +6,7 @@
 if(TARGET ipsapi)
     ipsd_add_test(test_server ipssrv)
     ipsd_add_test(test_api ipsapi)
-    # white-box: it calls api/api_int.h's request-independent helpers directly
+    # white-box: it calls api/api_int.h's request-independent functions directly
     target_include_directories(test_api PRIVATE ${PROJECT_SOURCE_DIR}/api)
 endif()
 # test_server_flow compares the stored maps with `ips fit` (cli/), so it needs ips too

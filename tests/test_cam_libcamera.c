@@ -73,7 +73,7 @@ int main(void)
         CHECK(cam_open("libcamera", NULL, &cam, &err) == -ENODEV && cam == NULL);
         CHECK(strstr(err.msg, "no camera found by libcamera") != NULL);
         CHECK(cam_open("libcamera", "/base/no/such/camera", &cam, &err) == -ENODEV);
-        /* a second round: the shared camera manager is released and made again cleanly */
+        /* a second pass: the shared camera manager is released and made again cleanly */
         CHECK(cam_list("libcamera", &list, &n, &err) == 0 && n == 0);
         printf("no camera present: libcamera backend reports -ENODEV (%s)\n", err.msg);
     } else {

@@ -35,9 +35,8 @@ for r in rows:
     # fit_design_opts_for_tol's claim: the row-relative error of the entries integrated is
     # within tol (as far as the adaptive-quadrature reference can resolve it) at the reference
     # positions and at 216 spots of a raster around the pixel, 0.5-14.5 um beyond its edges
-    # (before session 13: 1.5e-4, 1.8e-7 and 9.5e-11 at the 1e-5, 1e-9 and 1e-13 settings);
-    # 16 spots 50-500 um from the pixel: within 3e-11 (a cell there is a second
-    # difference of nearly equal line integrals, docs/numerics.md; 2e-10 before session 13);
+        # 16 spots 50-500 um from the pixel: within 3e-11 (a cell there is a second
+    # difference of nearly equal line integrals, docs/numerics.md);
     # entries the leave-out rule drops are held to its own bound (a fraction of the spot's flux)
     if not (r["median_ms"] > 0 and r["radial_evals"] > 0 and r["runs"] >= 3):
         bad.append(f"R {r['R_um']} tol {r['tol']}: no measurement")

@@ -16,7 +16,7 @@
  * map; the one r nearest it (the Bayes pick of one grid) is r = 1 on the flat pixel and r = 3 on
  * the dead corners, the grids that hold those truths exactly. Where the kriged map drops its
  * smooth part (a dip), its S_err still covers the truth (rms z <= 1.1, 92 % within 2 sigma).
- * The full table is a benchmark (build/bench/ipsd-bench-fidelity, README). */
+ * The full table is a benchmark (build/bench/ipsd-bench-fidelity, docs/studies/maps.md). */
 #include <math.h>
 #include <string.h>
 
@@ -53,7 +53,7 @@ static const struct {
      * kept at r = 6 (5.87x) until step 2's guard was waived for an r dividing r_cv */
     {"deadcorner", 0, 0.6, 37, 1, 0},
     /* misses of the rule (1.32x, 1.32x, 1.14x: one r too fine at a low scatter, one r too
-     * coarse; README) that the shrunk map (fit/shrink.h) brings within 1.1x: the shrunk map's
+     * coarse; docs/studies/maps.md) that the shrunk map (fit/shrink.h) brings within 1.1x: the shrunk map's
      * cases only */
     {"softedge", 9, 0.6, 5, 0.1, 1},
     {"softedge", 0, 0.6, 4, 0.1, 1},

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""test_fit_pixels.py IPS: `ips fit FILE --pixels all` on a scan file with a subframe (issue 12,
-item 1; docs/contracts.md), end to end through the ips binary.
+"""test_fit_pixels.py IPS: `ips fit FILE --pixels all` on a scan file with a subframe
+(docs/contracts.md), end to end through the ips binary.
 
 A paperlike scan by the simulated bench with the paper's raster (5 x 5 pixels of 6 um in 0.6 um
 steps) and a 7 x 7 sub-frame, written with every pixel of the sub-frame (`ips simulate
@@ -14,7 +14,7 @@ steps) and a 7 x 7 sub-frame, written with every pixel of the sub-frame (`ips si
 - the POI's document is `ips fit FILE` with the same options (every number the same; only the
   times differ), and so is a neighbour's against `ips fit` of the file `ips simulate --pixel`
   writes for that pixel alone from the same seed (an independent extraction of its positions);
-- without --pixels the output is today's: the same as for the file without its subframe;
+- without --pixels the output is unchanged: the same as for the file without its subframe;
 - bad input exits 2 with one line on stderr naming the field or option."""
 import json
 import math
@@ -180,7 +180,7 @@ def main(t):
     check(untimed(nb) == untimed(mine),
           "pixel (+1, -2)'s document is ips fit of the file ips simulate --pixel 1,-2 writes")
 
-    # without --pixels: today's output (the subframe is not read into it)
+    # without --pixels: the output without the subframe (the subframe is not read into it)
     plain = os.path.join(t, "plain.json")
     with open(plain, "w") as f:
         json.dump({k: v for k, v in base.items() if k != "subframe"}, f)

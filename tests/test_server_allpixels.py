@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_allpixels.py IPSD IPS: every pixel a scan covers (issue 12, item 1).
+"""test_server_allpixels.py IPSD IPS: every pixel a scan covers.
 
 A simulated paper-like scan (the paper's raster: 5 x 5 pixels of 6 um in 0.6 um steps, with a
 7 x 7 sub-frame) is fitted for all pixels with one request (POST /api/scans/{id}/fits with

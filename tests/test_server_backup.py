@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_backup.py IPSD: online backups of a running ipsd's database (issue 10), read back by
+"""test_server_backup.py IPSD: online backups of a running ipsd's database, read back by
 Python's sqlite3 (an independent reader):
   - POST /api/backup while a scan is held after its 40th stored point: 201 with the file, its
     size and "ok"; the copy passes integrity_check, is a self-contained file (journal_mode

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_camfault.py IPSD: camera faults (issue 10). The simulated camera's fault switch is
+"""test_server_camfault.py IPSD: camera faults. The simulated camera's fault switch is
 the failpoint camera.frame (docs/server.md, "Test hooks"): `hold` makes the camera stop answering
 at a given frame (it hangs until ipsd's frame timeout, --camera-timeout, ends the wait), `error`
 makes one capture fail. The hold is ended by the configured timeout, not by the test: the test

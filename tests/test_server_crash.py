@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """test_server_crash.py IPSD: a crash at any point of a fit job loses nothing and writes nothing
-twice (issue 10, defect 2). ipsd is killed (SIGKILL, by the `crash` failpoint action:
+twice. ipsd is killed (SIGKILL, by the `crash` failpoint action:
 docs/server.md "Test hooks") at each named point of a fit's end: during the fit (fit.step),
 after the fit is computed but before it is stored (fit.before_store), and after the store's
 transaction (fit.after_store). It is started again without failpoints, and Python's sqlite3

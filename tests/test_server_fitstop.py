@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """test_server_fitstop.py IPSD: a cancel and SIGTERM stop a fit inside a step, not only between
-steps (issue 10, defect 4). The fit is held by the failpoint fit.poll (docs/server.md "Test
+steps. The fit is held by the failpoint fit.poll (docs/server.md "Test
 hooks") at its first poll of the stop: the design matrix's first batch of its first r, before any
 step ended (progress 0). (A later poll is not safe: how many polls a step makes follows the design's
 batching, and the 3rd fell in the second r once the first took one batch: its progress then
@@ -10,7 +10,7 @@ cancelled with nothing stored and the worker takes the next job; at SIGTERM ipsd
 job goes back to the queue, then runs to done at the next start. The latency is measured in
 bench (the report), not asserted here. The same inside the LM (the point fit.poll.lm, hit only by
 the LM's own polls): a cancel and a SIGTERM there end the fit from inside its iterations. The same
-inside the other long loops, each held at the first hit of its own point (issue 10: "between r and
+inside the other long loops, each held at the first hit of its own point ("between r and
 inside the long loops"): the non-negative solve's active-set steps (fit.poll.nnls, "nonneg": true),
 the Wiener baseline's kernel and FFT passes (fit.poll.wiener, "wiener": true on the reference
 raster, after the sweep's steps) and the geometry fit's iterations (fit.poll.geometry, "fit_geometry":

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """test_server_flood.py IPSD: one address flooding ipsd with connections does not lock out the
-others (issue 10, defect 1), attacked on loopback as an outsider would:
+others, attacked on loopback as an outsider would:
   - 1100 connections from 127.0.0.2 trickling an unfinished header, then 1100 event streams from
     127.0.0.2: /api/health from 127.0.0.1 still answers (--max-per-client, default 128, and a
     connection limit far above libmicrohttpd's 1020);

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """test_server_hostile.py IPSD: requests an attacker (or a broken client) sends to a real ipsd on
-loopback, each a defect found by attacking it (issue 10), each answered with the JSON error body
+loopback, each a defect found by attacking it, each answered with the JSON error body
 of docs/contracts.md and nothing stored changed:
   - text that is not valid UTF-8 in a query value, a path, or a member name cut off by the
     message buffer keeps the error body whole (message and field);
@@ -155,7 +155,7 @@ def test(c, t, argv, daemons):
     def scan(raster):
         return d.post("/api/scans", {"sensor_id": sensors[0], "poi": {"col": 100, "row": 100},
                                      "raster": raster})
-    # the attack of issue 10: 101 x 101 pixels at 1 um, 99 x 99 sub-frames of 1000 frames
+    # the attack: 101 x 101 pixels at 1 um, 99 x 99 sub-frames of 1000 frames
     r = scan({"area_px": 101, "step_um": 1, "sub_px": 99, "frames": 1000})
     c.error(r, 422, "raster", "a 7 TB scan: 422 naming raster")
     c.ok("max-scan-bytes" in r.json()["error"]["message"], "the message names --max-scan-bytes")

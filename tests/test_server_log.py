@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """test_server_log.py IPSD IPS: ipsd's log says what matters and nothing else. Dashboard tabs
 that close while their event stream is open (the client resets the connection) leave no
-libmicrohttpd "Failed to send ..." lines (issue 11: the log of scripts/run.sh filled with them),
+libmicrohttpd "Failed to send ..." lines (the log of scripts/run.sh filled with them),
 and every line ipsd or libmicrohttpd writes carries the "ipsd:" prefix (but the request log's,
 which have their own format and record the four streams as aborted). Log rotation
 (logrotate's usual contract, docs/operations.md): after the log file is renamed, SIGHUP makes

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_ptc.py IPSD IPS: photon transfer on the bench through the API (issue 12 item 3).
+"""test_server_ptc.py IPSD IPS: photon transfer on the bench through the API.
 
 - POST /api/sensors/{id}/ptc queues a measurement (202, the job, Location); the scan worker runs it
   (kind "ptc"), publishing progress events; GET /api/sensors/{id}/ptc gives the current

@@ -98,7 +98,7 @@ def test(c, t, argv, daemons):
         c.ok(abs(w["x0_um"] - inside_nodes[0]) < 1e-9, "Wiener map starts at the first node inside")
     c.ok(count(scan) < count(scan, 0.6) < N * N, "the regions differ on this raster")
 
-    # the geometry fit (issue 9 item 6) through the API: the document's geometry member, and the
+    # the geometry fit through the API: the document's geometry member, and the
     # chi2 at the fitted geometry no larger than at the written one (the fit starts there and
     # only goes down)
     r = d.post("/api/fits", dict(base, fit_geometry=True, geometry_r=5))

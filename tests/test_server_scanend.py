@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_scanend.py IPSD: the end of a scan is one transaction (issue 10): the scan becomes
+"""test_server_scanend.py IPSD: the end of a scan is one transaction: the scan becomes
 done, its automatic fit is queued and its job ends together (storage_scan_finish). As three
 transactions, a user's re-fit queued in the window after the scan became done made the scanner
 skip the automatic fit (it queued one only when the scan had no fit job). The failpoint

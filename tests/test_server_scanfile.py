@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """test_server_scanfile.py IPSD IPS: a stored scan downloaded as one scan file with its sub-frame
 (GET /api/scans/{id}/scanfile) and fitted off line for every pixel (`ips fit FILE --pixels all`)
-gives the maps the server's fit of every pixel stored (issue 12, item 1).
+gives the maps the server's fit of every pixel stored.
 
 A simulated paperlike scan (the paper's raster: 5 x 5 pixels of 6 um in 0.6 um steps, 7 x 7
 sub-frame) is fitted on the server with "pixels": "all" and some options; then

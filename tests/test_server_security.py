@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_security.py IPSD: access control, CORS and the request log of a real ipsd (issue 10):
+"""test_server_security.py IPSD: access control, CORS and the request log of a real ipsd:
   - token files hold several tokens, plain or as sha256:HEX (hashes made here by Python's
     hashlib, an independent SHA-256; `ipsd --hash-token` prints the same line);
   - a missing, wrong, truncated or extended token gets 401 with the JSON error body and
@@ -43,7 +43,7 @@ def bearer(token):
 
 def test(c, t, argv, daemons):
     exe = argv[1]
-    # ---- the helper prints the line a token file may hold instead of the token ----
+    # ---- ipsd --hash-token prints the line a token file may hold instead of the token ----
     r = subprocess.run([exe, "--hash-token"], input=READER + "\n", capture_output=True,
                        text=True, timeout=ipsd_http.DEADLINE_S)
     c.eq((r.returncode, r.stdout.strip()), (0, sha_line(READER)), "ipsd --hash-token")

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_stage.py IPSD: ipsd --bench sim with a real stage protocol (issue 12): the
+"""test_server_stage.py IPSD: ipsd --bench sim with a real stage protocol: the
 simulated camera with the "gcs" stage backend on the emulated PI GCS 2.0 controller of
 tests/gcs_emulator.py (TCP loopback). Checks (tests/stage_scan.py, shared with the zaber family):
 bad --stage strings exit 2 with one line naming --stage; a controller that does not answer stops

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_static.py IPSD: the dashboard's files are cached by browsers (issue 11). A real
+"""test_server_static.py IPSD: the dashboard's files are cached by browsers. A real
 ipsd serves a web directory made here:
   - every file has an ETag, and a request naming it in If-None-Match (alone, in a list, weak, or
     "*") gets 304 with no body and the same ETag; another tag gets 200 with the file;

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_storfault.py IPSD: storage faults (issue 10, defect 3: a full disk left the scan
+"""test_server_storfault.py IPSD: storage faults (a full disk left the scan
 and its job running with no error until a restart). Three ways to make the storage refuse writes,
 each tested to the same end state:
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""test_server_zaber.py IPSD: ipsd --bench sim with the second stage protocol family (issue 12):
+"""test_server_zaber.py IPSD: ipsd --bench sim with the second stage protocol family:
 the simulated camera with the "zaber" stage backend on the emulated Zaber devices of
 tests/zaber_emulator.py (TCP loopback), the way test_server_stage.py runs the "gcs" one: any camera
 backend with any stage backend. Checks (tests/stage_scan.py, shared with the gcs family): bad

@@ -15,7 +15,7 @@ if(EXISTS /usr/bin/chromium AND TARGET ipsd)
                      $<TARGET_FILE:ipsd> ${PROJECT_SOURCE_DIR}/web
                      ${CMAKE_BINARY_DIR}/web-screenshots)
     # busy 2-core machine: 60-140 s (140 s with 8 builds running: two more fits and the pixel
-    # view since issue 11), its own watchdog at 420 s; ~3.5x margin
+    # view), its own watchdog at 420 s; ~3.5x margin
     # the JSON answers the page and the test got are recorded like the HTTP tests' (tests/
     # server.cmake) for openapi_answers (tests/apilint.cmake), which therefore runs after it
     set_tests_properties(web_dashboard PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 480

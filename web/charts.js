@@ -1,4 +1,4 @@
-// charts.js: the dashboard's Plotly.js figures (issue 11): heat maps on a pixel's axes in
+// charts.js: the dashboard's Plotly.js figures: heat maps on a pixel's axes in
 // micrometres with the pixel outline drawn, a 3-D surface, and values at spot positions; each
 // with hover values, zoom and Plotly's mode bar (PNG export, plus an SVG button). Plotly is the
 // npm package plotly.js-dist-min pinned by web/package-lock.json, installed by `npm ci --prefix

@@ -1,4 +1,4 @@
-// dom.js: small DOM helpers shared by the views: element building (text only, never HTML from
+// dom.js: small DOM functions shared by the views: element building (text only, never HTML from
 // data), number / time formatting, reading a form into a nested JSON body, and showing an API
 // error (message and offending field) next to the form that caused it.
 

@@ -1,4 +1,4 @@
-// scan_plots.js: the Scan view's Plotly.js figures (charts.js), issue 11:
+// scan_plots.js: the Scan view's Plotly.js figures (charts.js):
 //   - the response raster of any pixel of the sub-frame (a scan file from
 //     GET /api/scans/ID/pixels/DCOL/DROW?all=1) as a heat map over the spot positions, on the
 //     pixel's axes in µm from its top-left corner (y downward, as in the API), the pixel

@@ -1,5 +1,5 @@
 // sensor.js: the Sensor view (#/sensors/ID): the sensor's constants, and its photon transfer
-// (EMVA 1288, issue 12): a "Measure photon transfer" button (POST /api/sensors/{id}/ptc), the
+// (EMVA 1288): a "Measure photon transfer" button (POST /api/sensors/{id}/ptc), the
 // job's progress from the event stream, the current measurement's figures (gain, read noise,
 // dark signal, saturation, linearity range, with the gain's standard error), the photon-transfer
 // plot (temporal variance against mean signal above the dark level, log-log, with the fitted line

@@ -1,5 +1,5 @@
 // lint.mjs: runs Redocly's CLI (pinned in tests/apilint/package-lock.json) with its recommended
-// rules on the OpenAPI document and fails on any error or warning (issue 13).
+// rules on the OpenAPI document and fails on any error or warning.
 //   node lint.mjs OPENAPI.json [IPSD]
 // With IPSD, the document a real ipsd serves (GET /api/openapi.json, which adds the scan request's
 // bounds to the file) is linted too: ipsd runs on a free loopback port with a temporary database.

@@ -1,4 +1,4 @@
-// validate.mjs: checks that ipsd's answers have the shapes api/openapi.json promises (issue 13).
+// validate.mjs: checks that ipsd's answers have the shapes api/openapi.json promises.
 //
 //   node validate.mjs OPENAPI.json --examples
 //       every example in the document (request bodies, answers) validates against its schema;
