@@ -26,7 +26,7 @@
  * fine cells' space (the mixed-model equations: one p x p factorisation, p = 1 + F^2 + sum q^2,
  * however many points), whichever costs less (krige_int.h); 10-30 evaluations a model. On the
  * reference 81-point scan about 10 ms, 361 points about 0.08 s, 1681 points 0.15 s, the 2601
- * points of the whole 51 x 51 raster about 0.3 s (docs/numerics.md "The prior from the sweep").
+ * points of the whole 51 x 51 raster about 0.3 s (docs/numerics.md "The kriged map's speed").
  * Pure, thread-safe. */
 #ifndef IPSD_FIT_KRIGE_H
 #define IPSD_FIT_KRIGE_H

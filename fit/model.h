@@ -112,7 +112,8 @@ typedef struct fit_sweep {
     fit_result_t *fits;        /* r_max - r_min + 1 results */
     int best_aic, best_bic;    /* r of the smallest AIC / BIC among fits with a map; 0 if none */
     int recommended_r;         /* the r whose map is expected closest to the truth (recommend.h),
-                                  0 if none; its map is the one a calibration stores */
+                                  0 if none; its map is the one a calibration stores with
+                                  "map": "recommended" (the kriged map by default) */
     int range_edge;            /* AIC or BIC picked r_max or the largest r the points determine */
     char recommended_reason[320];
     struct fit_kriged *kriged; /* the kriged map of the recommended r (krige.h) when the pipeline

@@ -15,8 +15,8 @@
  * r in hindsight in 1174 (worst 1.15x) against the recommended map's 1162 (1.32x) and the scalar
  * James-Stein factor's 1169 (1.18x), closer to the truth than the recommended map in 817 and
  * farther in 9 (by at most 1e-4); on 1176 fresh cases (seeds 43-63) 1166 against 1140. An
- * addition beside the recommended map (the calibration a fit stores), not instead of it. Pure,
- * thread-safe. */
+ * addition beside the recommended map (the paper's map, which a calibration stores when asked;
+ * the kriged map by default), not instead of it. Pure, thread-safe. */
 #ifndef IPSD_FIT_SHRINK_H
 #define IPSD_FIT_SHRINK_H
 

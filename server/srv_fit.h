@@ -2,7 +2,8 @@
  * sweep over r, optionally the F-test of an edge model and the Wiener baseline; the same call
  * `ips fit` makes), encoded as the `ips fit` JSON document (json/fitjson.h) so that the stored
  * fits.result reads like the command-line tool's output, plus the map that becomes the
- * calibration (the recommended map, fit/recommend.h). Pure computation, thread-safe. */
+ * calibration (the kriged map, fit/krige.h, unless the params ask for the recommended map,
+ * fit/recommend.h, or the shrunk one). Pure computation, thread-safe. */
 #ifndef IPSD_SERVER_SRV_FIT_H
 #define IPSD_SERVER_SRV_FIT_H
 
