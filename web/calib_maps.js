@@ -16,8 +16,10 @@
 import { DIVERGING, VIRIDIS, cellAxes, jointRange, outline, pixelFrame, plotFigure, rows,
     squareAxes } from './charts.js';
 
-export const MAX_COMMON = 96; // cells per axis of a common grid at most
-const FALLBACK_N = 48;        // common grid when the lcm is larger, or a map has nodes
+export const MAX_COMMON = 192; // cells per axis of a common grid at most (kriged maps of 24 and
+                               // 28 cells meet exactly on 168)
+const FALLBACK_N = 48;         // common grid with a map of nodes, at most
+const FALLBACK_PER_CELL = 4;   // when the lcm is larger: 4 cells per cell of the finer map
 const MAX_MULTIPLES = 24;     // maps in the history figure at most (the table lists them all)
 
 const gcd = (a, b) => (b ? gcd(b, a % b) : a);
@@ -54,7 +56,8 @@ export function commonGrid(a, b) {
     }
     if (a.cell && b.cell) {
         const l = a.r * b.r / gcd(a.r, b.r);
-        const n = l <= MAX_COMMON ? l : FALLBACK_N;
+        const n = l <= MAX_COMMON ? l
+            : Math.min(MAX_COMMON, FALLBACK_PER_CELL * Math.max(a.r, b.r));
         return { n, same: false, how: `The maps have r = ${a.r} and r = ${b.r}: both resampled ` +
             `onto a common ${n} × ${n} grid (each cell takes the value of the sub-pixel under ` +
             `its centre${l <= MAX_COMMON ? '; exact, n is a multiple of both r' : ''}), then ` +

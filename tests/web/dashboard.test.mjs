@@ -945,7 +945,9 @@ async function run(base, page, api) {
     // the difference recomputed here: same r cell by cell; else both on the lcm grid, each cell
     // the sub-pixel under its centre
     const gcd = (a, b) => (b ? gcd(b, a % b) : a);
-    const nC = A.r === B.r ? A.r : A.r * B.r / gcd(A.r, B.r);
+    // docs/web.md: the lcm when at most 192, else 4 cells per cell of the finer map (<= 192)
+    const lcm = A.r * B.r / gcd(A.r, B.r);
+    const nC = A.r === B.r ? A.r : lcm <= 192 ? lcm : Math.min(192, 4 * Math.max(A.r, B.r));
     const pick = (m, i, j) => m.S[Math.floor((j + 0.5) / nC * m.r) * m.r +
         Math.floor((i + 0.5) / nC * m.r)];
     const want = [];
