@@ -14,6 +14,7 @@
 #include <fitsio.h>
 
 #include "export/fitsscan.h"
+#include "fitshdr.h"
 
 #define FULL_SCALE_DEFAULT 16383.0 /* the scan file's default (fit/scandata.h), 14-bit ADC */
 
@@ -381,16 +382,29 @@ int fitsscan_read_capped(const void *buf, size_t len, size_t max_points, fitssca
                          err_t *err)
 {
     memset(out, 0, sizeof *out);
-    /* cfitsio reads a read-only memory file in place; it neither writes nor frees the buffer */
-    void *mem = (void *)buf;
+    /* cfitsio reads a read-only memory file in place; it neither writes nor frees the buffer.
+     * Its memory driver reads whole 2880-byte records, so a file whose length is not a whole
+     * number of records (a conforming one always is) is read from a zero-padded copy; len stays
+     * the file's own length, so a cut file still reads as cut (data_inside). */
+    void *mem = (void *)buf, *padded = NULL;
     size_t size = len;
     fitsfile *f = NULL;
     int status = 0, rc;
     if (len < 2880 || memcmp(buf, "SIMPLE  =", 9) != 0)
         return err_set(err, -EINVAL, "not a FITS file (it must begin with a 2880-byte header "
                                      "whose first card is SIMPLE)");
-    if (fits_open_memfile(&f, "scan.fits", READONLY, &mem, &size, 0, NULL, &status))
+    if ((rc = fitshdr_check(buf, len, err))) return rc; /* before cfitsio reads any header */
+    if (len % 2880) {
+        size = len + (2880 - len % 2880);
+        if (!(padded = calloc(1, size)))
+            return err_set(err, -ENOMEM, "out of memory for a %zu-byte FITS file", len);
+        memcpy(padded, buf, len);
+        mem = padded;
+    }
+    if (fits_open_memfile(&f, "scan.fits", READONLY, &mem, &size, 0, NULL, &status)) {
+        free(padded);
         return cfitsio_fail(err, status, "not a readable FITS file");
+    }
     int simple = 0;
     fits_read_key(f, TLOGICAL, "SIMPLE", &simple, NULL, &status);
     rc = status || !simple
@@ -400,6 +414,7 @@ int fitsscan_read_capped(const void *buf, size_t len, size_t max_points, fitssca
     status = 0;
     fits_close_file(f, &status);
     fits_clear_errmsg();
+    free(padded);
     if (rc) fitsscan_free(out);
     return rc;
 }

@@ -249,6 +249,12 @@ def bad_inputs(c, ips, t, scans, poi, good):
         # two D columns (16 bytes) in rows of 8: cfitsio read Y from the next row's X
         ("NAXIS1 8, two D columns", patched(t, three_points(t), "naxis1", 1, "NAXIS1",
                                             "NAXIS1  = %20s" % "8"), [], "NAXIS1 = 8"),
+        # cfitsio 4.2 copies an unquoted 70-character TTYPE into a smaller buffer (the fortified
+        # build aborts the process): every card's syntax is checked before cfitsio reads it
+        ("TTYPE1 unquoted, 70 chars", patched(t, good, "longttype", 1, "TTYPE1",
+                                              "TTYPE1  = " + "A" * 70), [], "TTYPE1"),
+        ("a DEL byte in a card", patched(t, good, "delbyte", 1, "TUNIT1", "TUNIT1  = 'um\x7f'"),
+         [], "not printable ASCII"),
         ("/dev/zero", "/dev/zero", [], "not a FITS file"),
         ("pixel outside the cube", good, ["--pixel", "2,0"], "outside"),
         ("pixel above the cube", good, ["--pixel", "0,-1"], "outside"),
