@@ -129,7 +129,7 @@ json_t *api_enc_calib(const storage_calib_t *c)
     size_t n = (size_t)c->r * c->r;
     return json_pack(
         "{s:I, s:I, s:{s:i, s:i}, s:i, s:o, s:o, s:o, s:o, s:s, s:o, s:o, s:s, "
-        "s:{s:o, s:o, s:o}, s:s, s:o, s:o, s:b, s:o, s:o, s:o, s:s, s:o}",
+        "s:{s:o, s:o, s:o}, s:s, s:o, s:o, s:b, s:o, s:o, s:o, s:s, s:o, s:o}",
         "id", (json_int_t)c->id, "sensor_id", (json_int_t)c->sensor_id, "pixel", "col",
         c->pixel_col, "row", c->pixel_row, "r", c->r, "S", array(c->S, n), "S_err",
         array(c->S_err, n), "I0", api_num(c->I0), "chi2_red", api_num(c->chi2_red), "status",
@@ -140,7 +140,7 @@ json_t *api_enc_calib(const storage_calib_t *c)
         "superseded_by", id_or_null(c->superseded_by), "current", !c->superseded_by, "supersedes",
         id_or_null(c->supersedes), "by", str_or_null(c->by), "reason", str_or_null(c->reason),
         "map", storage_map_name(c->map), "S_res",
-        c->S_res ? array(c->S_res, n) : json_null());
+        c->S_res ? array(c->S_res, n) : json_null(), "map_note", str_or_null(c->map_note));
 }
 
 json_t *api_enc_page(json_t *items, int64_t total, long long limit, long long offset)

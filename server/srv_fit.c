@@ -135,19 +135,19 @@ static int keep_map(const fit_sweep_t *sw, storage_map_t map, srv_fit_out_t *out
 /* The document's stored_map: which map the fit offers as its pixel's calibration, its grid, and
  * when it is not the map the request asked for (no kriged map: no signal, too few points), why,
  * in one sentence. */
-static int stored_map(json_t *doc, storage_map_t asked, const srv_fit_out_t *out,
+static int stored_map(json_t *doc, storage_map_t asked, srv_fit_out_t *out,
                       const char *kriged_error)
 {
     json_t *o = json_pack("{s:s, s:i}", "map", storage_map_name(out->map), "r", out->r);
     if (!o) return -1;
     if (asked != out->map) {
-        char why[400];
-        snprintf(why, sizeof why, "No %s map could be made (%s), so the calibration is the "
-                 "recommended r = %d map.", storage_map_name(asked),
+        snprintf(out->map_note, sizeof out->map_note,
+                 "No %s map could be made (%s), so the calibration is the recommended r = %d "
+                 "map.", storage_map_name(asked),
                  asked == STORAGE_MAP_KRIGED && kriged_error[0] ? kriged_error
                                                                 : "the sweep has none",
                  out->r);
-        json_object_set_new(o, "why", json_string(why));
+        json_object_set_new(o, "why", json_string(out->map_note));
     }
     return json_object_set_new(doc, "stored_map", o);
 }

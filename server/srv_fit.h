@@ -26,6 +26,9 @@ typedef struct srv_fit_out {
     double *S_res;     /* r*r (owned), or NULL: the map's resolution error (fit/shrink.h) */
     double I0, chi2_red;
     const char *status; /* static status word of that fit */
+    /* "" or one sentence on why the map is not the one the params asked for (the document's
+     * stored_map.why; the calibration's map_note) */
+    char map_note[400];
 } srv_fit_out_t;
 
 /* How a running fit is watched (mapped onto the pipeline's fit_watch_t): stop (may be NULL) is

@@ -144,6 +144,7 @@ static int fit_pixel(struct all_watch *aw, const srv_fit_params_t *p, const stor
                          .S_err = out.S_err,
                          .map = out.map,
                          .S_res = out.S_res,
+                         .map_note = out.map_note[0] ? out.map_note : NULL,
                          .I0 = out.I0,
                          .chi2_red = out.chi2_red,
                          .status = (char *)out.status,

@@ -114,6 +114,7 @@ static int store(storage_t *st, int64_t job_id, const srv_fit_params_t *p, struc
         c->S_err = out->S_err;
         c->map = out->map;
         c->S_res = out->S_res;
+        c->map_note = out->map_note[0] ? out->map_note : NULL;
         c->I0 = out->I0;
         c->chi2_red = out->chi2_red;
         c->status = (char *)out->status;

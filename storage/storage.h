@@ -445,6 +445,8 @@ typedef struct storage_calib {
     storage_map_t map; /* which map of its fit (schema 7, column map; storage_map_t) */
     double *S_res; /* r*r or NULL (not known): the map's resolution error (schema 7, fit/shrink.h:
                       add in quadrature to S_err) */
+    char *map_note; /* NULL, or one sentence on how the map was made when it is not the map its
+                       fit asked for (schema 9: no kriged map could be made, and why) */
 } storage_calib_t;
 
 typedef struct storage_calib_list {

@@ -17,6 +17,7 @@ void storage_calib_free(storage_calib_t *c)
     free(c->S);
     free(c->S_err);
     free(c->S_res);
+    free(c->map_note);
     free(c->status);
     free(c->noise_model);
     free(c->software_version);
@@ -71,6 +72,7 @@ static int read_calib(sqlite3_stmt *s, void *item)
     o->reason = stg_col_text(s, 21, &oom);
     o->map = stg_col_map(s, 22);
     o->S_res = stg_col_f64_or_null(s, 23, n, &bad_e, &oom);
+    o->map_note = stg_col_text(s, 24, &oom);
     int ret = bad_s || bad_e ? -EIO : (oom || !o->S || !o->S_err) ? -ENOMEM : 0;
     if (ret) storage_calib_free(o);
     return ret;
@@ -186,6 +188,7 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
         ret = err_set(err, -ENOMEM, "calibration: out of memory");
         goto out;
     }
+    stg_bind_text(q, 24, c->map_note && c->map_note[0] ? c->map_note : NULL, &rc);
     if (rc != SQLITE_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a calibration");

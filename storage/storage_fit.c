@@ -171,6 +171,7 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
         ret = err_set(err, -ENOMEM, "fit map: out of memory");
         goto out;
     }
+    stg_bind_text(q, 17, c->map_note && c->map_note[0] ? c->map_note : NULL, &rc);
     if (rc != SQLITE_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a fit's map");
@@ -191,6 +192,7 @@ static void map_free(storage_calib_t *c)
     free(c->S);
     free(c->S_err);
     free(c->S_res);
+    free(c->map_note);
     free(c->status);
     free(c->noise_model);
     free(c->software_version);
@@ -234,6 +236,7 @@ int stg_fit_map_load(storage_t *st, int64_t fit_id, storage_calib_t *out, err_t 
         out->software_version = stg_col_text(q, 15, &oom);
         out->map = stg_col_map(q, 16);
         out->S_res = stg_col_f64_or_null(q, 17, n, &bad_e, &oom);
+        out->map_note = stg_col_text(q, 18, &oom);
         if (bad_s || bad_e)
             ret = err_set(err, -EIO, "fit %lld's map: BLOB of the wrong size", (long long)fit_id);
         else if (oom || !out->S || !out->S_err)

@@ -102,12 +102,12 @@ enum stg_id {
 #define STG_FIT_MAP_COLS                                                                          \
     "m.fit_id, m.sensor_id, m.pixel_col, m.pixel_row, m.r, m.s, m.s_err, m.i0, m.chi2_red, "      \
     "m.status, f.scan_id, f.noise_model, m.wavelength_um, m.na, m.spot_radius_um, "               \
-    "m.software_version, m.map, m.s_res"
+    "m.software_version, m.map, m.s_res, m.map_note"
 #define STG_CALIB_COLS                                                                            \
     "c.id, c.sensor_id, c.pixel_col, c.pixel_row, c.r, c.s, c.s_err, c.i0, c.chi2_red, "          \
     "c.status, c.scan_id, c.fit_id, c.noise_model, c.wavelength_um, c.na, c.spot_radius_um, "     \
     "c.software_version, c.created_ms, c.superseded_by, c.supersedes, c.changed_by, c.reason, "   \
-    "c.map, c.s_res"
+    "c.map, c.s_res, c.map_note"
 
 #define STG_PTC_COLS                                                                              \
     "id, sensor_id, gain_e_per_dn, read_noise_e, dark_dn, saturation_dn, linearity_error_pct, "   \

@@ -348,6 +348,14 @@ const char *const stg_migrations[] = {
     "CREATE INDEX calibrations_created ON calibrations (created_ms);\n"
     "CREATE INDEX calibrations_fit ON calibrations (fit_id);\n"
     "PRAGMA user_version = 8;\n",
+
+    /* 9: map_note, one sentence on how the map was made when it is not the map its fit asked
+     * for (no kriged map could be made: no signal, too few points); NULL otherwise, and for every
+     * older row */
+    "ALTER TABLE fit_maps ADD COLUMN map_note TEXT CHECK (map_note IS NULL OR length(map_note) > 0);\n"
+    "ALTER TABLE calibrations ADD COLUMN map_note TEXT\n"
+    "    CHECK (map_note IS NULL OR length(map_note) > 0);\n"
+    "PRAGMA user_version = 9;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -480,8 +488,9 @@ const char *const stg_sql[STG_N] = {
     [STG_FIT_SET_JOB] = "UPDATE fits SET job_id = ?2 WHERE id = ?1",
     [STG_FIT_MAP_INSERT] =
         "INSERT INTO fit_maps (fit_id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
-        "chi2_red, status, wavelength_um, na, spot_radius_um, software_version, map, s_res) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
+        "chi2_red, status, wavelength_um, na, spot_radius_um, software_version, map, s_res, "
+        "map_note) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)",
     /* one row for a known fit, its map columns NULL when it offers none */
     [STG_FIT_MAP_GET] = "SELECT " STG_FIT_MAP_COLS " FROM fits f "
                         "LEFT JOIN fit_maps m ON m.fit_id = f.id WHERE f.id = ?1",
@@ -496,9 +505,9 @@ const char *const stg_sql[STG_N] = {
     [STG_CALIB_INSERT] =
         "INSERT INTO calibrations (id, sensor_id, pixel_col, pixel_row, r, s, s_err, i0, "
         "chi2_red, status, scan_id, fit_id, noise_model, wavelength_um, na, spot_radius_um, "
-        "software_version, created_ms, supersedes, changed_by, reason, map, s_res) "
+        "software_version, created_ms, supersedes, changed_by, reason, map, s_res, map_note) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
-        "?19, ?20, ?21, ?22, ?23)",
+        "?19, ?20, ?21, ?22, ?23, ?24)",
     [STG_CALIB_GET] = "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.id = ?1",
     [STG_CALIB_CURRENT] =
         "SELECT " STG_CALIB_COLS " FROM calibrations c WHERE c.sensor_id = ?1 "

@@ -21,7 +21,10 @@
   "map": "recommended" keeps the paper's recommended map (an unknown word: exit status 2 naming
   the option); the parts before run with --calibration-map recommended;
 - an upload with a target pixel still becomes the calibration by default, unless
-  "promote": false."""
+  "promote": false;
+- where no kriged map can be made (an upload of 2 points), the calibration is the recommended map
+  and its map_note (schema 9) is the fit document's stored_map.why, one sentence naming the
+  cause."""
 import struct
 import subprocess
 import sys
@@ -281,6 +284,32 @@ def test(c, t, argv, daemons):
     c.eq((cal.get("fit_id"), cal.get("by"), cal.get("reason")),
          (j["fit_id"] if j else None, "api", "fit of an uploaded scan file"),
          "an upload with a target becomes the calibration, as before")
+    c.eq(cal.get("map_note"), None, "a calibration that is the map its fit asked for: no map_note")
+
+    # ---- no kriged map can be made (2 points): the recommended map, and the calibration says why
+    few = dict(pixel_file)
+    for k in ("x_um", "y_um", "signal_dn"):
+        few[k] = pixel_file[k][40:42]
+    r = d.post("/api/fits", {"scan": few, "sensor_id": sensor, "pixel": {"col": 12, "row": 11},
+                             "map": "kriged"})
+    j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    c.ok(j, "a 2-point upload asking for the kriged map fitted")
+    fw = d.get("/api/fits/%d" % (j["fit_id"] if j else 0)).json()
+    why = (fw.get("result", {}).get("stored_map") or {}).get("why", "")
+    cal = d.get("/api/sensors/%d/pixels/12/11/calibration" % sensor).json()
+    c.eq((cal.get("map"), cal.get("r"), fw.get("result", {}).get("recommended_r")),
+         ("recommended", 1, 1), "no kriged map from 2 points: the calibration is the r = 1 map")
+    c.ok("No kriged map could be made" in why and "at least 3 usable points" in why and
+         why.endswith("recommended r = 1 map.") and "\n" not in why,
+         "the fit document's stored_map says why in one sentence: %r" % why)
+    c.eq(cal.get("map_note"), why, "the calibration keeps that sentence as its map_note")
+    c.eq(db.all("SELECT map_note FROM calibrations WHERE id = ?", cal.get("id", 0)), [(why,)],
+         "database: calibrations.map_note (schema 9)")
+    r = d.post("/api/fits/%d/promote" % (j["fit_id"] if j else 0), {"reason": "again"})
+    c.eq(r.status, 409, "promoting the current fit again: 409, nothing written")
+    r = d.post("/api/fits/%d/promote" % fit1, {"reason": "back to the automatic map"})
+    c.eq((r.status, r.json().get("map_note")), (201, None),
+         "promoting a map made as its fit asked: no map_note")
 
     c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
