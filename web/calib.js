@@ -28,9 +28,9 @@ function csvLink(c, label = 'CSV') {
         download: `calibration-${c.id}.csv`, 'aria-label': `CSV of calibration #${c.id}` }, label);
 }
 
-// Which map of its fit a calibration holds (its `map`, database schema 7; kriged schema 8), and
-// the rms of its resolution error S_res where known (structure finer than the grid, beside
-// S_err's noise).
+// Which map of its fit a calibration holds (its `map`, database schema 7; kriged schema 8), the
+// rms of its resolution error S_res where known (structure finer than the grid, beside S_err's
+// noise), and its map_note (schema 9: why it is not the map its fit asked for) when it has one.
 function mapWord(c) {
     const which = c.map === 'shrunk'
         ? `The shrunk map: r = ${c.r}'s detail shrunk toward r = ${c.r - 1} (fit request "map": ` +
@@ -42,8 +42,9 @@ function mapWord(c) {
             : `The recommended r's own least-squares map (r = ${c.r})`;
     const res = Array.isArray(c.S_res) && c.S_res.length
         ? Math.sqrt(c.S_res.reduce((a, v) => a + v * v, 0) / c.S_res.length) : null;
-    return res === null ? which : `${which}; resolution error S_res rms ${fmt(res, 3)} ` +
+    const whole = res === null ? which : `${which}; resolution error S_res rms ${fmt(res, 3)} ` +
         '(add in quadrature to S_err)';
+    return c.map_note ? `${whole}. ${c.map_note}` : whole;
 }
 
 // A calibration's map kind and grid in a few words: "kriged 24 × 24" (calibrations stored before
@@ -330,7 +331,9 @@ export function renderPixel(root, sensorId, col, row) {
                     `λ = ${fmt(cur.optics.wavelength_nm)} nm, NA = ${fmt(cur.optics.na)}, ` +
                     `ipsd ${cur.software_version} · ${fmtTime(cur.created_ms)} · from `,
                 provenance(cur)),
-                h('p', { class: 'sub', 'data-testid': 'current-map' }, mapWord(cur)), how,
+                h('p', { class: 'sub', 'data-testid': 'current-map' }, mapWord(cur)),
+                cur.map_note ? h('p', { class: 'sub', 'data-testid': 'current-map-note' },
+                    cur.map_note) : null, how,
                 h('p', { class: 'sub', 'data-testid': 'current-why' }, `Made current by ` +
                     `${cur.by ?? '–'}: ${cur.reason ?? '–'}`, cur.supersedes
                     ? ` (replaced #${cur.supersedes})` : ''),

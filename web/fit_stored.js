@@ -3,12 +3,13 @@
 // S and S_err (and the resolution error S_res where known), and one sentence on how it was made;
 // also the sentence the Pixel view gives for a calibration made from a fit.
 //
-// The fit document's `calibration` gives the pixel and the grid r of the map it offers, not which
-// map that is, so the page asks, in order: the pixel's current calibration when it is this fit's
-// (its `map`), the fit's job (its params record "map" when not recommended; the result then has
-// that map, else the server stored the recommended one), and last the grid itself (r equal to the
-// kriged map's grid and not the recommended r: kriged; else recommended). The map's numbers are
-// the fit result's own (the same numbers the calibration stores: srv_fit.c keep_map).
+// Which map the fit offers: the pixel's current calibration when it is this fit's (its `map`, and
+// its id for the sentence), else the fit record's `calibration.map`. Fits read from servers that
+// did not give that word are told, in order, by the fit's job (its params record "map" when not
+// recommended; the result then has that map, else the server stored the recommended one) and
+// last by the grid itself (r equal to the kriged map's grid and not the recommended r: kriged;
+// else recommended). The map's numbers are the fit result's own (the same numbers the
+// calibration stores: srv_fit.c keep_map).
 import { get } from './api.js';
 import { fmt, h } from './dom.js';
 import { cellSource, mapFigure } from './calib_maps.js';
@@ -41,8 +42,8 @@ async function fitJob(fit) {
 }
 
 // Which map fit offers as its calibration: {kind: 'recommended' | 'shrunk' | 'kriged' | null
-// (none offered), source: 'calibration' | 'job' | 'grid' | 'none', cal (the calibration, when
-// its source), job}.
+// (none offered), source: 'calibration' | 'fit' | 'job' | 'grid' | 'none', cal (the calibration,
+// when its source), job}.
 export async function storedKind(fit) {
     const c = fit.calibration, res = fit.result || {};
     if (!c) return { kind: null, source: 'none' };
@@ -50,6 +51,7 @@ export async function storedKind(fit) {
         const cal = await get(`/api/calibrations/${c.current_calibration_id}`).catch(() => null);
         if (cal && cal.fit_id === fit.id && cal.map) return { kind: cal.map, source: 'calibration', cal };
     }
+    if (c.map) return { kind: c.map, source: 'fit' }; // the fit's record (servers since schema 8)
     const job = await fitJob(fit).catch(() => null);
     if (job) return { kind: offered(job.params?.map ?? 'recommended', res, c), source: 'job', job };
     const kr = res.kriged_map;
@@ -129,11 +131,14 @@ export const kindTitle = (kind) => KIND_TITLE[kind] || 'Map';
 // the sentence, and the map's figures (testids plot-stored, plot-stored-Serr, plot-stored-Sres).
 export function storedContent(fit, info, pitch) {
     const res = fit.result || {};
-    const whyNot = krigedWhyNot(res);
+    // the server's own sentence when the stored map is not the one asked for (stored_map.why, the
+    // calibration's map_note), else the result's reason why no kriged map could be made
+    const whyNot = res.stored_map?.why ?? krigedWhyNot(res);
     const noKriged = whyNot && info.kind !== 'kriged'
         ? [' ', h('span', { 'data-testid': 'stored-no-kriged' }, whyNot)] : [];
     const source = {
         calibration: `the pixel's calibration #${info.cal?.id} holds it`,
+        fit: 'as the fit\'s record says; it is not the pixel\'s current calibration',
         job: `the map the fit's request, job #${info.job?.id}, asked for`,
         grid: 'told from its grid: neither a calibration nor the job of this fit was found',
     }[info.source];

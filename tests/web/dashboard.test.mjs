@@ -839,7 +839,8 @@ async function run(base, page, api) {
         'recommended';
     await checkStoredMap(page, refitDoc, refitAsked, 'a re-fit stored as a fit');
     check(await page.locator('[data-testid="stored-sentence"]').getAttribute('data-source') ===
-        'job', 'a fit that is no calibration: its map kind is told by its job\'s request');
+        'fit' && refitDoc.calibration.map === refitAsked,
+    'a fit that is no calibration: its map kind is the fit record\'s calibration.map');
     // the re-fit asked for the kriged map (fit/krige.h): one more choice of the selector, its
     // heat map the API's kriged_map.S on its grid, named in "Map shown"
     const kr = (await api('GET', `/api/fits/${refit}`)).body.result.kriged_map;
@@ -869,6 +870,36 @@ async function run(base, page, api) {
     check(now.fit_id === refit && now.by === 'dashboard' && now.supersedes === calId &&
         now.reason === 'checked by the dashboard test', 'the promoted re-fit is the calibration, ' +
         'with the reason typed', JSON.stringify([now.fit_id, now.by, now.supersedes, now.reason]));
+
+    // where no kriged map can be made (an upload of 2 points to a pixel), the calibration is the
+    // recommended map and both views give the server's sentence why (stored_map.why, map_note)
+    const pixelFile = (await api('GET', `/api/scans/${scan.id}/pixels/0/0`)).body;
+    const few = { ...pixelFile };
+    for (const k of ['x_um', 'y_um', 'signal_dn']) few[k] = pixelFile[k].slice(40, 42);
+    const fewCol = scan.poi.col + 1;
+    const fewJob = (await api('POST', '/api/fits', { scan: few, sensor_id: sensor.id,
+        pixel: { col: fewCol, row: scan.poi.row }, map: 'kriged' })).body.job;
+    const fewFit = (await until(async () => {
+        const j = (await api('GET', `/api/jobs/${fewJob.id}`)).body;
+        return j.state === 'done' && j;
+    }, 'the 2-point upload to be fitted', LONG_WAIT)).fit_id;
+    const fewCal = (await api('GET', `/api/sensors/${sensor.id}/pixels/${fewCol}/` +
+        `${scan.poi.row}/calibration`)).body;
+    const fewWhy = (await api('GET', `/api/fits/${fewFit}`)).body.result.stored_map?.why;
+    check(fewCal.map === 'recommended' && typeof fewCal.map_note === 'string' &&
+        fewCal.map_note === fewWhy && fewWhy.includes('at least 3 usable points'),
+    'a 2-point upload: the recommended map, with map_note = stored_map.why',
+    JSON.stringify([fewCal.map, fewCal.map_note, fewWhy]));
+    await page.goto(`${base}/#/fits/${fewFit}`);
+    await page.locator('[data-testid="stored-no-kriged"]').waitFor({ timeout: WAIT });
+    check(await text('stored-no-kriged') === fewWhy,
+        'the Fit view gives the server\'s sentence on why the map is not kriged',
+        await text('stored-no-kriged'));
+    await page.goto(`${base}/#/sensors/${sensor.id}/pixels/${fewCol}/${scan.poi.row}`);
+    await page.locator('[data-testid="current-map-note"]').waitFor({ timeout: WAIT });
+    check(await text('current-map-note') === fewCal.map_note,
+        'the Pixel view gives the calibration\'s map_note', await text('current-map-note'));
+    await page.goto(`${base}/#/fits/${refit}`);
 
     // a re-fit from the Fit view that becomes the calibration ("promote": true)
     const rf2 = page.locator('[data-testid="refit"] [data-testid="fit-form"]');
