@@ -22,14 +22,37 @@ static void key_dbl(fitsfile *f, const char *key, double v, const char *comment,
     if (isfinite(v)) fits_write_key_dbl(f, key, v, -17, comment, status);
 }
 
+/* A string keyword. A header holds printable ASCII only, so a value with any other byte (a UTF-8
+ * sensor model) is written percent-encoded (RFC 3986: every byte outside 0x20..0x7e and % itself
+ * as %XX), which any reader can undo, and the comment says so; cfitsio would write such bytes as
+ * spaces. Strings past a card's 68 characters continue on CONTINUE cards (LONGSTRN). */
 static void key_str(fitsfile *f, const char *key, const char *v, const char *comment, int *status)
 {
-    if (!v) return;
-    /* strings past a card's 68 characters continue on CONTINUE cards (the LONGSTRN convention) */
+    if (!v || *status) return;
+    int plain = 1;
+    for (const unsigned char *p = (const unsigned char *)v; *p; p++) plain &= *p >= 0x20 && *p <= 0x7e;
+    char *enc = NULL, note[FLEN_COMMENT];
+    if (!plain) {
+        size_t n = strlen(v), k = 0;
+        if (!(enc = malloc(3 * n + 1))) {
+            *status = MEMORY_ALLOCATION;
+            return;
+        }
+        for (const unsigned char *p = (const unsigned char *)v; *p; p++)
+            if (*p < 0x20 || *p > 0x7e || *p == '%')
+                k += (size_t)snprintf(enc + k, 4, "%%%02X", *p);
+            else
+                enc[k++] = (char)*p;
+        enc[k] = '\0';
+        snprintf(note, sizeof note, "%s (UTF-8, percent-encoded)", comment);
+        v = enc;
+        comment = note;
+    }
     if (strlen(v) > 68)
         fits_write_key_longstr(f, key, v, comment, status);
     else
         fits_write_key_str(f, key, v, comment, status);
+    free(enc);
 }
 
 static void key_int(fitsfile *f, const char *key, long long v, const char *comment, int *status)

@@ -26,6 +26,7 @@ import math
 import os
 import subprocess
 import sys
+import urllib.parse
 
 from debian_python import rerun_under_debian_python
 import ipsd_http
@@ -180,6 +181,22 @@ def test(c, t, argv, daemons):
              "calibrations.fits: the pairs first, in order")
         for k, one in enumerate(cals, 1):
             map_checks(c, h, k, one, "calibrations.fits map %d" % k)
+
+    # ---- a sensor model outside ASCII: SENSMOD percent-encoded, as its comment says ----
+    model = "Kamera-\u00dc 5%"
+    uni = d.post("/api/sensors", {"model": model, "serial": "fits-3", "n_cols": 8,
+                                  "n_rows": 8}).json()["id"]
+    pf = d.get("/api/scans/%d/pixels/0/0" % scan).json()
+    r = d.post("/api/fits", {"scan": pf, "sensor_id": uni, "pixel": {"col": 2, "row": 3},
+                             "r_max": 2, "map": "recommended"})
+    c.ok(r.status == 202 and d.wait_job(r.json()["job"]["id"], "done"), "fit for the UTF-8 model")
+    r = d.get("/api/sensors/%d/pixels/2/3/calibration.fits" % uni)
+    c.status(r, 200, "calibration.fits of the UTF-8 model's sensor")
+    with read_fits(c, r.body, "UTF-8 model") as h:
+        got = h[0].header.get("SENSMOD")
+        c.eq((got, urllib.parse.unquote(got or "")), ("Kamera-%C3%9C 5%25", model),
+             "SENSMOD: UTF-8 percent-encoded, decoding to the model")
+        c.ok("percent-encoded" in h[0].header.comments["SENSMOD"], "its comment says so")
 
     # ---- what has no map ----
     c.error(d.get("/api/calibrations/999/map.fits"), 404, "", "unknown calibration")
