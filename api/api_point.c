@@ -19,7 +19,7 @@
 static double reply_bound(int sub_px, int count)
 {
     double m2 = (double)sub_px * sub_px;
-    return 1024 + m2 * 25 + (double)count * (m2 * 6 + 3);
+    return 1024 + m2 * 25 + (double)count * (m2 * 6 + 3 + 2 * 21); /* + a timestamp and an id */
 }
 
 /* Writes v (0..65535) at p; returns the characters written. */
@@ -94,7 +94,7 @@ void api_h_scan_point(api_req_t *q)
     if (lim > k - off) lim = k - off;
     size_t cap = srv_config(q->srv)->max_reply_bytes;
     if (reply_bound(sub_px, (int)lim) > (double)cap) {
-        double m2 = (double)sub_px * sub_px, page = ((double)cap - 1024 - m2 * 25) / (m2 * 6 + 3);
+        double m2 = (double)sub_px * sub_px, page = ((double)cap - 1024 - m2 * 25) / (m2 * 6 + 3 + 2 * 21);
         api_error(q, 413, "reply_too_large", "raw_limit",
                   "point %lld of scan %lld: %lld raw frames of %d x %d pixels would make a reply "
                   "of up to %.0f bytes, more than ipsd's --max-reply-bytes (%zu): ask for at most "
@@ -117,6 +117,16 @@ void api_h_scan_point(api_req_t *q)
                              f.stage_x_um, f.stage_y_um, f.stage_z_um, "exposure_us",
                              f.exposure_us, "captured_ms", api_time(f.captured_ms), "frames",
                              f.frames, "sub_px", f.sub_px, "raw_offset", f.raw_first);
+    /* schema 10: the timestamps and camera frame ids of the frames in raw; null: not recorded */
+    const uint64_t *per_frame[2] = {(const uint64_t *)f.timestamps_ns, f.camera_frame_ids};
+    const char *per_name[2] = {"timestamps_ns", "camera_frame_ids"};
+    for (int a = 0; head && a < 2; a++) {
+        json_t *v = per_frame[a] ? json_array() : json_null();
+        for (int k = f.raw_first; v && per_frame[a] && k < f.raw_first + f.raw_count; k++)
+            json_array_append_new(v, json_integer(a == 0 ? (json_int_t)(int64_t)per_frame[a][k]
+                                                         : (json_int_t)per_frame[a][k]));
+        json_object_set_new(head, per_name[a], v);
+    }
     char *head_text = head ? jdump_string(head, JDUMP_COMPACT) : NULL;
     char *mean_text = mean ? jdump_string(mean, JDUMP_COMPACT) : NULL;
     json_decref(head);

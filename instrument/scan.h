@@ -121,6 +121,8 @@ typedef struct scan_point {
     const double *var_dn;      /* their sample variances (NaN for k = 1) */
     const uint16_t *raw;       /* k*width*height frames, frame after frame; NULL unless
                                   keep_frames */
+    const int64_t *frame_timestamps_ns; /* k: each frame's start of exposure (timestamp_ns) */
+    const uint64_t *camera_frame_ids;   /* k: the camera's own frame ids (0 where it has none) */
     double left_out_dn;        /* the simulator's bound on what it left out; 0 otherwise */
 } scan_point_t;
 

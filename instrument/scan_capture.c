@@ -37,6 +37,8 @@ int scan_capture_at(cam_t *cam, stage_t *stage, const stage_pos_t *pos, const ca
             c->gain = fr.gain;
         }
         if (fr.left_out_dn > c->left_out_dn) c->left_out_dn = fr.left_out_dn;
+        if (c->ts_ns) c->ts_ns[f] = fr.timestamp_ns;
+        if (c->ids) c->ids[f] = fr.camera_frame_id;
         for (size_t q = 0; q < npx; q++) {
             double x = use_expected && fr.expected_dn ? fr.expected_dn[q] : fr.dn[q];
             double d = x - c->mean[q];

@@ -17,6 +17,8 @@ void scan_progress(const scan_hooks_t *h, const char *phase, size_t done, size_t
 struct scan_capture {
     double *mean, *var; /* w*h */
     uint16_t *raw;      /* k*w*h or NULL */
+    int64_t *ts_ns;     /* k frame timestamps (backend clock) or NULL */
+    uint64_t *ids;      /* k camera frame ids (0: the camera gives none) or NULL */
     int64_t t0_ns;
     double left_out_dn, exposure_us, gain;
     stage_pos_t reported;

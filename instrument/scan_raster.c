@@ -92,7 +92,9 @@ int scan_raster_run(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const 
     struct scan_capture c = {.mean = malloc(sizeof(double) * 2 * mm)};
     c.var = c.mean ? c.mean + mm : NULL;
     if (cfg->keep_frames) c.raw = malloc(sizeof(uint16_t) * mm * (size_t)k);
-    if (!c.mean || (cfg->keep_frames && !c.raw)) {
+    c.ts_ns = malloc(sizeof(int64_t) * (size_t)k);
+    c.ids = malloc(sizeof(uint64_t) * (size_t)k);
+    if (!c.mean || (cfg->keep_frames && !c.raw) || !c.ts_ns || !c.ids) {
         rc = err_set(err, -ENOMEM, "out of memory for a %dx%d sub-frame", m, m);
         goto out;
     }
@@ -119,6 +121,8 @@ int scan_raster_run(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const 
                            .mean_dn = c.mean,
                            .var_dn = c.var,
                            .raw = c.raw,
+                           .frame_timestamps_ns = c.ts_ns,
+                           .camera_frame_ids = c.ids,
                            .left_out_dn = c.left_out_dn};
         if (raster && (rc = scan_raster_put(raster, &pt, err)) != 0) goto out;
         if (hooks && hooks->point && hooks->point(&pt, hooks->user) != 0) {
@@ -130,6 +134,8 @@ int scan_raster_run(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const 
 out:
     free(c.mean);
     free(c.raw);
+    free(c.ts_ns);
+    free(c.ids);
     return rc;
 }
 

@@ -86,7 +86,11 @@ static int store_point(const scan_point_t *pt, void *user)
                          .frames = pt->frames,
                          .sub_px = pt->width,
                          .raw = (uint16_t *)pt->raw,
-                         .mean = (double *)pt->mean_dn};
+                         .mean = (double *)pt->mean_dn,
+                         .timestamps_ns = (int64_t *)pt->frame_timestamps_ns};
+    /* the camera's frame ids, unless it gives none (the simulated bench, libcamera) */
+    for (int k = 0; pt->camera_frame_ids && k < pt->frames; k++)
+        if (pt->camera_frame_ids[k]) f.camera_frame_ids = (uint64_t *)pt->camera_frame_ids;
     int rc = storage_frame_put(r->st, &f, &r->store_err);
     if (rc && rc != -EEXIST) {
         r->store_rc = rc;

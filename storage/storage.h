@@ -254,6 +254,11 @@ typedef struct storage_frame {
     double *mean;            /* m*m mean of the k sub-frames (DN), row-major y then x */
     int64_t captured_ms;     /* set by storage */
     int raw_first, raw_count; /* read back: the frames raw holds (0 and k but for _get_part) */
+    /* schema 10, each k long or NULL (not recorded: older rows; no ids from the camera): each
+     * frame's start of exposure on the camera backend's clock (ns), and the camera's own frame
+     * ids (GigE Vision block ids) */
+    int64_t *timestamps_ns;
+    uint64_t *camera_frame_ids;
 } storage_frame_t;
 
 /* Stores one point and advances the scan's points_done, in one transaction. The scan must be

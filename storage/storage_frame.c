@@ -16,6 +16,8 @@ void storage_frame_free(storage_frame_t *f)
     if (!f) return;
     free(f->raw);
     free(f->mean);
+    free(f->timestamps_ns);
+    free(f->camera_frame_ids);
     memset(f, 0, sizeof *f);
 }
 
@@ -73,6 +75,35 @@ static int check_against_scan(storage_t *st, const storage_frame_t *f, err_t *er
     return ret;
 }
 
+/* k 64-bit integers as a little-endian BLOB bound to parameter i (NULL: bound as NULL). */
+static void bind_u64s(sqlite3_stmt *q, int i, const uint64_t *v, size_t k, int *rc)
+{
+    if (*rc != SQLITE_OK) return;
+    if (!v) {
+        *rc = sqlite3_bind_null(q, i);
+        return;
+    }
+    unsigned char *b = malloc(k ? k * 8 : 1);
+    if (!b) {
+        *rc = SQLITE_NOMEM;
+        return;
+    }
+    for (size_t j = 0; j < k; j++) le_put_u64(b + 8 * j, v[j]);
+    *rc = sqlite3_bind_blob64(q, i, b, k * 8, free);
+}
+
+/* Column i as k 64-bit integers (*out NULL when the column is NULL or not k long: not recorded);
+ * nonzero when out of memory. */
+static int col_u64s(sqlite3_stmt *q, int i, size_t k, uint64_t **out)
+{
+    *out = NULL;
+    const unsigned char *b = sqlite3_column_blob(q, i);
+    if (!b || (size_t)sqlite3_column_bytes(q, i) != k * 8) return 0;
+    if (!(*out = malloc(k ? k * sizeof **out : 1))) return 1;
+    for (size_t j = 0; j < k; j++) (*out)[j] = le_get_u64(b + 8 * j);
+    return 0;
+}
+
 /* The two statements of a point: the frame row, then the scan's progress. */
 static int insert_point(storage_t *st, const storage_frame_t *f, const unsigned char *mean,
                         size_t mean_bytes, const unsigned char *raw, size_t raw_bytes, err_t *err)
@@ -97,7 +128,36 @@ static int insert_point(storage_t *st, const storage_frame_t *f, const unsigned 
     if (ret == -EEXIST)
         return err_set(err, ret, "scan %lld point %d is stored already", (long long)f->scan_id,
                        f->point_index);
+    if (ret == 0 && (f->timestamps_ns || f->camera_frame_ids)) {
+        if ((ret = stg_stmt(st, STG_FRAME_TIMES_INSERT, &q, err))) return ret;
+        stg_bind_int(q, 1, f->scan_id, &rc);
+        stg_bind_int(q, 2, f->point_index, &rc);
+        bind_u64s(q, 3, (const uint64_t *)f->timestamps_ns, (size_t)f->frames, &rc);
+        bind_u64s(q, 4, f->camera_frame_ids, (size_t)f->frames, &rc);
+        if (rc != SQLITE_OK) {
+            stg_reset(q);
+            return stg_error(st, rc, err, "storing a frame's times");
+        }
+        ret = stg_run(st, q, err, "storing a frame's times");
+    }
     return ret ? ret : stg_scan_add_point(st, f->scan_id, err);
+}
+
+/* The frame times of a point into out (left NULL when none are stored). */
+static int read_times(storage_t *st, storage_frame_t *out, err_t *err)
+{
+    sqlite3_stmt *q;
+    int ret, rc = SQLITE_OK;
+    if ((ret = stg_stmt(st, STG_FRAME_TIMES_GET, &q, err))) return ret;
+    stg_bind_int(q, 1, out->scan_id, &rc);
+    stg_bind_int(q, 2, out->point_index, &rc);
+    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a frame's times")
+                          : stg_error(st, rc, err, "reading a frame's times");
+    if (ret == 0 && (col_u64s(q, 0, (size_t)out->frames, (uint64_t **)&out->timestamps_ns) ||
+                     col_u64s(q, 1, (size_t)out->frames, &out->camera_frame_ids)))
+        ret = err_set(err, -ENOMEM, "frame get: out of memory");
+    stg_reset(q);
+    return ret == -ENOENT ? 0 : ret;
 }
 
 int storage_frame_put(storage_t *st, const storage_frame_t *f, err_t *err)
@@ -205,6 +265,7 @@ int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_f
         err_set(err, ret, "scan %lld has no point %d", (long long)scan_id, point_index);
     if (ret == 0) ret = read_frame(q, out, err);
     stg_reset(q);
+    if (ret == 0) ret = read_times(st, out, err);
 out:
     if (ret == 0) ret = stg_commit(st, err);
     if (ret) {
@@ -245,6 +306,7 @@ int storage_frame_get_part(storage_t *st, int64_t scan_id, int point_index, int 
         err_set(err, ret, "scan %lld has no point %d", (long long)scan_id, point_index);
     if (ret == 0) ret = read_frame_part(st, q, out, err);
     stg_reset(q);
+    if (ret == 0) ret = read_times(st, out, err);
 out:
     if (ret == 0) ret = stg_commit(st, err);
     if (ret) {

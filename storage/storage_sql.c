@@ -356,6 +356,20 @@ const char *const stg_migrations[] = {
     "ALTER TABLE calibrations ADD COLUMN map_note TEXT\n"
     "    CHECK (map_note IS NULL OR length(map_note) > 0);\n"
     "PRAGMA user_version = 9;\n",
+
+    /* 10: each frame's timestamp (start of exposure, the camera backend's clock, ns) and the
+     * camera's own frame id, k int64 / uint64 little-endian each; NULL: not recorded (a camera
+     * without frame ids). A table beside frames, not columns after raw: a column after a large
+     * BLOB is reached only through its overflow pages, and a point's head must not read them. */
+    "CREATE TABLE frame_times (\n"
+    "    scan_id          INTEGER NOT NULL REFERENCES scans (id),\n"
+    "    point_index      INTEGER NOT NULL CHECK (point_index >= 0),\n"
+    "    timestamps_ns    BLOB    CHECK (timestamps_ns IS NULL OR length(timestamps_ns) % 8 = 0),\n"
+    "    camera_frame_ids BLOB\n"
+    "                     CHECK (camera_frame_ids IS NULL OR length(camera_frame_ids) % 8 = 0),\n"
+    "    PRIMARY KEY (scan_id, point_index)\n"
+    ");\n"
+    "PRAGMA user_version = 10;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -425,6 +439,12 @@ const char *const stg_sql[STG_N] = {
     [STG_FRAME_INSERT] =
         "INSERT INTO frames (scan_id, point_index, stage_x_um, stage_y_um, stage_z_um, "
         "exposure_us, captured_ms, mean, raw) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+    [STG_FRAME_TIMES_INSERT] =
+        "INSERT INTO frame_times (scan_id, point_index, timestamps_ns, camera_frame_ids) "
+        "VALUES (?1, ?2, ?3, ?4)",
+    [STG_FRAME_TIMES_GET] =
+        "SELECT timestamps_ns, camera_frame_ids FROM frame_times "
+        "WHERE scan_id = ?1 AND point_index = ?2",
     [STG_FRAME_GET] =
         "SELECT stage_x_um, stage_y_um, stage_z_um, exposure_us, captured_ms, mean, raw "
         "FROM frames WHERE scan_id = ?1 AND point_index = ?2",

@@ -169,6 +169,24 @@ def run(c, t, exe, emu_exe, emu, daemons):
             means_bad.append(idx)
     c.eq(bad, [], "every stored frame is the emulator's ramp, pixel for pixel")
     c.eq(breaks, 1, "consecutive frame ids but where the camera came back")
+    # the camera's own frame ids and timestamps, stored per frame (schema 10): the ids step by
+    # one exactly where the ramp's frame counter does, the timestamps grow frame after frame
+    ids, stamps, ramp_steps = [], [], []
+    for idx, raw, _ in rows:
+        pt = d.get("/api/scans/%d/points/%d" % (scan, idx)).json()
+        ids += pt.get("camera_frame_ids") or [None] * k
+        stamps += pt.get("timestamps_ns") or [None] * k
+        vals = struct.unpack("<%dH" % (k * m * m), raw)
+        ramp_steps += [vals[f * m * m] for f in range(k)]
+    id_steps = [b - a == 1 for a, b in zip(ids, ids[1:]) if None not in (a, b)]
+    ramp_next = [b == (a + 256) % 65535 for a, b in zip(ramp_steps, ramp_steps[1:])]
+    c.ok(len(ids) == TOTAL * k and None not in ids and id_steps == ramp_next,
+         "camera_frame_ids: +1 from frame to frame exactly where the ramp's counter is (%s)" %
+         ids[:8])
+    c.eq([v for v, i in zip(ramp_steps, ids) if i is None or v != 256 * i % 65535], [],
+         "each frame's id is the F its ramp was drawn with (pixel (0, 0) = 256 F mod 65535)")
+    c.ok(None not in stamps and all(b > a for a, b in zip(stamps, stamps[1:])),
+         "timestamps_ns: one per frame, increasing (%s)" % stamps[:4])
     c.eq(means_bad, [], "the stored means are the frames' means")
 
     su = d.get("/api/scans/%d" % scan).json().get("setup") or {}

@@ -40,14 +40,15 @@ def test(c, t, argv, daemons):
     msg = r.json()["error"]["message"]
     c.ok("--max-reply-bytes" in msg and "raw_offset" in msg, "the message names the flag and "
          "the parameters: %s" % msg)
-    # the frames a page may hold, by the bound the message states: 5 digits and a comma a value
+    # the frames a page may hold, by the bound docs/api.md states: 6 bytes a raw value, 3 a frame,
+    # 42 a frame's timestamp and id
     page = int(msg.split("at most ")[1].split(" ")[0])
-    want_page = (CAP - 1024 - m2 * 25) // (m2 * 6 + 3)
+    want_page = (CAP - 1024 - m2 * 25) // (m2 * 6 + 3 + 42)
     c.eq(page, want_page, "frames a request may ask for")
     c.ok(0 < page < FRAMES, "a page is fewer than the point's frames")
 
     # page by page: the stored frames, exactly
-    got = []
+    got, stamps, ids = [], [], []
     off = 0
     while off < FRAMES:
         r = d.get("/api/scans/%d/points/0?raw_offset=%d&raw_limit=%d" % (scan, off, page))
@@ -58,11 +59,21 @@ def test(c, t, argv, daemons):
         c.eq((j["frames"], j["sub_px"], j["raw_offset"]), (FRAMES, SUB, off), "page's members")
         c.eq(len(j["raw"]), min(page, FRAMES - off), "page at %d: frames" % off)
         got.extend(v for fr in j["raw"] for v in fr)
+        stamps.extend(j.get("timestamps_ns") or [])
+        ids.append(j.get("camera_frame_ids", "absent"))
         c.ok(all(a == b or (a is None and math.isnan(b)) for a, b in zip(j["mean"], mean)) and
              len(j["mean"]) == m2, "page at %d: the stored mean frame" % off)
         off += page
     c.ok(tuple(got) == raw, "the pages' raw frames are the stored blob (%d of %d values)"
          % (len(got), len(raw)))
+    # each frame's timestamp, page by page (schema 10): the simulated bench's clock runs at least
+    # an exposure from one frame's start to the next; it has no frame ids of its own
+    exposure_ns = db.val("SELECT exposure_us FROM frames WHERE scan_id = ? AND point_index = 0",
+                         scan) * 1000
+    c.ok(len(stamps) == FRAMES and all(b - a >= exposure_ns for a, b in zip(stamps, stamps[1:])),
+         "timestamps_ns: one a frame, an exposure (%.0f ns) or more apart (%s)"
+         % (exposure_ns, stamps[:3]))
+    c.eq(set(map(str, ids)), {"None"}, "camera_frame_ids: null, the simulated bench has none")
     # a few frames from the middle, and none
     r = d.get("/api/scans/%d/points/0?raw_offset=7&raw_limit=2" % scan)
     c.status(r, 200, "frames 7 and 8")

@@ -145,7 +145,7 @@ static void test_open_migrate(void)
     struct stat sb;
     char mode[32];
     CHECK(stat(db_path("open.db"), &sb) == 0);
-    CHECK(storage_schema_version() == 9); /* docs/schema.md: "currently 9" (keep in step) */
+    CHECK(storage_schema_version() == 10); /* docs/schema.md: "currently 10" (keep in step) */
     CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
     raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
     CHECK(strcmp(mode, "wal") == 0);
@@ -1295,7 +1295,7 @@ static void test_migrate_v7(void)
     CHECK(strstr(maps7, "shrunk") && strstr(calibs7, "alice")); /* the dumps hold the rows */
     storage_t *st = open_db("v7m.db");
     if (!st) return;
-    CHECK(raw_int("v7m.db", "PRAGMA user_version") == 9);
+    CHECK(raw_int("v7m.db", "PRAGMA user_version") == 10);
     /* migration 9: map_note, NULL on every older row */
     CHECK(raw_int("v7m.db", "SELECT count(*) FROM calibrations WHERE map_note IS NULL") == 3);
     CHECK(raw_int("v7m.db", "SELECT count(*) FROM fit_maps WHERE map_note IS NULL") == 2);
