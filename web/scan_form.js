@@ -1,5 +1,6 @@
-// scan_form.js: the form for a new simulated scan (POST /api/scans): sensor, pixel of interest,
-// optics (wavelength and NA, or a spot radius), raster, scene, exposure and seed. Every default
+// scan_form.js: the form for a new scan (POST /api/scans): sensor, pixel of interest, optics
+// (wavelength and NA, or a spot radius), raster, scene, set-up (the paper's procedure, or none:
+// the POI's centre and the exposure as given, for a bench aligned by hand), exposure and seed. Every default
 // and bound comes from the server's rules (rules.js, the served OpenAPI document), never from
 // this file: the optics and raster are filled in with the server's defaults, the exposure and
 // seed shown as placeholders (empty inputs are not sent, so the server's defaults apply). The
@@ -63,6 +64,12 @@ export function buildScanForm(rule, sensorSelect, onQueued) {
             h('select', { id: 'scan-scene', 'data-field': 'scene' }, choices(rule('scene')))),
         num('Exposure (µs)', 'exposure_us', { placeholder: true }),
         int('Seed', 'seed', { placeholder: true })),
+    h('label', { class: 'fld', for: 'scan-setup', title: rule('setup').description || '' },
+        h('span', { class: 'lbl' }, 'Set-up'),
+        h('select', { id: 'scan-setup', 'data-field': 'setup' }, choices(rule('setup')))),
+    h('p', { class: 'muted small', 'data-testid': 'setup-note' }, 'paper: exposure search, ' +
+        'centring on the POI and focus before the raster; none: the POI\'s centre and the ' +
+        'exposure as given (a bench aligned by hand, a camera checked with a test pattern).'),
     err,
     h('button', { type: 'submit', class: 'primary' }, 'Start scan'));
     // the pixel of interest starts at the chosen sensor's centre pixel; a value typed in stays

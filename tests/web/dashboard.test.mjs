@@ -1066,6 +1066,14 @@ async function run(base, page, api) {
     await typeInto(form2.getByLabel('Step (µm)'), 0.2);
     await typeInto(form2.getByLabel('Sub-frame (pixels, odd)'), 3);
     await typeInto(form2.getByLabel('Frames per point'), 1);
+    // set up by hand: the Set-up choice offers the API's words and sends the one chosen
+    const setupWords = docRule(doc, 'post', '/api/scans', 'setup').enum;
+    const offeredSetups = await form2.getByLabel('Set-up').locator('option')
+        .evaluateAll((os) => os.map((o) => o.value));
+    check(JSON.stringify(offeredSetups) === JSON.stringify(setupWords),
+        'the Set-up choice offers the API\'s words', JSON.stringify(offeredSetups));
+    await form2.getByLabel('Set-up').selectOption('none');
+    await typeInto(form2.getByLabel('Exposure (µs)'), 2000);
     await form2.getByRole('button', { name: 'Start scan' }).click();
     const longId = (await until(async () => (await api('GET', '/api/scans')).body.items
         .find((s) => s.id !== scan.id), 'the long scan to be queued')).id;
@@ -1076,6 +1084,10 @@ async function run(base, page, api) {
     await page.locator(`tr[data-scan-id="${longId}"][data-state="cancelled"]`)
         .waitFor({ timeout: WAIT });
     const cancelled = (await api('GET', `/api/scans/${longId}`)).body;
+    const longJob = (await api('GET', `/api/jobs?kind=scan&scan=${longId}`)).body.items[0];
+    check(longJob && longJob.params.setup === 'none' && cancelled.exposure_us === 2000,
+        'the form sent "setup": "none" with the exposure typed',
+        JSON.stringify([longJob?.params, cancelled.exposure_us]));
     check(longId !== scan.id && cancelled.state === 'cancelled' &&
         cancelled.points_done < cancelled.raster.points_total,
     'the Cancel button cancels a running scan', `${cancelled.state}, ` +
