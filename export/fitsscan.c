@@ -354,8 +354,9 @@ static int read_positions(fitsfile *f, size_t len, fitsscan_t *s, err_t *err)
         if ((rc = read_column(f, col, names[a], s->n, arrays[a], err))) return rc;
         for (size_t k = 0; k < s->n; k++)
             if (!isfinite((*arrays[a])[k]))
-                return err_set(err, -EINVAL, "table POSITIONS: %s in row %zu is not finite (%g)",
-                               names[a], k + 1, (*arrays[a])[k]);
+                /* cfitsio reads an IEEE NaN or infinity as undefined: which one is not known */
+                return err_set(err, -EINVAL, "table POSITIONS: %s in row %zu is not a finite "
+                               "number (NaN, infinite or undefined)", names[a], k + 1);
     }
     double frames = s->frames;
     int have = s->frames > 0;

@@ -186,6 +186,9 @@ def bad_inputs(c, ips, t, scans, poi, good):
     def nan_x(h):
         h[1].data["X_UM"][3] = np.nan
 
+    def inf_x(h):
+        h[1].data["X_UM"][3] = np.inf
+
     def flat(h):
         h[0].data = h[0].data[0]
 
@@ -235,6 +238,9 @@ def bad_inputs(c, ips, t, scans, poi, good):
         ("no Y_UM column", variant("noy", no_y), [], "Y_UM"),
         ("X_UM in mm", variant("mm", mm), [], "need um"),
         ("a NaN position", variant("nanx", nan_x), [], "X_UM in row 4"),
+        # cfitsio reads an infinity as undefined: the message must not call it NaN
+        ("an infinite position", variant("infx", inf_x), [],
+         "X_UM in row 4 is not a finite number (NaN, infinite or undefined)"),
         ("NCOMBINE differs in row 6", variant("ncombine", ncombine_rows), [], "row 6"),
         ("SIMPLE = F", patched(t, good, "simplef", 0, "SIMPLE", "SIMPLE  = %20s" % "F"), [],
          "SIMPLE = F"),
