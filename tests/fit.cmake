@@ -20,5 +20,7 @@ ipsd_add_test(test_fit_threads ipsfit Threads::Threads)
 set_tests_properties(test_fit_threads PROPERTIES TIMEOUT 240)
 # the kriged map's algebra (white box): the kernel's closed forms against dense LAPACK, the
 # likelihood in the points' and the cells' space against each other and central differences
+# the adaptive scan's greedy batch against closed forms and the information-form posterior
+ipsd_add_test(test_adapt ipsfit)
 ipsd_add_test(test_krige_lik ipsfit)
 target_include_directories(test_krige_lik PRIVATE ${PROJECT_SOURCE_DIR}/fit)
