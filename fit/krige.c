@@ -268,8 +268,30 @@ int kr_work_new(const fit_scan_t *scan, const fit_krige_prior_t *pr, const fit_o
     return 0;
 }
 
-int fit_krige_with(const fit_scan_t *scan, const fit_krige_prior_t *pr,
-                   const fit_options_t *opts, fit_kriged_t *out, err_t *err)
+/* The planner's covariance of S (fit_krige_with_cov): the smooth model's posterior covariance,
+ * plus (m1 - m0)(m1 - m0)^T about the map kept when the smooth part was dropped, so that its
+ * diagonal is S_err^2 as widen_by_smooth_model makes it; the kept model's own otherwise. */
+static int planning_cov(kr_prob_t *k, const double *th, kr_prob_t *k1, const double *th1,
+                        int use_k1, const double *const *Bq, fit_kriged_t *out)
+{
+    size_t m = k->m;
+    double *S1 = malloc(sizeof(double) * m), g[KR_MAX_THETA], AI[KR_MAX_THETA * KR_MAX_THETA];
+    int rc = -ENOMEM;
+    if (!S1 || !(out->S_cov = malloc(sizeof(double) * m * m))) goto out;
+    rc = -EDOM;
+    if (use_k1 && (!k1->at_valid || memcmp(k1->at, th1, sizeof(double) * (size_t)kr_theta_count(k1))) &&
+        (!isfinite(kr_value(k1, th1)) || kr_derivs(k1, th1, g, AI)))
+        goto out;
+    if ((rc = kr_posterior_cov(use_k1 ? k1 : k, use_k1 ? th1 : th, Bq, S1, out->S_cov))) goto out;
+    for (size_t i = 0; use_k1 && i < m; i++)
+        for (size_t j = 0; j < m; j++) out->S_cov[i * m + j] += (S1[i] - out->S[i]) * (S1[j] - out->S[j]);
+out:
+    free(S1);
+    return rc;
+}
+
+static int krige_run(const fit_scan_t *scan, const fit_krige_prior_t *pr,
+                     const fit_options_t *opts, int want_cov, fit_kriged_t *out, err_t *err)
 {
     memset(out, 0, sizeof *out);
     out->length_um = NAN;
@@ -317,7 +339,8 @@ int fit_krige_with(const fit_scan_t *scan, const fit_krige_prior_t *pr,
     }
     const double *const *Bq = (const double *const *)w->Bq;
     if ((rc = kr_posterior(k, th, Bq, out->S, out->S_err)) ||
-        (!smooth && isfinite(f1) && (rc = widen_by_smooth_model(k1, th1, Bq, out)))) {
+        (!smooth && isfinite(f1) && (rc = widen_by_smooth_model(k1, th1, Bq, out))) ||
+        (want_cov && (rc = planning_cov(k, th, k1, th1, !smooth && isfinite(f1), Bq, out)))) {
         rc = rc == -ENOMEM    ? err_set(err, rc, "out of memory")
              : rc == -ECANCELED ? err_set(err, rc, "kriged map stopped")
                                 : err_set(err, rc, "the kriged map's posterior failed");
@@ -329,6 +352,18 @@ out:
     if (rc) fit_kriged_free(out);
     kr_work_free(w);
     return rc;
+}
+
+int fit_krige_with(const fit_scan_t *scan, const fit_krige_prior_t *pr,
+                   const fit_options_t *opts, fit_kriged_t *out, err_t *err)
+{
+    return krige_run(scan, pr, opts, 0, out, err);
+}
+
+int fit_krige_with_cov(const fit_scan_t *scan, const fit_krige_prior_t *pr,
+                       const fit_options_t *opts, fit_kriged_t *out, err_t *err)
+{
+    return krige_run(scan, pr, opts, 1, out, err);
 }
 
 int fit_krige(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_kriged_t *out,
@@ -344,6 +379,7 @@ void fit_kriged_free(fit_kriged_t *k)
     if (!k) return;
     free(k->S);
     free(k->S_err);
-    k->S = k->S_err = NULL;
+    free(k->S_cov);
+    k->S = k->S_err = k->S_cov = NULL;
     k->grid = 0;
 }

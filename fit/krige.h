@@ -71,6 +71,7 @@ typedef struct fit_kriged {
                            part, S_err is the root of the smooth model's posterior second moment
                            about S (its variance plus its mean's distance from S): the grids
                            alone see nothing inside their cells (krige.c) */
+    double *S_cov;      /* F^2 x F^2 from fit_krige_with_cov, else NULL */
     double ms;          /* cost */
 } fit_kriged_t;
 
@@ -80,6 +81,12 @@ typedef struct fit_kriged {
  * (opts->stop) with err. */
 int fit_krige_with(const fit_scan_t *scan, const fit_krige_prior_t *prior,
                    const fit_options_t *opts, fit_kriged_t *out, err_t *err);
+
+/* fit_krige_with, and the whole posterior covariance of S in out->S_cov (F^2 x F^2, row-major;
+ * its diagonal S_err^2): what an adaptive scan's planner (adapt.h) needs. Without the smooth
+ * part it is the smooth model's covariance about the map kept, as S_err is. */
+int fit_krige_with_cov(const fit_scan_t *scan, const fit_krige_prior_t *prior,
+                       const fit_options_t *opts, fit_kriged_t *out, err_t *err);
 
 /* The prior of the kriged map the fit job stores (fit/pipeline.h) and the fidelity harness
  * scores, chosen from sweep sw: the divisor grids of its recommended r (r = 1 without one).

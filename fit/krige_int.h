@@ -101,4 +101,9 @@ double kr_maximise(kr_prob_t *k, const double *start, double *th);
 int kr_posterior(kr_prob_t *k, const double *th, const double *const *Bq, double *S,
                  double *S_err);
 
+/* The same posterior's whole covariance of S, m x m row-major (its diagonal S_err^2), into
+ * S_cov; S gets the mean as above. The same preconditions and returns. */
+int kr_posterior_cov(kr_prob_t *k, const double *th, const double *const *Bq, double *S,
+                     double *S_cov);
+
 #endif

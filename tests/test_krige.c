@@ -11,7 +11,9 @@
 #include <stdlib.h>
 
 #include "check.h"
+#include "fit/adapt.h"
 #include "fit/box.h"
+#include "fit/design.h"
 #include "fit/krige.h"
 #include "fit/noise.h"
 
@@ -205,12 +207,92 @@ static void refusals(void)
     o.stop.poll = stop_now;
     CHECK(fit_krige(make_scan(tilt, 6, 1, 3, &b), 3, &o, &k, &e) == -ECANCELED && k.S == NULL);
 }
+/* The planner's covariance (fit_krige_with_cov): the same map as fit_krige_with, its diagonal
+ * S_err^2 whether the smooth part was kept (a tilt) or dropped (a dead corner, where S_err is the
+ * smooth model's second moment about the map, to the rounding of the prior's variance less what
+ * the points explain), symmetric, and rows summing to 0 (S has mean 1
+ * by construction, so its sum has no variance). */
+static void covariance(void)
+{
+    static struct scan b1, b2;
+    const fit_scan_t *scans[2] = {make_scan(dead_corner, 3, 1, 7, &b1),
+                                  make_scan(tilt, 24, 1, 11, &b2)};
+    const int rs[2] = {3, 6};
+    for (int c = 0; c < 2; c++) {
+        fit_options_t o = shot_read();
+        fit_krige_prior_t pr = fit_krige_prior_divisors(rs[c]);
+        pr.r = rs[c];
+        fit_kriged_t k, kc;
+        err_t e;
+        CHECK(fit_krige_with(scans[c], &pr, &o, &k, &e) == 0 && k.S_cov == NULL);
+        CHECK(fit_krige_with_cov(scans[c], &pr, &o, &kc, &e) == 0 && kc.S_cov != NULL);
+        CHECK(kc.smooth == c && kc.grid == k.grid);
+        size_t m = (size_t)k.grid * k.grid;
+        double sdiff = 0, dworst = 0, aworst = 0, rworst = 0;
+        for (size_t i = 0; kc.S_cov && i < m; i++) {
+            double rs_i = 0, v = kc.S_err[i] * kc.S_err[i];
+            sdiff = fmax(sdiff, fabs(kc.S[i] - k.S[i]));
+            dworst = fmax(dworst, fabs(kc.S_cov[i * m + i] - v) / v);
+            for (size_t j = 0; j < m; j++) {
+                aworst = fmax(aworst, fabs(kc.S_cov[i * m + j] - kc.S_cov[j * m + i]) /
+                                          (kc.S_err[i] * kc.S_err[j]));
+                rs_i += kc.S_cov[i * m + j];
+            }
+            rworst = fmax(rworst, fabs(rs_i) / v);
+        }
+        fprintf(stderr, "cov %d: S %g diag %g asym %g rows %g\n", c, sdiff, dworst, aworst, rworst);
+        CHECK(sdiff == 0 && dworst < 1e-6 && aworst < 1e-12 && rworst < 1e-6);
+        fit_kriged_free(&k);
+        fit_kriged_free(&kc);
+    }
+}
+
+/* The planner (adapt.h) on the kriged covariance of a scan that saw only the pixel's right half
+ * (x > 3.3 um): the map is uncertain where no spot fell, so the first batch from the whole 9 x 9
+ * raster lies in the unseen left half, and the expected mean variance falls with each pick. */
+static void plan_unseen_half(void)
+{
+    static struct scan b, half;
+    const fit_scan_t *full = make_scan(tilt, 24, 1, 11, &b);
+    size_t n = 0;
+    for (size_t k = 0; k < N; k++)
+        if (full->x_um[k] > P / 2 + 0.3)
+            half.x[n] = full->x_um[k], half.y[n] = full->y_um[k], half.sig[n++] = full->signal_dn[k];
+    half.sc = *full;
+    half.sc.n = n, half.sc.x_um = half.x, half.sc.y_um = half.y, half.sc.signal_dn = half.sig;
+    fit_options_t o = shot_read();
+    fit_krige_prior_t pr = fit_krige_prior_divisors(6);
+    pr.r = 6;
+    fit_kriged_t k;
+    err_t e;
+    CHECK(n == 36 && fit_krige_with_cov(&half.sc, &pr, &o, &k, &e) == 0);
+    if (!k.S_cov) return;
+    size_t m = (size_t)k.grid * k.grid;
+    double *A = malloc(sizeof(double) * N * m), s2[N], mv[10];
+    fit_design_opts_t dopt = fit_design_opts_for_tol(1e-6);
+    CHECK(A && fit_design_build(RAD, P, k.grid, full->x_um, full->y_um, N, &dopt, A, NULL, &e) == 0);
+    for (int j = 0; j < N; j++) s2[j] = 1e-4; /* a 1 % measurement of the spot's flux */
+    int picked[9], got = A ? fit_adapt_pick(m, k.S_cov, N, A, s2, 9, picked, mv, &e) : -1;
+    CHECK(got == 9);
+    int left = 0;
+    for (int i = 0; i < got; i++) {
+        left += full->x_um[picked[i]] < P / 2;
+        CHECK(mv[i + 1] < mv[i]);
+    }
+    fprintf(stderr, "planner, right half seen: %d of %d picks in the left half; expected rms "
+                    "error %.4f -> %.4f\n", left, got, sqrt(mv[0]), sqrt(mv[got > 0 ? got : 0]));
+    CHECK(left == got);
+    free(A);
+    fit_kriged_free(&k);
+}
 
 int main(void)
 {
     flat_pixel();
     piecewise_pixel();
     tilted_pixel();
+    covariance();
+    plan_unseen_half();
     refusals();
     CHECK_DONE();
 }

@@ -7,7 +7,8 @@
  *   - The restricted likelihood in the points' space (an n x n factorisation) and in the fine
  *     cells' space (Henderson's mixed-model equations) are two formulas for one number: their
  *     -log L, gradients, average information and posterior maps agree; the gradient agrees with
- *     central differences of -log L.
+ *     central differences of -log L. The posterior's whole covariance of S agrees between the
+ *     spaces, its diagonal is S_err^2, and its rows sum to 0 (S has mean 1 by construction).
  * The fidelity of the map itself is test_krige's and test_fidelity's. */
 #include <errno.h>
 #include <lapacke.h>
@@ -203,6 +204,26 @@ static void spaces_agree(void)
             for (int i = 0; i < F * F; i++)
                 worst = fmax(worst, fmax(fabs(Sp[i] - Sc[i]), fabs(Ep[i] - Ec[i])) / Ep[i]);
             CHECK(worst < 1e-6);
+            /* the whole covariance of S (kr_posterior_cov): its diagonal is S_err^2, the two
+             * spaces give the same matrix, it is symmetric, and its rows sum to 0 (S has mean 1
+             * whatever the data, so sum S has no variance) */
+            static double Cp[F * F * F * F], Cc[F * F * F * F];
+            double S2[F * F], cworst = 0, dworst = 0, rworst = 0, sworst = 0;
+            CHECK(kr_posterior_cov(kp, th, kr_work_spread(wp), S2, Cp) == 0);
+            CHECK(kr_posterior_cov(kc, th, kr_work_spread(wc), Sc, Cc) == 0);
+            for (int i = 0; i < F * F; i++) {
+                double rs = 0;
+                sworst = fmax(sworst, fabs(S2[i] - Sp[i]));
+                dworst = fmax(dworst, fabs(Cp[i * F * F + i] - Ep[i] * Ep[i]) / (Ep[i] * Ep[i]));
+                for (int j = 0; j < F * F; j++) {
+                    double scale = Ep[i] * Ep[j];
+                    cworst = fmax(cworst, fabs(Cp[i * F * F + j] - Cc[i * F * F + j]) / scale);
+                    cworst = fmax(cworst, fabs(Cp[i * F * F + j] - Cp[j * F * F + i]) / scale);
+                    rs += Cp[i * F * F + j];
+                }
+                rworst = fmax(rworst, fabs(rs) / (Ep[i] * Ep[i]));
+            }
+            CHECK(sworst < 1e-12 && dworst < 1e-7 && cworst < 1e-6 && rworst < 1e-6);
             /* the gradient against central differences of -log L */
             for (int i = 0; i < np; i++) {
                 double h = 1e-5, tp[5], tm[5];
