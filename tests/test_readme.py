@@ -47,7 +47,8 @@ def main():
     failed = 0
     try:
         for c in cmds:
-            run = c.replace("build/cli/ips", shlex_quote(ips)).replace("/tmp/", scratch + "/")
+            # /tmp/ first: the build's own path may lie under /tmp
+            run = c.replace("/tmp/", scratch + "/").replace("build/cli/ips", shlex_quote(ips))
             r = subprocess.run(["bash", "-c", "set -o pipefail; " + run], cwd=src,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=240)
             ok = r.returncode == 0

@@ -62,8 +62,8 @@ def test(c, t, argv, daemons):
     c.ok("scan job %d failed: simulated camera: no frame" % j1 in d.log_text(), "logged")
     c.ok(d.wait_job(j2, "done"), "the next scan runs on the freed instrument to done")
     c.ok(exactly_once(s2), "the next scan's points exactly once")
-    c.eq(db.val("SELECT count(*) FROM jobs WHERE kind = 'scan' AND state = 'running'"), 0,
-         "no scan job left running")
+    c.ok(ipsd_http.wait_for(lambda: db.val("SELECT count(*) FROM jobs WHERE kind = 'scan' AND "
+                                           "state = 'running'") == 0), "no scan job left running")
     c.status(d.get("/api/health"), 200, "health answers")
 
     # a capture that fails (error@100000: the resumed run's capture) fails the job with its error
