@@ -32,6 +32,26 @@ static int normalise(size_t m, const double *T, const double *Cd, const double *
     return 0;
 }
 
+/* Z = Cov(T, d) / I0^2 without the points' noise, n x m: the smooth part a^2 K a_p (through
+ * the kernel's factor) and each grid's t_j A_j B_j^T, in that order. */
+static void points_Z(kr_prob_t *k, const double *th, const double *const *Bq, double *Z)
+{
+    size_t n = k->n, m = k->m;
+    double a2 = k->smooth ? exp(th[k->nl]) : 0;
+    for (size_t p = 0; p < n; p++) {
+        if (k->smooth) {
+            kr_kernel_cov(&k->ker, k->A + p * m, Z + p * m, 0);
+            for (size_t i = 0; i < m; i++) Z[p * m + i] *= a2;
+        } else {
+            memset(Z + p * m, 0, sizeof(double) * m);
+        }
+    }
+    for (int j = 0; j < k->nl; j++) {
+        size_t qq = (size_t)k->q[j] * k->q[j];
+        fit_gemm(k->Aq[j], 0, Bq[j], 1, n, qq, m, exp(th[j]), 1, Z);
+    }
+}
+
 static int post_points(kr_prob_t *k, const double *th, const double *const *Bq, double *T,
                        double *Cd, double *Cr)
 {
@@ -47,22 +67,14 @@ static int post_points(kr_prob_t *k, const double *th, const double *const *Bq, 
         goto out;
     }
     double a2 = k->smooth ? exp(th[nl]) : 0, r1[KR_KERNEL_MAX_F] = {0};
-    for (size_t p = 0; p < n; p++) {
-        if (k->smooth) {
-            kr_kernel_cov(&k->ker, k->A + p * m, Z + p * m, 0);
-            for (size_t i = 0; i < m; i++) Z[p * m + i] *= a2;
-        } else {
-            memset(Z + p * m, 0, sizeof(double) * m);
-        }
-    }
+    points_Z(k, th, Bq, Z);
     for (size_t i = 0; i < F && k->smooth; i++)
         for (size_t j = 0; j < F; j++) r1[i] += k->ker.K1[i * F + j];
     for (size_t y = 0; y < F; y++)
         for (size_t x = 0; x < F; x++) Cd[y * F + x] = a2, Cr[y * F + x] = a2 * r1[y] * r1[x];
-    for (int j = 0; j < nl; j++) { /* Z += t A_j B_j^T; K's diagonal and row sums */
+    for (int j = 0; j < nl; j++) { /* K's diagonal and row sums */
         size_t qq = (size_t)k->q[j] * k->q[j];
         double t = exp(th[j]), area = (double)(F * F) / (double)qq;
-        fit_gemm(k->Aq[j], 0, Bq[j], 1, n, qq, m, t, 1, Z);
         for (size_t i = 0; i < m; i++) {
             double b2 = 0;
             for (size_t e = 0; e < qq; e++) b2 += Bq[j][i * qq + e] * Bq[j][i * qq + e];
@@ -172,14 +184,7 @@ static int cov_points(kr_prob_t *k, const double *th, const double *const *Bq, d
         goto out;
     }
     double a2 = k->smooth ? exp(th[nl]) : 0;
-    for (size_t p = 0; p < n; p++) {
-        if (k->smooth) {
-            kr_kernel_cov(&k->ker, k->A + p * m, Z + p * m, 0);
-            for (size_t i = 0; i < m; i++) Z[p * m + i] *= a2;
-        } else {
-            memset(Z + p * m, 0, sizeof(double) * m);
-        }
-    }
+    points_Z(k, th, Bq, Z);
     for (size_t y = 0; y < F; y++) /* C = I0^2 K, its smooth part first */
         for (size_t x = 0; x < F; x++)
             for (size_t y2 = 0; y2 < F; y2++)
@@ -188,9 +193,7 @@ static int cov_points(kr_prob_t *k, const double *th, const double *const *Bq, d
                         k->smooth ? I2 * a2 * k->ker.K1[y * F + y2] * k->ker.K1[x * F + x2] : 0;
     for (int j = 0; j < nl; j++) {
         size_t qq = (size_t)k->q[j] * k->q[j];
-        double t = exp(th[j]);
-        fit_gemm(k->Aq[j], 0, Bq[j], 1, n, qq, m, t, 1, Z);
-        fit_gemm(Bq[j], 0, Bq[j], 1, m, qq, m, I2 * t, 1, C);
+        fit_gemm(Bq[j], 0, Bq[j], 1, m, qq, m, I2 * exp(th[j]), 1, C);
     }
     fit_gemm(Z, 1, k->Py, 0, m, n, 1, I2, 0, T);
     for (size_t i = 0; i < m; i++) T[i] += k->mu;
