@@ -12,6 +12,8 @@ IPSD_PACKAGES=(
                                             # call from two threads: CMakeLists.txt)
     libopenblas-pthread-dev libgfortran-12-dev  # their archives: ips links LAPACK statically
     libsqlite3-dev sqlite3                  # storage/ (and the sqlite3 shell, tests/docs use it)
+    postgresql libpq-dev                    # storage/'s PostgreSQL backend (libpq), and the
+                                            # server its tests start (tests/pg_server.sh)
     libmicrohttpd-dev                       # api/
     nettle-dev                              # server/: SHA-256 of the bearer tokens
     libcamera-dev                           # instrument/ libcamera backend (optional at build)

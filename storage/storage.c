@@ -5,12 +5,14 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "base/clock.h"
 #include "base/le.h"
+#include "storage_sql_pg.h"
 
 #define STG_BUSY_TIMEOUT_MS 5000
 
@@ -37,18 +39,24 @@ int storage_state_parse(const char *name, storage_state_t *out)
 
 /* ---- errors and statements ---------------------------------------------------------------- */
 
-/* A PRAGMA's integer (STG_PAGE_COUNT, STG_FREELIST_COUNT), -1 when it cannot be read. Prepared
+/* Statement id's SQL in the database's dialect: PostgreSQL's own text where it has one. */
+static const char *stmt_text(storage_t *st, enum stg_id id)
+{
+    if (sqldb_dialect(st->db) == SQLDB_POSTGRES && stg_sql_pg[id]) return stg_sql_pg[id];
+    return stg_sql[id];
+}
+
+/* A size's integer (STG_PAGE_COUNT, STG_FREELIST_COUNT), -1 when it cannot be read. Prepared
  * and run without stg_error: it runs while a storage fault is being recorded. */
 static int64_t pragma_int(storage_t *st, enum stg_id id)
 {
-    if (!st->stmt[id] && sqlite3_prepare_v3(st->db, stg_sql[id], -1, SQLITE_PREPARE_PERSISTENT,
-                                            &st->stmt[id], NULL) != SQLITE_OK) {
+    if (!st->stmt[id] && sqldb_prepare(st->db, stmt_text(st, id), 1, &st->stmt[id]) != SQLDB_OK) {
         st->stmt[id] = NULL;
         return -1;
     }
     int64_t v =
-        sqlite3_step(st->stmt[id]) == SQLITE_ROW ? sqlite3_column_int64(st->stmt[id], 0) : -1;
-    sqlite3_reset(st->stmt[id]);
+        sqldb_step(st->stmt[id]) == SQLDB_ROW ? sqldb_col_int64(st->stmt[id], 0) : -1;
+    sqldb_reset(st->stmt[id]);
     return v;
 }
 
@@ -66,33 +74,25 @@ static void wrote_ok(storage_t *st)
     stg_gate_ok(st);
 }
 
-/* stg_error with SQLite's message msg. A storage fault (the disk full, read-only, I/O errors, a
+/* stg_error with the database's message msg. A storage fault (the disk full, read-only, I/O errors, a
  * corrupt or vanished file) names the database and is recorded in the gate's health. */
 static int error_text(storage_t *st, int rc, const char *msg, err_t *err, const char *what)
 {
     int code, fault = 0;
-    switch (rc & 0xff) {
-    case SQLITE_BUSY:
-    case SQLITE_LOCKED: code = -EBUSY; break;
-    case SQLITE_NOMEM: code = -ENOMEM; break;
-    case SQLITE_FULL: code = fault = -ENOSPC; break;
-    case SQLITE_READONLY: code = fault = -EROFS; break;
-    case SQLITE_IOERR:
-    case SQLITE_CORRUPT:
-    case SQLITE_NOTADB:
-    case SQLITE_CANTOPEN: code = fault = -EIO; break;
-    case SQLITE_CONSTRAINT:
-        if (rc == SQLITE_CONSTRAINT_UNIQUE || rc == SQLITE_CONSTRAINT_PRIMARYKEY)
-            code = -EEXIST;
-        else if (rc == SQLITE_CONSTRAINT_FOREIGNKEY)
-            code = -ENOENT;
-        else
-            code = -EINVAL;
-        break;
+    switch (rc) {
+    case SQLDB_BUSY: code = -EBUSY; break;
+    case SQLDB_NOMEM: code = -ENOMEM; break;
+    case SQLDB_FULL: code = fault = -ENOSPC; break;
+    case SQLDB_READONLY: code = fault = -EROFS; break;
+    case SQLDB_IOERR:
+    case SQLDB_NOTADB: code = fault = -EIO; break;
+    case SQLDB_UNIQUE: code = -EEXIST; break;
+    case SQLDB_FOREIGN_KEY: code = -ENOENT; break;
+    case SQLDB_CONSTRAINT: code = -EINVAL; break;
     default: code = -EIO;
     }
     if (!fault) return err_set(err, code, "%s: %s", what, msg);
-    const char *db = st && st->db ? sqlite3_db_filename(st->db, "main") : NULL;
+    const char *db = st && st->db ? sqldb_name(st->db) : NULL;
     err_t e;
     err_set(&e, code, "%s: %s (%s, database %s)", what, msg, storage_fault_name(fault),
             db && *db ? db : "?");
@@ -107,25 +107,24 @@ static int error_text(storage_t *st, int rc, const char *msg, err_t *err, const 
 
 int stg_error(storage_t *st, int rc, err_t *err, const char *what)
 {
-    return error_text(st, rc, st && st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc), err,
+    return error_text(st, rc, st && st->db ? sqldb_errmsg(st->db) : sqldb_rc_text(rc), err,
                       what);
 }
 
 /* The test hook's injected fault for a write about to begin (see storage_gate_set_test_faults):
- * 0, or the error as SQLite would have reported it. */
+ * 0, or the error as the database would have reported it. */
 static int injected(storage_t *st, err_t *err, const char *what)
 {
     int rc = stg_gate_injected(st);
-    return rc == SQLITE_OK ? 0 : error_text(st, rc, sqlite3_errstr(rc), err, what);
+    return rc == SQLDB_OK ? 0 : error_text(st, rc, sqldb_rc_text(rc), err, what);
 }
 
-int stg_stmt(storage_t *st, enum stg_id id, sqlite3_stmt **out, err_t *err)
+int stg_stmt(storage_t *st, enum stg_id id, sqldb_stmt_t **out, err_t *err)
 {
     *out = NULL;
     if (!st->stmt[id]) {
-        int rc = sqlite3_prepare_v3(st->db, stg_sql[id], -1, SQLITE_PREPARE_PERSISTENT,
-                                    &st->stmt[id], NULL);
-        if (rc != SQLITE_OK) {
+        int rc = sqldb_prepare(st->db, stmt_text(st, id), 1, &st->stmt[id]);
+        if (rc != SQLDB_OK) {
             st->stmt[id] = NULL;
             return stg_error(st, rc, err, "preparing a statement");
         }
@@ -134,61 +133,59 @@ int stg_stmt(storage_t *st, enum stg_id id, sqlite3_stmt **out, err_t *err)
     return 0;
 }
 
-void stg_reset(sqlite3_stmt *s)
+void stg_reset(sqldb_stmt_t *s)
 {
-    /* reset returns the error of the last step, which the caller has handled already */
-    (void)sqlite3_reset(s);
-    (void)sqlite3_clear_bindings(s);
+    sqldb_reset(s);
 }
 
-void stg_bind_int(sqlite3_stmt *s, int i, int64_t v, int *rc)
+void stg_bind_int(sqldb_stmt_t *s, int i, int64_t v, int *rc)
 {
-    if (*rc == SQLITE_OK) *rc = sqlite3_bind_int64(s, i, v);
+    if (*rc == SQLDB_OK) *rc = sqldb_bind_int64(s, i, v);
 }
 
-void stg_bind_id(sqlite3_stmt *s, int i, int64_t v, int *rc)
+void stg_bind_id(sqldb_stmt_t *s, int i, int64_t v, int *rc)
 {
-    if (*rc == SQLITE_OK) *rc = v ? sqlite3_bind_int64(s, i, v) : sqlite3_bind_null(s, i);
+    if (*rc == SQLDB_OK) *rc = v ? sqldb_bind_int64(s, i, v) : sqldb_bind_null(s, i);
 }
 
-void stg_bind_double(sqlite3_stmt *s, int i, double v, int *rc)
+void stg_bind_double(sqldb_stmt_t *s, int i, double v, int *rc)
 {
-    if (*rc == SQLITE_OK) *rc = isnan(v) ? sqlite3_bind_null(s, i) : sqlite3_bind_double(s, i, v);
+    if (*rc == SQLDB_OK) *rc = isnan(v) ? sqldb_bind_null(s, i) : sqldb_bind_double(s, i, v);
 }
 
-void stg_bind_text(sqlite3_stmt *s, int i, const char *v, int *rc)
+void stg_bind_text(sqldb_stmt_t *s, int i, const char *v, int *rc)
 {
-    if (*rc == SQLITE_OK)
-        *rc = v ? sqlite3_bind_text(s, i, v, -1, SQLITE_TRANSIENT) : sqlite3_bind_null(s, i);
+    if (*rc == SQLDB_OK)
+        *rc = v ? sqldb_bind_text(s, i, v) : sqldb_bind_null(s, i);
 }
 
-void stg_bind_blob(sqlite3_stmt *s, int i, const void *v, size_t n, int *rc)
+void stg_bind_blob(sqldb_stmt_t *s, int i, const void *v, size_t n, int *rc)
 {
-    if (*rc == SQLITE_OK) *rc = sqlite3_bind_blob64(s, i, v, n, SQLITE_TRANSIENT);
+    if (*rc == SQLDB_OK) *rc = sqldb_bind_blob(s, i, v, n);
 }
 
-double stg_col_double(sqlite3_stmt *s, int i)
+double stg_col_double(sqldb_stmt_t *s, int i)
 {
-    return sqlite3_column_type(s, i) == SQLITE_NULL ? NAN : sqlite3_column_double(s, i);
+    return sqldb_col_null(s, i) ? NAN : sqldb_col_double(s, i);
 }
 
-int64_t stg_col_id(sqlite3_stmt *s, int i)
+int64_t stg_col_id(sqldb_stmt_t *s, int i)
 {
-    return sqlite3_column_type(s, i) == SQLITE_NULL ? 0 : sqlite3_column_int64(s, i);
+    return sqldb_col_null(s, i) ? 0 : sqldb_col_int64(s, i);
 }
 
-char *stg_col_text(sqlite3_stmt *s, int i, int *oom)
+char *stg_col_text(sqldb_stmt_t *s, int i, int *oom)
 {
-    if (sqlite3_column_type(s, i) == SQLITE_NULL) return NULL;
-    const unsigned char *t = sqlite3_column_text(s, i);
+    if (sqldb_col_null(s, i)) return NULL;
+    const char *t = sqldb_col_text(s, i);
     char *copy = t ? strdup((const char *)t) : NULL;
     if (!copy) *oom = 1;
     return copy;
 }
 
-storage_map_t stg_col_map(sqlite3_stmt *s, int i)
+storage_map_t stg_col_map(sqldb_stmt_t *s, int i)
 {
-    int m = storage_map_parse((const char *)sqlite3_column_text(s, i));
+    int m = storage_map_parse((const char *)sqldb_col_text(s, i));
     return m < 0 ? STORAGE_MAP_RECOMMENDED : (storage_map_t)m;
 }
 
@@ -206,12 +203,12 @@ int storage_map_parse(const char *word)
     return -1;
 }
 
-int stg_bind_f64_or_null(sqlite3_stmt *q, int i, const double *v, size_t n, unsigned char **buf,
+int stg_bind_f64_or_null(sqldb_stmt_t *q, int i, const double *v, size_t n, unsigned char **buf,
                          int *rc)
 {
     *buf = NULL;
     if (!v) {
-        if (*rc == SQLITE_OK) *rc = sqlite3_bind_null(q, i);
+        if (*rc == SQLDB_OK) *rc = sqldb_bind_null(q, i);
         return 0;
     }
     if (!(*buf = stg_blob_from_f64(v, n))) return -ENOMEM;
@@ -219,31 +216,31 @@ int stg_bind_f64_or_null(sqlite3_stmt *q, int i, const double *v, size_t n, unsi
     return 0;
 }
 
-double *stg_col_f64_or_null(sqlite3_stmt *s, int i, size_t n, int *bad, int *oom)
+double *stg_col_f64_or_null(sqldb_stmt_t *s, int i, size_t n, int *bad, int *oom)
 {
-    if (sqlite3_column_type(s, i) == SQLITE_NULL) return NULL;
+    if (sqldb_col_null(s, i)) return NULL;
     int b = 0;
-    double *v = stg_f64_from_blob(sqlite3_column_blob(s, i), (size_t)sqlite3_column_bytes(s, i), n,
+    double *v = stg_f64_from_blob(sqldb_col_blob(s, i), (size_t)sqldb_col_bytes(s, i), n,
                                   &b);
     if (b) *bad = 1;
     else if (!v) *oom = 1;
     return v;
 }
 
-int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
+int stg_run(storage_t *st, sqldb_stmt_t *s, err_t *err, const char *what)
 {
     /* a write outside a transaction (one statement) takes its turn at the gate too */
-    int gated = st->gate && !st->gate_held && !sqlite3_stmt_readonly(s) &&
-                sqlite3_get_autocommit(st->db);
+    int gated = st->gate && !st->gate_held && !sqldb_readonly(s) &&
+                !sqldb_in_transaction(st->db);
     if (gated && stg_gate_enter(st)) {
         stg_reset(s);
         return err_set(err, -EDEADLK, "%s: this thread is writing through another handle", what);
     }
     int ret = gated ? injected(st, err, what) : 0;
     if (ret == 0) {
-        int rc = sqlite3_step(s);
-        ret = rc == SQLITE_DONE ? 0 : stg_error(st, rc, err, what);
-        if (ret == 0 && gated && sqlite3_changes(st->db)) wrote_ok(st);
+        int rc = sqldb_step(s);
+        ret = rc == SQLDB_DONE ? 0 : stg_error(st, rc, err, what);
+        if (ret == 0 && gated && sqldb_changes(st->db)) wrote_ok(st);
     }
     stg_reset(s);
     if (gated) stg_gate_leave(st);
@@ -253,41 +250,41 @@ int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
 int stg_run_ids(storage_t *st, enum stg_id id, int64_t a, int64_t b, err_t *err,
                 const char *what)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, id, &q, err))) return ret;
     stg_bind_id(q, 1, a, &rc);
     stg_bind_id(q, 2, b, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, what);
     }
     return stg_run(st, q, err, what);
 }
 
-int stg_row(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what)
+int stg_row(storage_t *st, sqldb_stmt_t *s, err_t *err, const char *what)
 {
-    int rc = sqlite3_step(s);
-    if (rc == SQLITE_ROW) return 0;
-    if (rc == SQLITE_DONE) return -ENOENT;
+    int rc = sqldb_step(s);
+    if (rc == SQLDB_ROW) return 0;
+    if (rc == SQLDB_DONE) return -ENOENT;
     return stg_error(st, rc, err, what);
 }
 
-int stg_count(storage_t *st, sqlite3_stmt *s, int rc, int64_t *total, err_t *err,
+int stg_count(storage_t *st, sqldb_stmt_t *s, int rc, int64_t *total, err_t *err,
               const char *what)
 {
-    int ret = rc == SQLITE_OK ? stg_row(st, s, err, what) : stg_error(st, rc, err, what);
-    if (ret == 0) *total = sqlite3_column_int64(s, 0);
+    int ret = rc == SQLDB_OK ? stg_row(st, s, err, what) : stg_error(st, rc, err, what);
+    if (ret == 0) *total = sqldb_col_int64(s, 0);
     stg_reset(s);
     return ret == -ENOENT ? err_set(err, -EIO, "%s: no row", what) : ret;
 }
 
-int stg_collect(storage_t *st, sqlite3_stmt *s, size_t size, stg_reader_fn read, void **items,
+int stg_collect(storage_t *st, sqldb_stmt_t *s, size_t size, stg_reader_fn read, void **items,
                 size_t *n, err_t *err, const char *what)
 {
     size_t cap = 0;
     int rc, ret = 0;
-    while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+    while ((rc = sqldb_step(s)) == SQLDB_ROW) {
         if (*n == cap) {
             size_t ncap = cap ? 2 * cap : 16;
             void *grown = realloc(*items, ncap * size);
@@ -305,12 +302,12 @@ int stg_collect(storage_t *st, sqlite3_stmt *s, size_t size, stg_reader_fn read,
         }
         (*n)++;
     }
-    if (ret == 0 && rc != SQLITE_DONE) ret = stg_error(st, rc, err, what);
+    if (ret == 0 && rc != SQLDB_DONE) ret = stg_error(st, rc, err, what);
     stg_reset(s);
     return ret;
 }
 
-int stg_bind_map(sqlite3_stmt *q, const storage_calib_t *c, unsigned char **s, unsigned char **e,
+int stg_bind_map(sqldb_stmt_t *q, const storage_calib_t *c, unsigned char **s, unsigned char **e,
                  int *rc)
 {
     size_t n = (size_t)c->r * (size_t)c->r;
@@ -333,7 +330,7 @@ int stg_bind_map(sqlite3_stmt *q, const storage_calib_t *c, unsigned char **s, u
 
 static int run_fixed(storage_t *st, enum stg_id id, err_t *err, const char *what)
 {
-    sqlite3_stmt *s;
+    sqldb_stmt_t *s;
     int ret = stg_stmt(st, id, &s, err);
     return ret ? ret : stg_run(st, s, err, what);
 }
@@ -346,7 +343,7 @@ int stg_begin_write(storage_t *st, err_t *err)
     int ret = injected(st, err, "starting a write transaction");
     if (ret == 0) ret = run_fixed(st, STG_BEGIN_WRITE, err, "starting a write transaction");
     if (ret) stg_gate_leave(st);
-    st->changes_at_begin = sqlite3_total_changes64(st->db);
+    st->changes_at_begin = sqldb_total_changes(st->db);
     return ret;
 }
 
@@ -359,7 +356,7 @@ int stg_commit(storage_t *st, err_t *err)
 {
     /* a write transaction that changed rows: the storage took a write (a claim that found no
      * job changes nothing and proves nothing) */
-    int wrote = st->gate_held && sqlite3_total_changes64(st->db) != st->changes_at_begin;
+    int wrote = st->gate_held && sqldb_total_changes(st->db) != st->changes_at_begin;
     int ret = run_fixed(st, STG_COMMIT, err, "committing");
     if (ret) {
         stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
@@ -376,7 +373,7 @@ int stg_commit(storage_t *st, err_t *err)
 
 void stg_rollback(storage_t *st)
 {
-    if (!sqlite3_get_autocommit(st->db)) /* else no transaction (SQLite may have ended it) */
+    if (sqldb_in_transaction(st->db)) /* else none (the database may have ended it) */
         /* a failed ROLLBACK leaves nothing to do but report; the connection rolls back on close */
         (void)run_fixed(st, STG_ROLLBACK, NULL, "rolling back");
     stg_gate_leave(st);
@@ -399,8 +396,8 @@ int64_t storage_now_ms(storage_t *st)
 int storage_set_busy_timeout(storage_t *st, int ms, err_t *err)
 {
     if (!st || ms < 0) return err_set(err, -EINVAL, "busy timeout: need a handle and ms >= 0");
-    int rc = sqlite3_busy_timeout(st->db, ms);
-    return rc == SQLITE_OK ? 0 : stg_error(st, rc, err, "setting the busy timeout");
+    int rc = sqldb_busy_timeout(st->db, ms);
+    return rc == SQLDB_OK ? 0 : stg_error(st, rc, err, "setting the busy timeout");
 }
 
 /* ---- BLOB codecs: little-endian whatever the host (docs/schema.md) ------------------------ */
@@ -442,18 +439,21 @@ uint16_t *stg_u16_from_blob(const void *blob, size_t bytes, size_t n, int *bad)
 
 static int user_version(storage_t *st, int *v, err_t *err)
 {
-    sqlite3_stmt *s;
+    sqldb_stmt_t *s;
     int ret = stg_stmt(st, STG_USER_VERSION, &s, err);
     if (ret) return ret;
     ret = stg_row(st, s, err, "reading user_version");
-    if (ret == 0) *v = sqlite3_column_int(s, 0);
+    if (ret == 0) *v = sqldb_col_int(s, 0);
     stg_reset(s);
     return ret == -ENOENT ? err_set(err, -EIO, "reading user_version: no row") : ret;
 }
 
-/* Applies migration `to` (bringing to - 1 to to) unless another connection did it meanwhile. */
+/* Applies migration `to` (bringing to - 1 to to) unless another connection did it meanwhile.
+ * A PostgreSQL database begins at the current schema: its migrations before the last are NULL,
+ * and only step the version. */
 static int migrate_one(storage_t *st, int to, err_t *err)
 {
+    int pg = sqldb_dialect(st->db) == SQLDB_POSTGRES;
     int ret = stg_begin_write(st, err), v = -1;
     if (ret) return ret;
     if ((ret = user_version(st, &v, err))) goto out;
@@ -461,11 +461,15 @@ static int migrate_one(storage_t *st, int to, err_t *err)
         ret = err_set(err, -ENOTSUP, "schema version %d appeared meanwhile, newer than %d", v,
                       stg_n_migrations);
     if (ret || v >= to) goto out; /* done by another process between our check and our lock */
-    char *msg = NULL;
-    int rc = sqlite3_exec(st->db, stg_migrations[to - 1], NULL, NULL, &msg);
-    if (rc != SQLITE_OK) {
-        ret = err_set(err, -EIO, "migration %d: %s", to, msg ? msg : sqlite3_errstr(rc));
-        sqlite3_free(msg);
+    const char *sql = pg ? stg_pg_migrations[to - 1] : stg_migrations[to - 1];
+    char step[64];
+    if (!sql) {
+        snprintf(step, sizeof step, "UPDATE ipsd_schema SET version = %d", to);
+        sql = step;
+    }
+    int rc = sqldb_exec(st->db, sql);
+    if (rc != SQLDB_OK) {
+        ret = err_set(err, -EIO, "migration %d: %s", to, sqldb_errmsg(st->db));
         goto out;
     }
     if ((ret = user_version(st, &v, err))) goto out;
@@ -478,7 +482,7 @@ out:
     return stg_commit(st, err);
 }
 
-/* Refuses a schema this code does not know; *v gets the file's version. Only reads. */
+/* Refuses a schema this code does not know; *v gets the database's version. Only reads. */
 static int check_version(storage_t *st, const char *path, int *v_out, err_t *err)
 {
     int v = 0, ret = user_version(st, &v, err);
@@ -505,47 +509,72 @@ static int migrate(storage_t *st, int v, err_t *err)
     return 0;
 }
 
-/* Runs a constant pragma and checks the single-row answer when want is not NULL. */
+/* Runs a constant statement and checks the single-row answer when want is not NULL. */
 static int pragma(storage_t *st, const char *sql, const char *want, err_t *err)
 {
-    sqlite3_stmt *s = NULL;
-    int rc = sqlite3_prepare_v2(st->db, sql, -1, &s, NULL);
-    if (rc != SQLITE_OK) return stg_error(st, rc, err, sql);
-    rc = sqlite3_step(s);
+    sqldb_stmt_t *s = NULL;
+    int rc = sqldb_prepare(st->db, sql, 0, &s);
+    if (rc != SQLDB_OK) return stg_error(st, rc, err, sql);
+    rc = sqldb_step(s);
     int ret = 0;
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE) {
+    if (rc != SQLDB_ROW && rc != SQLDB_DONE) {
         ret = stg_error(st, rc, err, sql);
     } else if (want) {
-        const char *got = rc == SQLITE_ROW ? (const char *)sqlite3_column_text(s, 0) : NULL;
+        const char *got = rc == SQLDB_ROW ? sqldb_col_text(s, 0) : NULL;
         if (!got || strcmp(got, want) != 0)
             ret = err_set(err, -EIO, "%s: got '%s', need '%s'", sql, got ? got : "nothing", want);
     }
-    sqlite3_finalize(s);
+    sqldb_finalize(s);
     return ret;
 }
 
 /* After migrations: every foreign key must hold (PRAGMA foreign_key_check returns no row). */
 static int fk_check(storage_t *st, err_t *err)
 {
-    sqlite3_stmt *s = NULL;
-    int rc = sqlite3_prepare_v2(st->db, "PRAGMA foreign_key_check", -1, &s, NULL);
-    if (rc != SQLITE_OK) return stg_error(st, rc, err, "PRAGMA foreign_key_check");
-    rc = sqlite3_step(s);
+    sqldb_stmt_t *s = NULL;
+    int rc = sqldb_prepare(st->db, "PRAGMA foreign_key_check", 0, &s);
+    if (rc != SQLDB_OK) return stg_error(st, rc, err, "PRAGMA foreign_key_check");
+    rc = sqldb_step(s);
     int ret = 0;
-    if (rc == SQLITE_ROW)
+    if (rc == SQLDB_ROW)
         ret = err_set(err, -EIO, "after migrating: table %s row %lld breaks a foreign key to %s",
-                      (const char *)sqlite3_column_text(s, 0),
-                      (long long)sqlite3_column_int64(s, 1),
-                      (const char *)sqlite3_column_text(s, 2));
-    else if (rc != SQLITE_DONE)
+                      sqldb_col_text(s, 0), (long long)sqldb_col_int64(s, 1),
+                      sqldb_col_text(s, 2));
+    else if (rc != SQLDB_DONE)
         ret = stg_error(st, rc, err, "PRAGMA foreign_key_check");
-    sqlite3_finalize(s);
+    sqldb_finalize(s);
     return ret;
 }
 
-int storage_process_setup(void)
+int storage_process_setup(void) { return sqldb_process_setup(); }
+
+/* SQLite: the version check comes first: a database we refuse is not even switched to WAL.
+ * Migrations run with foreign keys off (a table rebuild drops a referenced table, SQLite's
+ * documented procedure); the keys are checked (no row may violate them) and turned on after. */
+static int open_sqlite(storage_t *st, const char *path, err_t *err)
 {
-    return sqlite3_config(SQLITE_CONFIG_MEMSTATUS, 0) == SQLITE_OK ? 0 : -EBUSY;
+    int v = 0, ret;
+    if ((ret = pragma(st, "PRAGMA foreign_keys = OFF", NULL, err)) ||
+        (ret = check_version(st, path, &v, err)) ||
+        (ret = pragma(st, "PRAGMA journal_mode = WAL", "wal", err)) ||
+        (ret = pragma(st, "PRAGMA synchronous = FULL", NULL, err)) ||
+        (ret = migrate(st, v, err)) ||
+        (v < stg_n_migrations && (ret = fk_check(st, err))) ||
+        (ret = pragma(st, "PRAGMA foreign_keys = ON", NULL, err)))
+        return ret;
+    return pragma(st, "PRAGMA foreign_keys", "1", err);
+}
+
+/* PostgreSQL: the version table is made first (in one locked transaction, so that two ipsd
+ * starting on a new database do not both make it), then the version is checked and migrated. */
+static int open_postgres(storage_t *st, const char *uri, err_t *err)
+{
+    int v = 0, ret;
+    if (sqldb_exec(st->db, stg_pg_bootstrap) != SQLDB_OK)
+        return err_set(err, -EIO, "database %s: cannot make its version table: %s", uri,
+                       sqldb_errmsg(st->db));
+    if ((ret = check_version(st, uri, &v, err))) return ret;
+    return migrate(st, v, err);
 }
 
 int storage_open(const char *path, storage_t **out, err_t *err)
@@ -555,33 +584,14 @@ int storage_open(const char *path, storage_t **out, err_t *err)
     if (!path || !*path) return err_set(err, -EINVAL, "storage_open: no database path");
     storage_t *st = calloc(1, sizeof *st);
     if (!st) return err_set(err, -ENOMEM, "storage_open: out of memory");
-    int ret = 0;
-    /* multi-thread mode: one handle per thread (storage.h) */
-    int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX;
-    int rc = sqlite3_open_v2(path, &st->db, flags, NULL);
-    if (rc != SQLITE_OK) {
-        ret = err_set(err, rc == SQLITE_NOMEM ? -ENOMEM : -EIO, "cannot open database %s: %s",
-                      path, st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc));
+    int ret = sqldb_open(path, 0, &st->db, err), rc;
+    if (ret) goto out;
+    if ((rc = sqldb_busy_timeout(st->db, STG_BUSY_TIMEOUT_MS)) != SQLDB_OK) {
+        ret = stg_error(st, rc, err, sqldb_name(st->db));
         goto out;
     }
-    if ((rc = sqlite3_extended_result_codes(st->db, 1)) != SQLITE_OK ||
-        (rc = sqlite3_busy_timeout(st->db, STG_BUSY_TIMEOUT_MS)) != SQLITE_OK) {
-        ret = stg_error(st, rc, err, path);
-        goto out;
-    }
-    /* the version check comes first: a database we refuse is not even switched to WAL.
-     * Migrations run with foreign keys off (a table rebuild drops a referenced table, SQLite's
-     * documented procedure); the keys are checked (no row may violate them) and turned on after. */
-    int v = 0;
-    if ((ret = pragma(st, "PRAGMA foreign_keys = OFF", NULL, err)) ||
-        (ret = check_version(st, path, &v, err)) ||
-        (ret = pragma(st, "PRAGMA journal_mode = WAL", "wal", err)) ||
-        (ret = pragma(st, "PRAGMA synchronous = FULL", NULL, err)) ||
-        (ret = migrate(st, v, err)) ||
-        (v < stg_n_migrations && (ret = fk_check(st, err))) ||
-        (ret = pragma(st, "PRAGMA foreign_keys = ON", NULL, err)))
-        goto out;
-    ret = pragma(st, "PRAGMA foreign_keys", "1", err);
+    ret = sqldb_dialect(st->db) == SQLDB_POSTGRES ? open_postgres(st, sqldb_name(st->db), err)
+                                                   : open_sqlite(st, path, err);
 out:
     if (ret) {
         storage_close(st);
@@ -596,34 +606,34 @@ int storage_open_readonly(const char *path, storage_t **out, err_t *err)
     if (!out) return err_set(err, -EINVAL, "storage_open_readonly: out is NULL");
     *out = NULL;
     if (!path || !*path) return err_set(err, -EINVAL, "storage_open_readonly: no database path");
+    if (sqldb_is_postgres_uri(path))
+        return err_set(err, -ENOTSUP, "a read-only open is for an SQLite file, not a PostgreSQL "
+                                      "database");
     storage_t *st = calloc(1, sizeof *st);
     if (!st) return err_set(err, -ENOMEM, "storage_open_readonly: out of memory");
-    int ret = 0, v = 0, tables = 0;
+    int ret = 0, v = 0, tables = 0, rc;
     /* read-only and never created: nothing is written to the file, not even its journal mode */
-    int rc = sqlite3_open_v2(path, &st->db, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, NULL);
-    if (rc == SQLITE_OK) rc = sqlite3_extended_result_codes(st->db, 1);
-    if (rc == SQLITE_OK) rc = sqlite3_busy_timeout(st->db, STG_BUSY_TIMEOUT_MS);
-    if (rc != SQLITE_OK) {
-        ret = err_set(err, rc == SQLITE_NOMEM ? -ENOMEM : -EIO, "cannot open database %s: %s",
-                      path, st->db ? sqlite3_errmsg(st->db) : sqlite3_errstr(rc));
+    if ((ret = sqldb_sqlite_open(path, 1, &st->db, err))) goto out;
+    if ((rc = sqldb_busy_timeout(st->db, STG_BUSY_TIMEOUT_MS)) != SQLDB_OK) {
+        ret = err_set(err, -EIO, "cannot open database %s: %s", path, sqldb_errmsg(st->db));
         goto out;
     }
-    sqlite3_stmt *s = NULL;
-    rc = sqlite3_prepare_v2(st->db,
-                            "SELECT (SELECT user_version FROM pragma_user_version), "
-                            "(SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN "
-                            "('sensors', 'scans', 'frames', 'jobs'))",
-                            -1, &s, NULL);
-    if (rc == SQLITE_OK && (rc = sqlite3_step(s)) == SQLITE_ROW) {
-        v = sqlite3_column_int(s, 0);
-        tables = sqlite3_column_int(s, 1);
-        rc = SQLITE_OK;
+    sqldb_stmt_t *s = NULL;
+    rc = sqldb_prepare(st->db,
+                       "SELECT (SELECT user_version FROM pragma_user_version), "
+                       "(SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN "
+                       "('sensors', 'scans', 'frames', 'jobs'))",
+                       0, &s);
+    if (rc == SQLDB_OK && (rc = sqldb_step(s)) == SQLDB_ROW) {
+        v = sqldb_col_int(s, 0);
+        tables = sqldb_col_int(s, 1);
+        rc = SQLDB_OK;
     }
-    sqlite3_finalize(s);
-    if ((rc & 0xff) == SQLITE_NOTADB)
+    sqldb_finalize(s);
+    if (rc == SQLDB_NOTADB)
         ret = err_set(err, -EINVAL, "%s is not an SQLite database", path);
-    else if (rc != SQLITE_OK)
-        ret = err_set(err, -EIO, "reading database %s: %s", path, sqlite3_errmsg(st->db));
+    else if (rc != SQLDB_OK)
+        ret = err_set(err, -EIO, "reading database %s: %s", path, sqldb_errmsg(st->db));
     else if (v > stg_n_migrations)
         ret = err_set(err, -ENOTSUP,
                       "database %s has schema version %d, newer than this ipsd knows (%d): "
@@ -645,18 +655,16 @@ out:
 int storage_checkpoint(storage_t *st, err_t *err)
 {
     if (!st) return err_set(err, -EINVAL, "checkpoint: NULL handle");
-    int busy = 0;
-    int rc = sqlite3_wal_checkpoint_v2(st->db, NULL, SQLITE_CHECKPOINT_TRUNCATE, NULL, NULL);
-    if (rc == SQLITE_BUSY) busy = 1;
-    else if (rc != SQLITE_OK) return stg_error(st, rc, err, "checkpointing the write-ahead log");
-    return busy ? err_set(err, -EBUSY, "checkpointing the write-ahead log: busy") : 0;
+    int rc = sqldb_checkpoint(st->db);
+    if (rc == SQLDB_BUSY) return err_set(err, -EBUSY, "checkpointing the write-ahead log: busy");
+    return rc == SQLDB_OK ? 0 : stg_error(st, rc, err, "checkpointing the write-ahead log");
 }
 
 void storage_close(storage_t *st)
 {
     if (!st) return;
     stg_gate_leave(st); /* a transaction left open is rolled back by the close */
-    for (int i = 0; i < STG_N; i++) sqlite3_finalize(st->stmt[i]);
-    sqlite3_close_v2(st->db); /* NULL is a no-op; frees once nothing is pending */
+    for (int i = 0; i < STG_N; i++) sqldb_finalize(st->stmt[i]);
+    sqldb_close(st->db);
     free(st);
 }

@@ -6,6 +6,8 @@
  * run on the backup's own destination connection, not through the statement cache. */
 #include "storage_int.h"
 
+#include <sqlite3.h>
+
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -53,7 +55,7 @@ static int sync_path(const char *path, int dir, err_t *err)
 static int copy_pages(storage_t *st, sqlite3 *dst, int per_step, storage_backup_step_fn step,
                       void *ctx, int *pages, err_t *err)
 {
-    sqlite3_backup *bk = sqlite3_backup_init(dst, "main", st->db, "main");
+    sqlite3_backup *bk = sqlite3_backup_init(dst, "main", sqldb_sqlite_handle(st->db), "main");
     if (!bk) return err_set(err, -EIO, "backup: %s", sqlite3_errmsg(dst));
     int rc, ret = 0;
     while ((rc = sqlite3_backup_step(bk, per_step)) == SQLITE_OK || rc == SQLITE_BUSY ||
@@ -96,6 +98,10 @@ int storage_backup(storage_t *st, const char *dest, int pages_per_step, storage_
 {
     char part[PATH_MAX];
     struct stat sb;
+    sqlite3 *src = sqldb_sqlite_handle(st->db);
+    if (!src)
+        return err_set(err, -ENOTSUP, "backup: this copies an SQLite database; a PostgreSQL "
+                                      "database is backed up with pg_dump (docs/operations.md)");
     if (snprintf(part, sizeof part, "%s.part", dest) >= (int)sizeof part)
         return err_set(err, -EINVAL, "backup: path too long: %s", dest);
     if (stat(dest, &sb) == 0) return err_set(err, -EEXIST, "backup: %s exists already", dest);
@@ -116,7 +122,7 @@ int storage_backup(storage_t *st, const char *dest, int pages_per_step, storage_
     char version[32];
     if (!ret && !(ret = stg_begin_read(st, err))) {
         in_txn = 1; /* BEGIN is deferred: the first read starts the transaction */
-        ret = first_text(st->db, "PRAGMA user_version", version, sizeof version, err);
+        ret = first_text(src, "PRAGMA user_version", version, sizeof version, err);
     }
     if (!ret)
         ret = copy_pages(st, dst, pages_per_step > 0 ? pages_per_step : BACKUP_PAGES_PER_STEP, step,

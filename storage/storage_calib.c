@@ -40,20 +40,20 @@ storage_calib_filter_t storage_calib_filter_default(void)
 }
 
 /* Reads a STG_CALIB_COLS row; 0, -ENOMEM, or -EIO for a map BLOB of the wrong size. */
-static int read_calib(sqlite3_stmt *s, void *item)
+static int read_calib(sqldb_stmt_t *s, void *item)
 {
     storage_calib_t *o = item;
     int oom = 0, bad_s = 0, bad_e = 0;
     memset(o, 0, sizeof *o);
-    o->id = sqlite3_column_int64(s, 0);
-    o->sensor_id = sqlite3_column_int64(s, 1);
-    o->pixel_col = sqlite3_column_int(s, 2);
-    o->pixel_row = sqlite3_column_int(s, 3);
-    o->r = sqlite3_column_int(s, 4);
+    o->id = sqldb_col_int64(s, 0);
+    o->sensor_id = sqldb_col_int64(s, 1);
+    o->pixel_col = sqldb_col_int(s, 2);
+    o->pixel_row = sqldb_col_int(s, 3);
+    o->r = sqldb_col_int(s, 4);
     size_t n = (size_t)o->r * (size_t)o->r;
-    o->S = stg_f64_from_blob(sqlite3_column_blob(s, 5), (size_t)sqlite3_column_bytes(s, 5), n,
+    o->S = stg_f64_from_blob(sqldb_col_blob(s, 5), (size_t)sqldb_col_bytes(s, 5), n,
                              &bad_s);
-    o->S_err = stg_f64_from_blob(sqlite3_column_blob(s, 6), (size_t)sqlite3_column_bytes(s, 6), n,
+    o->S_err = stg_f64_from_blob(sqldb_col_blob(s, 6), (size_t)sqldb_col_bytes(s, 6), n,
                                  &bad_e);
     o->I0 = stg_col_double(s, 7);
     o->chi2_red = stg_col_double(s, 8);
@@ -102,10 +102,10 @@ int stg_calib_check(storage_t *st, const storage_calib_t *c, err_t *err)
 }
 
 /* Single row: steps bound q expecting one integer (0 when there is no row). */
-static int one_id(storage_t *st, sqlite3_stmt *q, int rc, int64_t *v, err_t *err, const char *what)
+static int one_id(storage_t *st, sqldb_stmt_t *q, int rc, int64_t *v, err_t *err, const char *what)
 {
-    int ret = rc == SQLITE_OK ? stg_row(st, q, err, what) : stg_error(st, rc, err, what);
-    *v = ret == 0 ? sqlite3_column_int64(q, 0) : 0;
+    int ret = rc == SQLDB_OK ? stg_row(st, q, err, what) : stg_error(st, rc, err, what);
+    *v = ret == 0 ? sqldb_col_int64(q, 0) : 0;
     stg_reset(q);
     return ret == -ENOENT ? 0 : ret;
 }
@@ -113,17 +113,17 @@ static int one_id(storage_t *st, sqlite3_stmt *q, int rc, int64_t *v, err_t *err
 int stg_calib_current_ids(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
                           int64_t *id, int64_t *fit_id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     *id = *fit_id = 0;
     if ((ret = stg_stmt(st, STG_CALIB_CURRENT_ID, &q, err))) return ret;
     stg_bind_int(q, 1, sensor_id, &rc);
     stg_bind_int(q, 2, pixel_col, &rc);
     stg_bind_int(q, 3, pixel_row, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "finding the current calibration")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "finding the current calibration")
                           : stg_error(st, rc, err, "finding the current calibration");
     if (ret == 0) {
-        *id = sqlite3_column_int64(q, 0);
+        *id = sqldb_col_int64(q, 0);
         *fit_id = stg_col_id(q, 1);
     }
     stg_reset(q);
@@ -137,20 +137,20 @@ int stg_calib_current_ids(storage_t *st, int64_t sensor_id, int pixel_col, int p
 static int supersede(storage_t *st, const storage_calib_t *c, int64_t *old, int64_t *new_id,
                      err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     int64_t old_fit;
-    int ret, rc = SQLITE_OK;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_calib_current_ids(st, c->sensor_id, c->pixel_col, c->pixel_row, old, &old_fit,
                                      err)))
         return ret;
     if ((ret = stg_stmt(st, STG_CALIB_NEXT_ID, &q, err)) ||
-        (ret = one_id(st, q, SQLITE_OK, new_id, err, "reserving a calibration id")))
+        (ret = one_id(st, q, SQLDB_OK, new_id, err, "reserving a calibration id")))
         return ret;
     if (!*old) return 0;
     if ((ret = stg_stmt(st, STG_CALIB_SUPERSEDE, &q, err))) return ret;
     stg_bind_int(q, 1, *old, &rc);
     stg_bind_int(q, 2, *new_id, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "superseding a calibration");
     }
@@ -159,9 +159,9 @@ static int supersede(storage_t *st, const storage_calib_t *c, int64_t *old, int6
 
 int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     int64_t new_id = 0, old = 0;
-    int ret = stg_calib_check(st, c, err), rc = SQLITE_OK;
+    int ret = stg_calib_check(st, c, err), rc = SQLDB_OK;
     if (ret || (ret = supersede(st, c, &old, &new_id, err))) return ret;
     unsigned char *s = NULL, *e = NULL, *res = NULL;
     if ((ret = stg_stmt(st, STG_CALIB_INSERT, &q, err))) goto out;
@@ -189,7 +189,7 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
         goto out;
     }
     stg_bind_text(q, 24, c->map_note && c->map_note[0] ? c->map_note : NULL, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a calibration");
         goto out;
@@ -222,9 +222,9 @@ int storage_calib_put(storage_t *st, const storage_calib_t *c, int64_t *id, err_
 }
 
 /* Runs a bound single-calibration query into *out. */
-static int calib_one(storage_t *st, sqlite3_stmt *q, int rc, storage_calib_t *out, err_t *err)
+static int calib_one(storage_t *st, sqldb_stmt_t *q, int rc, storage_calib_t *out, err_t *err)
 {
-    int ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a calibration")
+    int ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a calibration")
                               : stg_error(st, rc, err, "reading a calibration");
     if (ret == 0 && (ret = read_calib(q, out)))
         err_set(err, ret, "reading a calibration: %s",
@@ -235,8 +235,8 @@ static int calib_one(storage_t *st, sqlite3_stmt *q, int rc, storage_calib_t *ou
 
 int storage_calib_get(storage_t *st, int64_t id, storage_calib_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "calibration get: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_CALIB_GET, &q, err))) return ret;
@@ -249,8 +249,8 @@ int storage_calib_get(storage_t *st, int64_t id, storage_calib_t *out, err_t *er
 int storage_calib_current(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
                           storage_calib_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "calibration current: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_CALIB_CURRENT, &q, err))) return ret;
@@ -267,15 +267,15 @@ int storage_calib_current(storage_t *st, int64_t sensor_id, int pixel_col, int p
 int storage_calib_history(storage_t *st, int64_t sensor_id, int pixel_col, int pixel_row,
                           storage_calib_list_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "calibration history: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_CALIB_HISTORY, &q, err))) return ret;
     stg_bind_int(q, 1, sensor_id, &rc);
     stg_bind_int(q, 2, pixel_col, &rc);
     stg_bind_int(q, 3, pixel_row, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "reading calibration history");
     }
@@ -286,14 +286,14 @@ int storage_calib_history(storage_t *st, int64_t sensor_id, int pixel_col, int p
     return ret;
 }
 
-static void bind_calib_filter(sqlite3_stmt *q, const storage_calib_filter_t *f, int *rc)
+static void bind_calib_filter(sqldb_stmt_t *q, const storage_calib_filter_t *f, int *rc)
 {
     stg_bind_id(q, 1, f->sensor_id, rc);
     stg_bind_text(q, 2, f->model, rc);
     int bounds[4] = {f->col_min, f->col_max, f->row_min, f->row_max};
     for (int i = 0; i < 4; i++) {
         if (bounds[i] < 0) {
-            if (*rc == SQLITE_OK) *rc = sqlite3_bind_null(q, 3 + i);
+            if (*rc == SQLDB_OK) *rc = sqldb_bind_null(q, 3 + i);
         } else {
             stg_bind_int(q, 3 + i, bounds[i], rc);
         }
@@ -306,8 +306,8 @@ static void bind_calib_filter(sqlite3_stmt *q, const storage_calib_filter_t *f, 
 int storage_calib_search(storage_t *st, const storage_calib_filter_t *f, int limit, int offset,
                          storage_calib_list_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !f || !out) return err_set(err, -EINVAL, "calibration search: NULL argument");
     memset(out, 0, sizeof *out);
     if (offset < 0)
@@ -320,7 +320,7 @@ int storage_calib_search(storage_t *st, const storage_calib_filter_t *f, int lim
     bind_calib_filter(q, f, &rc);
     stg_bind_int(q, 10, limit > 0 ? limit : -1, &rc);
     stg_bind_int(q, 11, offset, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "searching calibrations");
         goto out;

@@ -29,15 +29,15 @@ void storage_fit_list_free(storage_fit_list_t *l)
     memset(l, 0, sizeof *l);
 }
 
-static int read_fit(sqlite3_stmt *s, void *item)
+static int read_fit(sqldb_stmt_t *s, void *item)
 {
     storage_fit_t *o = item;
     int oom = 0;
     memset(o, 0, sizeof *o);
-    o->id = sqlite3_column_int64(s, 0);
-    o->scan_id = sqlite3_column_int64(s, 1);
-    o->dcol = sqlite3_column_int(s, 2);
-    o->drow = sqlite3_column_int(s, 3);
+    o->id = sqldb_col_int64(s, 0);
+    o->scan_id = sqldb_col_int64(s, 1);
+    o->dcol = sqldb_col_int(s, 2);
+    o->drow = sqldb_col_int(s, 3);
     o->noise_model = stg_col_text(s, 4, &oom);
     o->best_r_aic = (int)stg_col_id(s, 5);
     o->best_r_bic = (int)stg_col_id(s, 6);
@@ -46,9 +46,9 @@ static int read_fit(sqlite3_stmt *s, void *item)
     o->result = stg_col_text(s, 9, &oom);
     o->created_ms = stg_col_id(s, 10);
     o->map_sensor_id = stg_col_id(s, 11);
-    o->map_col = sqlite3_column_int(s, 12);
-    o->map_row = sqlite3_column_int(s, 13);
-    o->map_r = sqlite3_column_int(s, 14);
+    o->map_col = sqldb_col_int(s, 12);
+    o->map_row = sqldb_col_int(s, 13);
+    o->map_r = sqldb_col_int(s, 14);
     o->pixel_calib_id = stg_col_id(s, 15);
     o->pixel_calib_fit_id = stg_col_id(s, 16);
     o->map_kind = stg_col_map(s, 17);
@@ -59,8 +59,8 @@ static int read_fit(sqlite3_stmt *s, void *item)
 int stg_fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *err)
 {
     storage_scan_t sc;
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!f->noise_model || !*f->noise_model) return err_set(err, -EINVAL, "fit noise_model: empty");
     if (!f->result) return err_set(err, -EINVAL, "fit result: NULL");
     if (f->best_r_aic < 0 || f->best_r_bic < 0)
@@ -85,13 +85,13 @@ int stg_fit_insert(storage_t *st, const storage_fit_t *f, int64_t *id, err_t *er
     stg_bind_double(q, 8, f->p_value, &rc);
     stg_bind_text(q, 9, f->result, &rc);
     stg_bind_int(q, 10, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "storing a fit");
     }
     ret = stg_run(st, q, err, "storing a fit");
     if (ret == -EINVAL) return err_set(err, ret, "fit result: not valid JSON text");
-    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
+    if (ret == 0) *id = sqldb_last_insert_id(st->db);
     return ret;
 }
 
@@ -102,13 +102,13 @@ int stg_fit_set_job(storage_t *st, int64_t fit_id, int64_t job_id, err_t *err)
 
 int storage_fit_get(storage_t *st, int64_t id, storage_fit_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "fit get: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_FIT_GET, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a fit")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a fit")
                           : stg_error(st, rc, err, "reading a fit");
     if (ret == 0 && read_fit(q, out)) ret = err_set(err, -ENOMEM, "fit get: out of memory");
     stg_reset(q);
@@ -118,8 +118,8 @@ int storage_fit_get(storage_t *st, int64_t id, storage_fit_t *out, err_t *err)
 int storage_fit_list(storage_t *st, int64_t scan_id, int limit, int offset, storage_fit_list_t *out,
                      err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "fit list: NULL argument");
     memset(out, 0, sizeof *out);
     if (offset < 0) return err_set(err, -EINVAL, "fit list offset: %d, need >= 0", offset);
@@ -131,7 +131,7 @@ int storage_fit_list(storage_t *st, int64_t scan_id, int limit, int offset, stor
     stg_bind_int(q, 1, scan_id, &rc);
     stg_bind_int(q, 2, limit > 0 ? limit : -1, &rc);
     stg_bind_int(q, 3, offset, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "listing fits");
         goto out;
@@ -151,8 +151,8 @@ out:
 
 int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     unsigned char *s = NULL, *e = NULL, *res = NULL;
     if ((ret = stg_stmt(st, STG_FIT_MAP_INSERT, &q, err))) goto out;
     stg_bind_int(q, 1, fit_id, &rc);
@@ -172,7 +172,7 @@ int stg_fit_map_insert(storage_t *st, int64_t fit_id, const storage_calib_t *c, 
         goto out;
     }
     stg_bind_text(q, 17, c->map_note && c->map_note[0] ? c->map_note : NULL, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "storing a fit's map");
         goto out;
@@ -201,30 +201,30 @@ static void map_free(storage_calib_t *c)
 
 int stg_fit_map_load(storage_t *st, int64_t fit_id, storage_calib_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK, oom = 0, bad_s = 0, bad_e = 0;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK, oom = 0, bad_s = 0, bad_e = 0;
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_FIT_MAP_GET, &q, err))) return ret;
     stg_bind_int(q, 1, fit_id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a fit's map")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a fit's map")
                           : stg_error(st, rc, err, "reading a fit's map");
     if (ret == -ENOENT) ret = err_set(err, ret, "fit %lld does not exist", (long long)fit_id);
-    if (ret == 0 && sqlite3_column_type(q, 0) == SQLITE_NULL)
+    if (ret == 0 && sqldb_col_null(q, 0))
         ret = err_set(err, -ENODATA,
                       "fit %lld has no map to store as a calibration (no admissible map, or a "
                       "fit of an uploaded scan file without a sensor pixel)",
                       (long long)fit_id);
     if (ret == 0) {
-        out->fit_id = sqlite3_column_int64(q, 0);
-        out->sensor_id = sqlite3_column_int64(q, 1);
-        out->pixel_col = sqlite3_column_int(q, 2);
-        out->pixel_row = sqlite3_column_int(q, 3);
-        out->r = sqlite3_column_int(q, 4);
+        out->fit_id = sqldb_col_int64(q, 0);
+        out->sensor_id = sqldb_col_int64(q, 1);
+        out->pixel_col = sqldb_col_int(q, 2);
+        out->pixel_row = sqldb_col_int(q, 3);
+        out->r = sqldb_col_int(q, 4);
         size_t n = (size_t)out->r * (size_t)out->r;
-        out->S = stg_f64_from_blob(sqlite3_column_blob(q, 5), (size_t)sqlite3_column_bytes(q, 5),
+        out->S = stg_f64_from_blob(sqldb_col_blob(q, 5), (size_t)sqldb_col_bytes(q, 5),
                                    n, &bad_s);
-        out->S_err = stg_f64_from_blob(sqlite3_column_blob(q, 6),
-                                       (size_t)sqlite3_column_bytes(q, 6), n, &bad_e);
+        out->S_err = stg_f64_from_blob(sqldb_col_blob(q, 6),
+                                       (size_t)sqldb_col_bytes(q, 6), n, &bad_e);
         out->I0 = stg_col_double(q, 7);
         out->chi2_red = stg_col_double(q, 8);
         out->status = stg_col_text(q, 9, &oom);

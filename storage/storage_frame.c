@@ -76,29 +76,30 @@ static int check_against_scan(storage_t *st, const storage_frame_t *f, err_t *er
 }
 
 /* k 64-bit integers as a little-endian BLOB bound to parameter i (NULL: bound as NULL). */
-static void bind_u64s(sqlite3_stmt *q, int i, const uint64_t *v, size_t k, int *rc)
+static void bind_u64s(sqldb_stmt_t *q, int i, const uint64_t *v, size_t k, int *rc)
 {
-    if (*rc != SQLITE_OK) return;
+    if (*rc != SQLDB_OK) return;
     if (!v) {
-        *rc = sqlite3_bind_null(q, i);
+        *rc = sqldb_bind_null(q, i);
         return;
     }
     unsigned char *b = malloc(k ? k * 8 : 1);
     if (!b) {
-        *rc = SQLITE_NOMEM;
+        *rc = SQLDB_NOMEM;
         return;
     }
     for (size_t j = 0; j < k; j++) le_put_u64(b + 8 * j, v[j]);
-    *rc = sqlite3_bind_blob64(q, i, b, k * 8, free);
+    *rc = sqldb_bind_blob(q, i, b, k * 8);
+    free(b);
 }
 
 /* Column i as k 64-bit integers (*out NULL when the column is NULL or not k long: not recorded);
  * nonzero when out of memory. */
-static int col_u64s(sqlite3_stmt *q, int i, size_t k, uint64_t **out)
+static int col_u64s(sqldb_stmt_t *q, int i, size_t k, uint64_t **out)
 {
     *out = NULL;
-    const unsigned char *b = sqlite3_column_blob(q, i);
-    if (!b || (size_t)sqlite3_column_bytes(q, i) != k * 8) return 0;
+    const unsigned char *b = sqldb_col_blob(q, i);
+    if (!b || (size_t)sqldb_col_bytes(q, i) != k * 8) return 0;
     if (!(*out = malloc(k ? k * sizeof **out : 1))) return 1;
     for (size_t j = 0; j < k; j++) (*out)[j] = le_get_u64(b + 8 * j);
     return 0;
@@ -108,8 +109,8 @@ static int col_u64s(sqlite3_stmt *q, int i, size_t k, uint64_t **out)
 static int insert_point(storage_t *st, const storage_frame_t *f, const unsigned char *mean,
                         size_t mean_bytes, const unsigned char *raw, size_t raw_bytes, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_FRAME_INSERT, &q, err))) return ret;
     stg_bind_int(q, 1, f->scan_id, &rc);
     stg_bind_int(q, 2, f->point_index, &rc);
@@ -120,7 +121,7 @@ static int insert_point(storage_t *st, const storage_frame_t *f, const unsigned 
     stg_bind_int(q, 7, storage_now_ms(st), &rc);
     stg_bind_blob(q, 8, mean, mean_bytes, &rc);
     stg_bind_blob(q, 9, raw, raw_bytes, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "storing a frame");
     }
@@ -134,7 +135,7 @@ static int insert_point(storage_t *st, const storage_frame_t *f, const unsigned 
         stg_bind_int(q, 2, f->point_index, &rc);
         bind_u64s(q, 3, (const uint64_t *)f->timestamps_ns, (size_t)f->frames, &rc);
         bind_u64s(q, 4, f->camera_frame_ids, (size_t)f->frames, &rc);
-        if (rc != SQLITE_OK) {
+        if (rc != SQLDB_OK) {
             stg_reset(q);
             return stg_error(st, rc, err, "storing a frame's times");
         }
@@ -146,12 +147,12 @@ static int insert_point(storage_t *st, const storage_frame_t *f, const unsigned 
 /* The frame times of a point into out (left NULL when none are stored). */
 static int read_times(storage_t *st, storage_frame_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_FRAME_TIMES_GET, &q, err))) return ret;
     stg_bind_int(q, 1, out->scan_id, &rc);
     stg_bind_int(q, 2, out->point_index, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a frame's times")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a frame's times")
                           : stg_error(st, rc, err, "reading a frame's times");
     if (ret == 0 && (col_u64s(q, 0, (size_t)out->frames, (uint64_t **)&out->timestamps_ns) ||
                      col_u64s(q, 1, (size_t)out->frames, &out->camera_frame_ids)))
@@ -185,7 +186,7 @@ out:
 }
 
 /* Decodes the row of STG_FRAME_GET into *out, whose frames/sub_px are set. */
-static int read_frame(sqlite3_stmt *q, storage_frame_t *out, err_t *err)
+static int read_frame(sqldb_stmt_t *q, storage_frame_t *out, err_t *err)
 {
     size_t m2 = (size_t)out->sub_px * (size_t)out->sub_px;
     int bad_mean = 0, bad_raw = 0;
@@ -194,9 +195,9 @@ static int read_frame(sqlite3_stmt *q, storage_frame_t *out, err_t *err)
     out->stage_z_um = stg_col_double(q, 2);
     out->exposure_us = stg_col_double(q, 3);
     out->captured_ms = stg_col_id(q, 4);
-    out->mean = stg_f64_from_blob(sqlite3_column_blob(q, 5), (size_t)sqlite3_column_bytes(q, 5), m2,
+    out->mean = stg_f64_from_blob(sqldb_col_blob(q, 5), (size_t)sqldb_col_bytes(q, 5), m2,
                                   &bad_mean);
-    out->raw = stg_u16_from_blob(sqlite3_column_blob(q, 6), (size_t)sqlite3_column_bytes(q, 6),
+    out->raw = stg_u16_from_blob(sqldb_col_blob(q, 6), (size_t)sqldb_col_bytes(q, 6),
                                  (size_t)out->frames * m2, &bad_raw);
     if (bad_mean || bad_raw)
         return err_set(err, -EIO, "scan %lld point %d: stored frame size does not match the scan",
@@ -209,7 +210,7 @@ static int read_frame(sqlite3_stmt *q, storage_frame_t *out, err_t *err)
 
 /* Decodes the row of STG_FRAME_HEAD into *out (frames/sub_px and raw_first/raw_count set), the
  * raw frames wanted read from the blob by its row id. */
-static int read_frame_part(storage_t *st, sqlite3_stmt *q, storage_frame_t *out, err_t *err)
+static int read_frame_part(storage_t *st, sqldb_stmt_t *q, storage_frame_t *out, err_t *err)
 {
     size_t m2 = (size_t)out->sub_px * (size_t)out->sub_px;
     size_t n = (size_t)out->raw_count * m2, off = (size_t)out->raw_first * m2 * 2;
@@ -219,10 +220,10 @@ static int read_frame_part(storage_t *st, sqlite3_stmt *q, storage_frame_t *out,
     out->stage_z_um = stg_col_double(q, 2);
     out->exposure_us = stg_col_double(q, 3);
     out->captured_ms = stg_col_id(q, 4);
-    out->mean = stg_f64_from_blob(sqlite3_column_blob(q, 5), (size_t)sqlite3_column_bytes(q, 5), m2,
+    out->mean = stg_f64_from_blob(sqldb_col_blob(q, 5), (size_t)sqldb_col_bytes(q, 5), m2,
                                   &bad_mean);
-    sqlite3_int64 rowid = sqlite3_column_int64(q, 6), raw_bytes = sqlite3_column_int64(q, 7);
-    if (bad_mean || raw_bytes != (sqlite3_int64)((size_t)out->frames * m2 * 2))
+    int64_t rowid = sqldb_col_int64(q, 6), raw_bytes = sqldb_col_int64(q, 7);
+    if (bad_mean || raw_bytes != (int64_t)((size_t)out->frames * m2 * 2))
         return err_set(err, -EIO, "scan %lld point %d: stored frame size does not match the scan",
                        (long long)out->scan_id, out->point_index);
     unsigned char *bytes = malloc(n ? n * 2 : 1);
@@ -231,22 +232,19 @@ static int read_frame_part(storage_t *st, sqlite3_stmt *q, storage_frame_t *out,
         free(bytes);
         return err_set(err, -ENOMEM, "frame get: out of memory");
     }
-    sqlite3_blob *b = NULL;
-    int rc = sqlite3_blob_open(st->db, "main", "frames", "raw", rowid, 0, &b);
-    if (rc == SQLITE_OK && n) rc = sqlite3_blob_read(b, bytes, (int)(n * 2), (int)off);
-    sqlite3_blob_close(b);
-    for (size_t i = 0; rc == SQLITE_OK && i < n; i++)
+    int rc = n ? sqldb_blob_read(st->db, "frames", "raw", rowid, off, n * 2, bytes) : SQLDB_OK;
+    for (size_t i = 0; rc == SQLDB_OK && i < n; i++)
         out->raw[i] = le_get_u16(bytes + 2 * i);
     free(bytes);
-    return rc == SQLITE_OK ? 0 : stg_error(st, rc, err, "reading a frame's raw frames");
+    return rc == SQLDB_OK ? 0 : stg_error(st, rc, err, "reading a frame's raw frames");
 }
 
 int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_frame_t *out,
                       err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     storage_scan_t sc;
-    int ret, rc = SQLITE_OK;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "frame get: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_begin_read(st, err))) return ret;
@@ -259,7 +257,7 @@ int storage_frame_get(storage_t *st, int64_t scan_id, int point_index, storage_f
     if ((ret = stg_stmt(st, STG_FRAME_GET, &q, err))) goto out;
     stg_bind_int(q, 1, scan_id, &rc);
     stg_bind_int(q, 2, point_index, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a frame")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a frame")
                           : stg_error(st, rc, err, "reading a frame");
     if (ret == -ENOENT)
         err_set(err, ret, "scan %lld has no point %d", (long long)scan_id, point_index);
@@ -278,9 +276,9 @@ out:
 int storage_frame_get_part(storage_t *st, int64_t scan_id, int point_index, int first, int count,
                            storage_frame_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     storage_scan_t sc;
-    int ret, rc = SQLITE_OK;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "frame get: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_begin_read(st, err))) return ret;
@@ -300,7 +298,7 @@ int storage_frame_get_part(storage_t *st, int64_t scan_id, int point_index, int 
     if ((ret = stg_stmt(st, STG_FRAME_HEAD, &q, err))) goto out;
     stg_bind_int(q, 1, scan_id, &rc);
     stg_bind_int(q, 2, point_index, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a frame")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a frame")
                           : stg_error(st, rc, err, "reading a frame");
     if (ret == -ENOENT)
         err_set(err, ret, "scan %lld has no point %d", (long long)scan_id, point_index);
@@ -318,20 +316,20 @@ out:
 
 int storage_frame_last(storage_t *st, int64_t scan_id, int *last, int *count, err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     storage_scan_t sc;
-    int ret, rc = SQLITE_OK;
+    int ret, rc = SQLDB_OK;
     if (!st || !last || !count) return err_set(err, -EINVAL, "frame last: NULL argument");
     if ((ret = stg_begin_read(st, err))) return ret;
     if ((ret = stg_scan_load(st, scan_id, &sc, err))) goto out;
     storage_scan_free(&sc);
     if ((ret = stg_stmt(st, STG_FRAME_LAST, &q, err))) goto out;
     stg_bind_int(q, 1, scan_id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "finding the last point")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "finding the last point")
                           : stg_error(st, rc, err, "finding the last point");
     if (ret == 0) {
-        *last = sqlite3_column_int(q, 0);
-        *count = sqlite3_column_int(q, 1);
+        *last = sqldb_col_int(q, 0);
+        *count = sqldb_col_int(q, 1);
     }
     stg_reset(q);
 out:
@@ -355,28 +353,28 @@ static int raster_alloc(storage_raster_t *r, size_t cap)
 }
 
 /* Reads the rows of STG_FRAME_RASTER (bound) into *out and resets q. */
-static int raster_rows(storage_t *st, sqlite3_stmt *q, storage_raster_t *out, err_t *err)
+static int raster_rows(storage_t *st, sqldb_stmt_t *q, storage_raster_t *out, err_t *err)
 {
     size_t cap = 0;
     int rc, ret = 0;
-    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+    while ((rc = sqldb_step(q)) == SQLDB_ROW) {
         if (out->n == cap && raster_alloc(out, cap = cap ? 2 * cap : 256)) {
             ret = err_set(err, -ENOMEM, "raster: out of memory");
             break;
         }
-        if (sqlite3_column_bytes(q, 4) != 8) {
+        if (sqldb_col_bytes(q, 4) != 8) {
             ret = err_set(err, -EIO, "raster: point %d has a mean frame of the wrong size",
-                          sqlite3_column_int(q, 0));
+                          sqldb_col_int(q, 0));
             break;
         }
-        out->point_index[out->n] = sqlite3_column_int(q, 0);
+        out->point_index[out->n] = sqldb_col_int(q, 0);
         out->stage_x_um[out->n] = stg_col_double(q, 1);
         out->stage_y_um[out->n] = stg_col_double(q, 2);
         out->exposure_us[out->n] = stg_col_double(q, 3);
-        out->mean_dn[out->n] = le_get_f64(sqlite3_column_blob(q, 4));
+        out->mean_dn[out->n] = le_get_f64(sqldb_col_blob(q, 4));
         out->n++;
     }
-    if (ret == 0 && rc != SQLITE_DONE) ret = stg_error(st, rc, err, "reading the raster");
+    if (ret == 0 && rc != SQLDB_DONE) ret = stg_error(st, rc, err, "reading the raster");
     stg_reset(q);
     return ret;
 }
@@ -384,9 +382,9 @@ static int raster_rows(storage_t *st, sqlite3_stmt *q, storage_raster_t *out, er
 int storage_frame_raster(storage_t *st, int64_t scan_id, int dcol, int drow,
                          storage_raster_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     storage_scan_t sc;
-    int ret, rc = SQLITE_OK;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "raster: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_begin_read(st, err))) return ret;
@@ -403,7 +401,7 @@ int storage_frame_raster(storage_t *st, int64_t scan_id, int dcol, int drow,
     if ((ret = stg_stmt(st, STG_FRAME_RASTER, &q, err))) goto out;
     stg_bind_int(q, 1, scan_id, &rc);
     stg_bind_int(q, 2, offset, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "reading the raster");
         goto out;
@@ -443,38 +441,38 @@ static int means_alloc(storage_means_t *m, size_t cap, size_t mm)
 }
 
 /* Reads the rows of STG_FRAME_MEANS (bound) into *out (frames of mm means) and resets q. */
-static int means_rows(storage_t *st, sqlite3_stmt *q, storage_means_t *out, size_t mm, err_t *err)
+static int means_rows(storage_t *st, sqldb_stmt_t *q, storage_means_t *out, size_t mm, err_t *err)
 {
     size_t cap = 0;
     int rc, ret = 0;
-    while ((rc = sqlite3_step(q)) == SQLITE_ROW) {
+    while ((rc = sqldb_step(q)) == SQLDB_ROW) {
         if (out->n == cap && means_alloc(out, cap = cap ? 2 * cap : 256, mm)) {
             ret = err_set(err, -ENOMEM, "means: out of memory");
             break;
         }
-        if ((size_t)sqlite3_column_bytes(q, 3) != mm * 8) {
+        if ((size_t)sqldb_col_bytes(q, 3) != mm * 8) {
             ret = err_set(err, -EIO, "means: point %d has a mean frame of the wrong size",
-                          sqlite3_column_int(q, 0));
+                          sqldb_col_int(q, 0));
             break;
         }
-        const unsigned char *b = sqlite3_column_blob(q, 3);
-        out->point_index[out->n] = sqlite3_column_int(q, 0);
+        const unsigned char *b = sqldb_col_blob(q, 3);
+        out->point_index[out->n] = sqldb_col_int(q, 0);
         out->stage_x_um[out->n] = stg_col_double(q, 1);
         out->stage_y_um[out->n] = stg_col_double(q, 2);
         for (size_t i = 0; i < mm; i++)
             out->mean_dn[out->n * mm + i] = le_get_f64(b + 8 * i);
         out->n++;
     }
-    if (ret == 0 && rc != SQLITE_DONE) ret = stg_error(st, rc, err, "reading the means");
+    if (ret == 0 && rc != SQLDB_DONE) ret = stg_error(st, rc, err, "reading the means");
     stg_reset(q);
     return ret;
 }
 
 int storage_frame_means(storage_t *st, int64_t scan_id, storage_means_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     storage_scan_t sc;
-    int ret, rc = SQLITE_OK;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "means: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_begin_read(st, err))) return ret;
@@ -483,7 +481,7 @@ int storage_frame_means(storage_t *st, int64_t scan_id, storage_means_t *out, er
     storage_scan_free(&sc);
     if ((ret = stg_stmt(st, STG_FRAME_MEANS, &q, err))) goto out;
     stg_bind_int(q, 1, scan_id, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "reading the means");
         goto out;

@@ -62,8 +62,8 @@ void storage_set_gate(storage_t *st, storage_gate_t *g)
     if (g && g->max_pages > 0) {
         char sql[64];
         snprintf(sql, sizeof sql, "PRAGMA max_page_count = %lld", g->max_pages);
-        if (sqlite3_exec(st->db, sql, NULL, NULL, NULL) != SQLITE_OK)
-            fprintf(stderr, "ipsd: test hook: %s failed: %s\n", sql, sqlite3_errmsg(st->db));
+        if (sqldb_exec(st->db, sql) != SQLDB_OK)
+            fprintf(stderr, "ipsd: test hook: %s failed: %s\n", sql, sqldb_errmsg(st->db));
     }
 }
 
@@ -136,15 +136,15 @@ void stg_gate_ok(storage_t *st)
 int stg_gate_injected(storage_t *st)
 {
     storage_gate_t *g = st->gate;
-    if (!g || !g->fault_file[0]) return SQLITE_OK;
+    if (!g || !g->fault_file[0]) return SQLDB_OK;
     FILE *f = fopen(g->fault_file, "r");
-    if (!f) return SQLITE_OK;
+    if (!f) return SQLDB_OK;
     char word[32] = "";
     if (fscanf(f, "%31s", word) != 1) word[0] = '\0';
     fclose(f);
-    if (!strcmp(word, "ioerr")) return SQLITE_IOERR_WRITE;
-    if (!strcmp(word, "readonly")) return SQLITE_READONLY;
-    return SQLITE_FULL; /* "full", or anything else */
+    if (!strcmp(word, "ioerr")) return SQLDB_IOERR;
+    if (!strcmp(word, "readonly")) return SQLDB_READONLY;
+    return SQLDB_FULL; /* "full", or anything else */
 }
 
 int storage_calib_generation(storage_t *st, uint64_t *gen)

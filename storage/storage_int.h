@@ -4,10 +4,10 @@
 #ifndef IPSD_STORAGE_INT_H
 #define IPSD_STORAGE_INT_H
 
-#include <sqlite3.h>
 #include <stdint.h>
 
 #include "storage/storage.h"
+#include "sqldb.h"
 
 /* Every statement the code runs after open, prepared once per connection on first use. */
 enum stg_id {
@@ -121,14 +121,14 @@ extern const char *const stg_migrations[];
 extern const int stg_n_migrations;
 
 struct storage {
-    sqlite3 *db;
-    sqlite3_stmt *stmt[STG_N];
+    sqldb_t *db;
+    sqldb_stmt_t *stmt[STG_N];
     storage_clock_fn clock;
     void *clock_ctx;
     storage_gate_t *gate; /* shared with the process's other handles, or NULL (storage_gate.c) */
     int gate_held;        /* this handle is in a write transaction through the gate */
     int calib_dirty;      /* this write transaction stored a calibration (storage_gate.c) */
-    sqlite3_int64 changes_at_begin; /* sqlite3_total_changes64 when it began */
+    int64_t changes_at_begin; /* sqldb_total_changes when it began */
 };
 
 /* The write gate around BEGIN IMMEDIATE .. COMMIT / ROLLBACK (no-ops without a gate): enter
@@ -144,63 +144,63 @@ void stg_gate_fault(storage_t *st, int code, const char *msg, int64_t pages, int
 void stg_gate_ok(storage_t *st);
 /* 1 when the current fault is "full", with the pages and free pages recorded at it; else 0. */
 int stg_gate_full(storage_t *st, int64_t *pages, int64_t *free_pages);
-/* The test hook's injected fault for a write beginning now: an SQLite result code, SQLITE_OK for
+/* The test hook's injected fault for a write beginning now: an SQLite result code, SQLDB_OK for
  * none (storage_gate_set_test_faults). */
 int stg_gate_injected(storage_t *st);
 
 /* The cached statement id, prepared on first use; 0 or -EIO/-ENOMEM. Give it back with
  * stg_reset once its rows are read (before the next use or the end of the transaction). */
-int stg_stmt(storage_t *st, enum stg_id id, sqlite3_stmt **out, err_t *err);
-void stg_reset(sqlite3_stmt *s);
+int stg_stmt(storage_t *st, enum stg_id id, sqldb_stmt_t **out, err_t *err);
+void stg_reset(sqldb_stmt_t *s);
 
-/* Maps a SQLite result code to a negative errno and sets "what: sqlite3_errmsg" in err. */
+/* Maps a driver result code to a negative errno and sets "what: the database's words" in err. */
 int stg_error(storage_t *st, int rc, err_t *err, const char *what);
 
 /* Binders: do nothing when *rc is already an error, else bind and store the result in *rc.
  * bind_double binds NULL for NaN; bind_id binds NULL for 0; bind_text binds NULL for NULL. */
-void stg_bind_int(sqlite3_stmt *s, int i, int64_t v, int *rc);
-void stg_bind_id(sqlite3_stmt *s, int i, int64_t v, int *rc);
-void stg_bind_double(sqlite3_stmt *s, int i, double v, int *rc);
-void stg_bind_text(sqlite3_stmt *s, int i, const char *v, int *rc);
-void stg_bind_blob(sqlite3_stmt *s, int i, const void *v, size_t n, int *rc);
+void stg_bind_int(sqldb_stmt_t *s, int i, int64_t v, int *rc);
+void stg_bind_id(sqldb_stmt_t *s, int i, int64_t v, int *rc);
+void stg_bind_double(sqldb_stmt_t *s, int i, double v, int *rc);
+void stg_bind_text(sqldb_stmt_t *s, int i, const char *v, int *rc);
+void stg_bind_blob(sqldb_stmt_t *s, int i, const void *v, size_t n, int *rc);
 /* Binds the map columns that calibrations and fit_maps share, ?2..?10 in this order: sensor_id,
  * pixel_col, pixel_row, r, s, s_err, i0, chi2_red, status. The two BLOBs are encoded into *s and
  * *e, which must live until the statement has run (caller frees both, also on error); -ENOMEM
  * when they cannot be made. */
-int stg_bind_map(sqlite3_stmt *q, const storage_calib_t *c, unsigned char **s, unsigned char **e,
+int stg_bind_map(sqldb_stmt_t *q, const storage_calib_t *c, unsigned char **s, unsigned char **e,
                  int *rc);
 
 /* Column readers: NULL reads as NaN (double), 0 (id), NULL (text). stg_col_text returns a
  * malloc'ed copy and sets *oom when the copy fails. */
-double stg_col_double(sqlite3_stmt *s, int i);
-int64_t stg_col_id(sqlite3_stmt *s, int i);
-char *stg_col_text(sqlite3_stmt *s, int i, int *oom);
+double stg_col_double(sqldb_stmt_t *s, int i);
+int64_t stg_col_id(sqldb_stmt_t *s, int i);
+char *stg_col_text(sqldb_stmt_t *s, int i, int *oom);
 /* The map column i names (storage_map_t; a word the schema's CHECK lets in, else recommended). */
-storage_map_t stg_col_map(sqlite3_stmt *s, int i);
+storage_map_t stg_col_map(sqldb_stmt_t *s, int i);
 /* Binds ?i to the r*r float64 BLOB of v, or NULL when v is NULL; *buf (caller frees, also on
  * error) must live until the statement has run. -ENOMEM when the BLOB cannot be made. */
-int stg_bind_f64_or_null(sqlite3_stmt *q, int i, const double *v, size_t n, unsigned char **buf,
+int stg_bind_f64_or_null(sqldb_stmt_t *q, int i, const double *v, size_t n, unsigned char **buf,
                          int *rc);
 /* Column i as n doubles (malloc'ed), NULL for SQL NULL; *bad = 1 for a BLOB of the wrong size,
  * *oom = 1 when out of memory. */
-double *stg_col_f64_or_null(sqlite3_stmt *s, int i, size_t n, int *bad, int *oom);
+double *stg_col_f64_or_null(sqldb_stmt_t *s, int i, size_t n, int *bad, int *oom);
 
 /* Runs a bound statement that returns no rows and resets it: 0 or a negative errno. */
-int stg_run(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what);
+int stg_run(storage_t *st, sqldb_stmt_t *s, err_t *err, const char *what);
 /* stg_run of statement id with ids ?1 = a and ?2 = b (0: NULL). */
 int stg_run_ids(storage_t *st, enum stg_id id, int64_t a, int64_t b, err_t *err,
                 const char *what);
 /* Steps a bound statement expecting one row: 0 (row ready), -ENOENT (no row), or an error. */
-int stg_row(storage_t *st, sqlite3_stmt *s, err_t *err, const char *what);
+int stg_row(storage_t *st, sqldb_stmt_t *s, err_t *err, const char *what);
 
 /* Steps a bound COUNT statement (rc: the binding result) into *total and resets it. */
-int stg_count(storage_t *st, sqlite3_stmt *s, int rc, int64_t *total, err_t *err,
+int stg_count(storage_t *st, sqldb_stmt_t *s, int rc, int64_t *total, err_t *err,
               const char *what);
 /* Reads every row of a bound statement into a growing array of `size`-byte items with read
  * (0, -ENOMEM, or -EIO for a corrupt row; it frees its item on failure), then resets it.
  * *items / *n hold what was read even on failure, for the caller's list_free. */
-typedef int (*stg_reader_fn)(sqlite3_stmt *s, void *item);
-int stg_collect(storage_t *st, sqlite3_stmt *s, size_t size, stg_reader_fn read, void **items,
+typedef int (*stg_reader_fn)(sqldb_stmt_t *s, void *item);
+int stg_collect(storage_t *st, sqldb_stmt_t *s, size_t size, stg_reader_fn read, void **items,
                 size_t *n, err_t *err, const char *what);
 
 /* Transactions: BEGIN IMMEDIATE for writes, BEGIN (deferred) for consistent multi-statement

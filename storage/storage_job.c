@@ -45,19 +45,19 @@ void storage_job_list_free(storage_job_list_t *l)
 }
 
 /* Reads a STG_JOB_COLS row (item: a storage_job_t); 0 or -ENOMEM (freed on failure). */
-static int read_job(sqlite3_stmt *s, void *item)
+static int read_job(sqldb_stmt_t *s, void *item)
 {
     storage_job_t *o = item;
     int oom = 0;
     memset(o, 0, sizeof *o);
-    o->id = sqlite3_column_int64(s, 0);
-    storage_job_kind_parse((const char *)sqlite3_column_text(s, 1), &o->kind); /* CHECKed */
+    o->id = sqldb_col_int64(s, 0);
+    storage_job_kind_parse((const char *)sqldb_col_text(s, 1), &o->kind); /* CHECKed */
     o->params = stg_col_text(s, 2, &oom);
-    storage_state_parse((const char *)sqlite3_column_text(s, 3), &o->state);
+    storage_state_parse((const char *)sqldb_col_text(s, 3), &o->state);
     o->progress = stg_col_double(s, 4);
-    o->points_done = sqlite3_column_int(s, 5);
+    o->points_done = sqldb_col_int(s, 5);
     o->error = stg_col_text(s, 6, &oom);
-    o->attempts = sqlite3_column_int(s, 7);
+    o->attempts = sqldb_col_int(s, 7);
     o->heartbeat_ms = stg_col_id(s, 8);
     o->created_ms = stg_col_id(s, 9);
     o->started_ms = stg_col_id(s, 10);
@@ -72,8 +72,8 @@ static int read_job(sqlite3_stmt *s, void *item)
 int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_json,
                    int64_t scan_id, int64_t *id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!storage_job_kind_name(kind))
         return err_set(err, -EINVAL, "job kind: %d is not a kind", (int)kind);
     if (!params_json) return err_set(err, -EINVAL, "job params: NULL");
@@ -87,13 +87,13 @@ int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_js
     stg_bind_text(q, 2, params_json, &rc);
     stg_bind_int(q, 3, storage_now_ms(st), &rc);
     stg_bind_id(q, 4, scan_id, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "enqueueing a job");
     }
     ret = stg_run(st, q, err, "enqueueing a job");
     if (ret == -EINVAL) return err_set(err, ret, "job params: not valid JSON text");
-    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
+    if (ret == 0) *id = sqldb_last_insert_id(st->db);
     return ret;
 }
 
@@ -113,12 +113,12 @@ int storage_job_enqueue(storage_t *st, storage_job_kind_t kind, const char *para
 /* Reads job id (bound as ?1 of STG_JOB_GET) into *out; -ENOENT naming it when unknown. */
 static int job_load(storage_t *st, int64_t id, storage_job_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_JOB_GET, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a job")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a job")
                           : stg_error(st, rc, err, "reading a job");
     if (ret == 0 && read_job(q, out)) ret = err_set(err, -ENOMEM, "job: out of memory");
     stg_reset(q);
@@ -135,14 +135,14 @@ int storage_job_get(storage_t *st, int64_t id, storage_job_t *out, err_t *err)
  * STORAGE_JOB_BIT), 0 if none. */
 static int next_queued(storage_t *st, unsigned kinds, int64_t *id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_JOB_NEXT, &q, err))) return ret;
     for (int k = 0; k < N_KINDS; k++)
         stg_bind_text(q, k + 1, kinds & STORAGE_JOB_BIT(k) ? kind_names[k] : NULL, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "finding a queued job")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "finding a queued job")
                           : stg_error(st, rc, err, "finding a queued job");
-    *id = ret == 0 ? sqlite3_column_int64(q, 0) : 0;
+    *id = ret == 0 ? sqldb_col_int64(q, 0) : 0;
     stg_reset(q);
     return ret == -ENOENT ? 0 : ret;
 }
@@ -158,9 +158,9 @@ int storage_job_claim(storage_t *st, storage_job_kind_t kind, storage_job_t *out
 
 int storage_job_claim_kinds(storage_t *st, unsigned kinds, storage_job_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     int64_t id = 0;
-    int ret, rc = SQLITE_OK;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "job claim: NULL argument");
     memset(out, 0, sizeof *out);
     if (kinds == 0 || kinds >= STORAGE_JOB_BIT(N_KINDS))
@@ -171,7 +171,7 @@ int storage_job_claim_kinds(storage_t *st, unsigned kinds, storage_job_t *out, e
     if ((ret = stg_stmt(st, STG_JOB_START, &q, err))) goto out;
     stg_bind_int(q, 1, id, &rc);
     stg_bind_int(q, 2, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "claiming a job");
         goto out;
@@ -190,15 +190,15 @@ out:
 /* Why an update of a running job changed nothing: -ENOENT, -ECANCELED or -ESTALE. */
 static int not_running(storage_t *st, int64_t id, const char *what, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_JOB_STATE, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, what) : stg_error(st, rc, err, what);
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, what) : stg_error(st, rc, err, what);
     if (ret == -ENOENT) {
         err_set(err, ret, "%s: job %lld does not exist", what, (long long)id);
     } else if (ret == 0) {
-        const char *state = (const char *)sqlite3_column_text(q, 0);
+        const char *state = (const char *)sqldb_col_text(q, 0);
         int cancelled = state && strcmp(state, "cancelled") == 0;
         ret = err_set(err, cancelled ? -ECANCELED : -ESTALE, "%s: job %lld is %s, not running",
                       what, (long long)id, state ? state : "?");
@@ -210,8 +210,8 @@ static int not_running(storage_t *st, int64_t id, const char *what, err_t *err)
 int storage_job_heartbeat(storage_t *st, int64_t id, double progress, int points_done,
                           err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st) return err_set(err, -EINVAL, "job heartbeat: NULL handle");
     if (!(progress >= 0 && progress <= 1))
         return err_set(err, -EINVAL, "job progress: %g, need 0..1", progress);
@@ -222,12 +222,12 @@ int storage_job_heartbeat(storage_t *st, int64_t id, double progress, int points
     stg_bind_int(q, 2, storage_now_ms(st), &rc);
     stg_bind_double(q, 3, progress, &rc);
     stg_bind_int(q, 4, points_done, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job heartbeat");
     }
     if ((ret = stg_run(st, q, err, "job heartbeat"))) return ret;
-    return sqlite3_changes(st->db) ? 0 : not_running(st, id, "job heartbeat", err);
+    return sqldb_changes(st->db) ? 0 : not_running(st, id, "job heartbeat", err);
 }
 
 int storage_job_finish(storage_t *st, int64_t id, storage_state_t state, const char *error,
@@ -240,8 +240,8 @@ int storage_job_finish(storage_t *st, int64_t id, storage_state_t state, const c
 int stg_job_finish(storage_t *st, int64_t id, storage_state_t state, const char *error,
                    err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (state != STORAGE_DONE && state != STORAGE_FAILED)
         return err_set(err, -EINVAL, "job finish state: need done or failed");
     if ((ret = stg_stmt(st, STG_JOB_FINISH, &q, err))) return ret;
@@ -249,45 +249,45 @@ int stg_job_finish(storage_t *st, int64_t id, storage_state_t state, const char 
     stg_bind_text(q, 2, storage_state_name(state), &rc);
     stg_bind_text(q, 3, error, &rc);
     stg_bind_int(q, 4, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job finish");
     }
     if ((ret = stg_run(st, q, err, "job finish"))) return ret;
-    return sqlite3_changes(st->db) ? 0 : not_running(st, id, "job finish", err);
+    return sqldb_changes(st->db) ? 0 : not_running(st, id, "job finish", err);
 }
 
 int storage_job_release(storage_t *st, int64_t id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st) return err_set(err, -EINVAL, "job release: NULL handle");
     if ((ret = stg_stmt(st, STG_JOB_RELEASE, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job release");
     }
     if ((ret = stg_run(st, q, err, "job release"))) return ret;
-    return sqlite3_changes(st->db) ? 0 : not_running(st, id, "job release", err);
+    return sqldb_changes(st->db) ? 0 : not_running(st, id, "job release", err);
 }
 
 int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_JOB_STEP, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
     stg_bind_int(q, 2, from, &rc);
     stg_bind_int(q, 3, from + 1, &rc);
     stg_bind_double(q, 4, progress, &rc);
     stg_bind_int(q, 5, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job step");
     }
     if ((ret = stg_run(st, q, err, "job step"))) return ret;
-    if (sqlite3_changes(st->db)) return 0;
+    if (sqldb_changes(st->db)) return 0;
     ret = not_running(st, id, "job step", err);
     /* running, but at another count: this unit was stored by an earlier run */
     if (ret == -ESTALE && strstr(err ? err->msg : "", "is running"))
@@ -299,7 +299,7 @@ int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *er
 int stg_job_set_fit(storage_t *st, int64_t job_id, int64_t fit_id, err_t *err)
 {
     int ret = stg_run_ids(st, STG_JOB_SET_FIT, job_id, fit_id, err, "linking the job to its fit");
-    if (ret == 0 && sqlite3_changes(st->db) == 0)
+    if (ret == 0 && sqldb_changes(st->db) == 0)
         return err_set(err, -ENOENT, "job %lld does not exist", (long long)job_id);
     return ret;
 }
@@ -317,21 +317,21 @@ static int cancel_scan_of(storage_t *st, int64_t id, err_t *err)
 
 int storage_job_cancel(storage_t *st, int64_t id, int *changed, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !changed) return err_set(err, -EINVAL, "job cancel: NULL argument");
     *changed = 0;
     if ((ret = stg_begin_write(st, err))) return ret;
     if ((ret = stg_stmt(st, STG_JOB_CANCEL, &q, err))) goto out;
     stg_bind_int(q, 1, id, &rc);
     stg_bind_int(q, 2, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "job cancel");
         goto out;
     }
     if ((ret = stg_run(st, q, err, "job cancel"))) goto out;
-    if (sqlite3_changes(st->db)) {
+    if (sqldb_changes(st->db)) {
         *changed = 1;
         ret = cancel_scan_of(st, id, err);
     } else {
@@ -347,7 +347,7 @@ out:
     return ret;
 }
 
-static void bind_job_filter(sqlite3_stmt *q, int kind, int state, int64_t scan_id, int *rc)
+static void bind_job_filter(sqldb_stmt_t *q, int kind, int state, int64_t scan_id, int *rc)
 {
     stg_bind_text(q, 1, kind == STORAGE_ANY ? NULL : storage_job_kind_name(kind), rc);
     stg_bind_text(q, 2, state == STORAGE_ANY ? NULL : storage_state_name(state), rc);
@@ -356,8 +356,8 @@ static void bind_job_filter(sqlite3_stmt *q, int kind, int state, int64_t scan_i
 
 int stg_job_count(storage_t *st, storage_job_kind_t kind, int64_t scan_id, int64_t *n, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_JOB_COUNT, &q, err))) return ret;
     bind_job_filter(q, kind, STORAGE_ANY, scan_id, &rc);
     return stg_count(st, q, rc, n, err, "counting jobs");
@@ -366,8 +366,8 @@ int stg_job_count(storage_t *st, storage_job_kind_t kind, int64_t scan_id, int64
 int storage_job_list(storage_t *st, int kind, int state, int64_t scan_id, int limit, int offset,
                      storage_job_list_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "job list: NULL argument");
     memset(out, 0, sizeof *out);
     if (kind != STORAGE_ANY && !storage_job_kind_name(kind))
@@ -383,7 +383,7 @@ int storage_job_list(storage_t *st, int kind, int state, int64_t scan_id, int li
     bind_job_filter(q, kind, state, scan_id, &rc);
     stg_bind_int(q, 4, limit > 0 ? limit : -1, &rc);
     stg_bind_int(q, 5, offset, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "listing jobs");
         goto out;
@@ -403,20 +403,20 @@ out:
 static int requeue_step(storage_t *st, enum stg_id id, int64_t before, int max_attempts,
                         int *count, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, id, &q, err))) return ret;
     stg_bind_int(q, 1, before, &rc);
     if (id == STG_JOB_ABANDON) {
         stg_bind_int(q, 2, max_attempts, &rc);
         stg_bind_int(q, 3, storage_now_ms(st), &rc);
     }
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "requeueing stale jobs");
     }
     if ((ret = stg_run(st, q, err, "requeueing stale jobs"))) return ret;
-    *count = sqlite3_changes(st->db);
+    *count = sqldb_changes(st->db);
     return 0;
 }
 
@@ -443,16 +443,16 @@ int storage_job_requeue_stale(storage_t *st, int64_t stale_ms, int max_attempts,
 
 int stg_job_resume(storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_JOB_RESUME, &q, err))) return ret;
     stg_bind_int(q, 1, scan_id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "resuming a scan job")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "resuming a scan job")
                           : stg_error(st, rc, err, "resuming a scan job");
     if (ret == 0) {
-        *job_id = sqlite3_column_int64(q, 0);
-        rc = sqlite3_step(q); /* RETURNING: the update is complete when the step says done */
-        if (rc != SQLITE_DONE) ret = stg_error(st, rc, err, "resuming a scan job");
+        *job_id = sqldb_col_int64(q, 0);
+        rc = sqldb_step(q); /* RETURNING: the update is complete when the step says done */
+        if (rc != SQLDB_DONE) ret = stg_error(st, rc, err, "resuming a scan job");
     }
     stg_reset(q);
     return ret == -ENOENT ? err_set(err, -ESTALE, "scan %lld: its scan job is not failed",

@@ -24,13 +24,13 @@ void storage_ptc_list_free(storage_ptc_list_t *l)
 }
 
 /* Reads a STG_PTC_COLS row (item: a storage_ptc_t); 0 or -ENOMEM (freed on failure). */
-static int read_ptc(sqlite3_stmt *s, void *item)
+static int read_ptc(sqldb_stmt_t *s, void *item)
 {
     storage_ptc_t *o = item;
     int oom = 0;
     memset(o, 0, sizeof *o);
-    o->id = sqlite3_column_int64(s, 0);
-    o->sensor_id = sqlite3_column_int64(s, 1);
+    o->id = sqldb_col_int64(s, 0);
+    o->sensor_id = sqldb_col_int64(s, 1);
     o->gain_e_per_dn = stg_col_double(s, 2);
     o->read_noise_e = stg_col_double(s, 3);
     o->dark_dn = stg_col_double(s, 4);
@@ -45,8 +45,8 @@ static int read_ptc(sqlite3_stmt *s, void *item)
 
 int storage_ptc_put(storage_t *st, const storage_ptc_t *p, int64_t *id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !p || !id || !p->result) return err_set(err, -EINVAL, "ptc put: NULL argument");
     if (!(p->gain_e_per_dn > 0 && isfinite(p->gain_e_per_dn)))
         return err_set(err, -EINVAL, "ptc gain_e_per_dn: %g, need > 0", p->gain_e_per_dn);
@@ -62,26 +62,26 @@ int storage_ptc_put(storage_t *st, const storage_ptc_t *p, int64_t *id, err_t *e
     stg_bind_text(q, 7, p->result, &rc);
     stg_bind_id(q, 8, p->job_id, &rc);
     stg_bind_int(q, 9, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "ptc put");
     }
     ret = stg_run(st, q, err, "ptc put");
-    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
+    if (ret == 0) *id = sqldb_last_insert_id(st->db);
     return ret;
 }
 
 int storage_ptc_history(storage_t *st, int64_t sensor_id, int limit, storage_ptc_list_t *out,
                         err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "ptc history: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_PTC_HISTORY, &q, err))) return ret;
     stg_bind_int(q, 1, sensor_id, &rc);
     stg_bind_int(q, 2, limit > 0 ? limit : -1, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "ptc history");
     }
@@ -93,13 +93,13 @@ int storage_ptc_history(storage_t *st, int64_t sensor_id, int limit, storage_ptc
 
 int storage_ptc_get(storage_t *st, int64_t id, storage_ptc_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "ptc get: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_PTC_GET, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a ptc measurement")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a ptc measurement")
                           : stg_error(st, rc, err, "reading a ptc measurement");
     if (ret == 0 && read_ptc(q, out)) ret = err_set(err, -ENOMEM, "ptc: out of memory");
     stg_reset(q);

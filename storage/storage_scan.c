@@ -27,26 +27,26 @@ void storage_scan_list_free(storage_scan_list_t *l)
 }
 
 /* Reads a STG_SCAN_COLS row (item: a storage_scan_t); 0 or -ENOMEM (freed on failure). */
-static int read_scan(sqlite3_stmt *s, void *item)
+static int read_scan(sqldb_stmt_t *s, void *item)
 {
     storage_scan_t *o = item;
     int oom = 0;
     memset(o, 0, sizeof *o);
-    o->id = sqlite3_column_int64(s, 0);
-    o->sensor_id = sqlite3_column_int64(s, 1);
-    o->poi_col = sqlite3_column_int(s, 2);
-    o->poi_row = sqlite3_column_int(s, 3);
+    o->id = sqldb_col_int64(s, 0);
+    o->sensor_id = sqldb_col_int64(s, 1);
+    o->poi_col = sqldb_col_int(s, 2);
+    o->poi_row = sqldb_col_int(s, 3);
     o->wavelength_um = stg_col_double(s, 4);
     o->na = stg_col_double(s, 5);
     o->spot_radius_um = stg_col_double(s, 6);
-    o->area_px = sqlite3_column_int(s, 7);
+    o->area_px = sqldb_col_int(s, 7);
     o->step_um = stg_col_double(s, 8);
-    o->sub_px = sqlite3_column_int(s, 9);
-    o->frames = sqlite3_column_int(s, 10);
+    o->sub_px = sqldb_col_int(s, 9);
+    o->frames = sqldb_col_int(s, 10);
     o->exposure_us = stg_col_double(s, 11);
-    o->points_total = sqlite3_column_int(s, 12);
-    storage_state_parse((const char *)sqlite3_column_text(s, 13), &o->state); /* CHECKed */
-    o->points_done = sqlite3_column_int(s, 14);
+    o->points_total = sqldb_col_int(s, 12);
+    storage_state_parse((const char *)sqldb_col_text(s, 13), &o->state); /* CHECKed */
+    o->points_done = sqldb_col_int(s, 14);
     o->error = stg_col_text(s, 15, &oom);
     o->created_ms = stg_col_id(s, 16);
     o->started_ms = stg_col_id(s, 17);
@@ -103,9 +103,9 @@ int stg_check_scan(const storage_scan_t *sc, const storage_sensor_t *sn, err_t *
 
 int stg_scan_insert(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t *err)
 {
-    sqlite3_stmt *q;
+    sqldb_stmt_t *q;
     storage_sensor_t sn;
-    int ret = storage_sensor_get(st, sc->sensor_id, &sn, err), rc = SQLITE_OK;
+    int ret = storage_sensor_get(st, sc->sensor_id, &sn, err), rc = SQLDB_OK;
     if (ret) return ret;
     ret = stg_check_scan(sc, &sn, err);
     storage_sensor_free(&sn);
@@ -123,12 +123,12 @@ int stg_scan_insert(storage_t *st, const storage_scan_t *sc, int64_t *id, err_t 
     stg_bind_double(q, 11, sc->exposure_us, &rc);
     stg_bind_int(q, 12, sc->points_total, &rc);
     stg_bind_int(q, 13, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "scan create");
     }
     if ((ret = stg_run(st, q, err, "scan create"))) return ret;
-    *id = sqlite3_last_insert_rowid(st->db);
+    *id = sqldb_last_insert_id(st->db);
     return 0;
 }
 
@@ -146,12 +146,12 @@ int storage_scan_create(storage_t *st, const storage_scan_t *sc, int64_t *id, er
 
 int stg_scan_load(storage_t *st, int64_t id, storage_scan_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_SCAN_GET, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a scan")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a scan")
                           : stg_error(st, rc, err, "reading a scan");
     if (ret == 0 && read_scan(q, out)) ret = err_set(err, -ENOMEM, "scan: out of memory");
     stg_reset(q);
@@ -164,7 +164,7 @@ int storage_scan_get(storage_t *st, int64_t id, storage_scan_t *out, err_t *err)
     return stg_scan_load(st, id, out, err);
 }
 
-static void bind_scan_filter(sqlite3_stmt *q, int64_t sensor_id, int state, int *rc)
+static void bind_scan_filter(sqldb_stmt_t *q, int64_t sensor_id, int state, int *rc)
 {
     stg_bind_id(q, 1, sensor_id, rc);
     stg_bind_text(q, 2, state == STORAGE_ANY ? NULL : storage_state_name(state), rc);
@@ -173,8 +173,8 @@ static void bind_scan_filter(sqlite3_stmt *q, int64_t sensor_id, int state, int 
 int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, int offset,
                       storage_scan_list_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "scan list: NULL argument");
     memset(out, 0, sizeof *out);
     if (state != STORAGE_ANY && !storage_state_name(state))
@@ -188,7 +188,7 @@ int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, in
     bind_scan_filter(q, sensor_id, state, &rc);
     stg_bind_int(q, 3, limit > 0 ? limit : -1, &rc);
     stg_bind_int(q, 4, offset, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "listing scans");
         goto out;
@@ -207,8 +207,8 @@ out:
 int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, const char *error,
                            err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st) return err_set(err, -EINVAL, "scan set state: NULL handle");
     if (!storage_state_name(state))
         return err_set(err, -EINVAL, "scan state: %d is not a state", (int)state);
@@ -217,12 +217,12 @@ int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, con
     stg_bind_text(q, 2, storage_state_name(state), &rc);
     stg_bind_text(q, 3, error, &rc);
     stg_bind_int(q, 4, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "scan set state");
     }
     if ((ret = stg_run(st, q, err, "scan set state"))) return ret;
-    if (sqlite3_changes(st->db) == 0)
+    if (sqldb_changes(st->db) == 0)
         return err_set(err, -ENOENT, "scan %lld does not exist", (long long)id);
     return 0;
 }
@@ -230,8 +230,8 @@ int storage_scan_set_state(storage_t *st, int64_t id, storage_state_t state, con
 int stg_scan_resume(storage_t *st, int64_t id, err_t *err)
 {
     storage_scan_t sc;
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_scan_load(st, id, &sc, err))) return ret;
     storage_state_t state = sc.state;
     storage_scan_free(&sc);
@@ -240,7 +240,7 @@ int stg_scan_resume(storage_t *st, int64_t id, err_t *err)
                        (long long)id, storage_state_name(state));
     if ((ret = stg_stmt(st, STG_SCAN_RESUME, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "resuming a scan");
     }
@@ -251,32 +251,32 @@ int stg_scan_resume(storage_t *st, int64_t id, err_t *err)
 
 int storage_scan_set_setup(storage_t *st, int64_t id, const char *json, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !json) return err_set(err, -EINVAL, "scan setup: NULL argument");
     if ((ret = stg_stmt(st, STG_SCAN_SET_SETUP, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
     stg_bind_text(q, 2, json, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "storing a scan setup");
     }
     ret = stg_run(st, q, err, "storing a scan setup");
     if (ret == -EINVAL) return err_set(err, ret, "scan setup: not valid JSON text");
-    if (ret == 0 && sqlite3_changes(st->db) == 0)
+    if (ret == 0 && sqldb_changes(st->db) == 0)
         ret = err_set(err, -ENOENT, "scan %lld does not exist", (long long)id);
     return ret;
 }
 
 int storage_scan_get_setup(storage_t *st, int64_t id, char **json, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK, oom = 0;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK, oom = 0;
     if (!st || !json) return err_set(err, -EINVAL, "scan setup: NULL argument");
     *json = NULL;
     if ((ret = stg_stmt(st, STG_SCAN_GET_SETUP, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a scan setup")
+    ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a scan setup")
                           : stg_error(st, rc, err, "reading a scan setup");
     if (ret == 0) *json = stg_col_text(q, 0, &oom);
     stg_reset(q);
@@ -288,11 +288,11 @@ int storage_scan_get_setup(storage_t *st, int64_t id, char **json, err_t *err)
 
 int stg_scan_add_point(storage_t *st, int64_t id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_SCAN_ADD_POINT, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "updating scan progress");
     }
@@ -301,12 +301,12 @@ int stg_scan_add_point(storage_t *st, int64_t id, err_t *err)
 
 int stg_scan_cancel(storage_t *st, int64_t id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if ((ret = stg_stmt(st, STG_SCAN_CANCEL, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
     stg_bind_int(q, 2, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "cancelling the scan");
     }

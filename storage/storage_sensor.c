@@ -25,16 +25,16 @@ void storage_sensor_list_free(storage_sensor_list_t *l)
 }
 
 /* Reads a STG_SENSOR_COLS row (item: a storage_sensor_t); 0 or -ENOMEM (freed on failure). */
-static int read_sensor(sqlite3_stmt *s, void *item)
+static int read_sensor(sqldb_stmt_t *s, void *item)
 {
     storage_sensor_t *o = item;
     int oom = 0;
     memset(o, 0, sizeof *o);
-    o->id = sqlite3_column_int64(s, 0);
+    o->id = sqldb_col_int64(s, 0);
     o->model = stg_col_text(s, 1, &oom);
     o->serial = stg_col_text(s, 2, &oom);
-    o->n_cols = sqlite3_column_int(s, 3);
-    o->n_rows = sqlite3_column_int(s, 4);
+    o->n_cols = sqldb_col_int(s, 3);
+    o->n_rows = sqldb_col_int(s, 4);
     o->pitch_um = stg_col_double(s, 5);
     o->gain_e_per_dn = stg_col_double(s, 6);
     o->read_noise_e = stg_col_double(s, 7);
@@ -67,8 +67,8 @@ static int check_sensor(const storage_sensor_t *s, err_t *err)
 
 int storage_sensor_create(storage_t *st, const storage_sensor_t *s, int64_t *id, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !id) return err_set(err, -EINVAL, "sensor create: NULL argument");
     if ((ret = check_sensor(s, err)) || (ret = stg_stmt(st, STG_SENSOR_INSERT, &q, err)))
         return ret;
@@ -82,7 +82,7 @@ int storage_sensor_create(storage_t *st, const storage_sensor_t *s, int64_t *id,
     stg_bind_double(q, 8, s->bias_dn, &rc);
     stg_bind_double(q, 9, s->full_scale_dn, &rc);
     stg_bind_int(q, 10, storage_now_ms(st), &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "sensor create");
     }
@@ -90,14 +90,14 @@ int storage_sensor_create(storage_t *st, const storage_sensor_t *s, int64_t *id,
     if (ret == -EEXIST)
         return err_set(err, ret, "sensor model '%s' serial '%s' exists already", s->model,
                        s->serial);
-    if (ret == 0) *id = sqlite3_last_insert_rowid(st->db);
+    if (ret == 0) *id = sqldb_last_insert_id(st->db);
     return ret;
 }
 
 /* Steps q (bound) for one sensor row into *out; -ENOENT when there is none. Resets q. */
-static int sensor_one(storage_t *st, sqlite3_stmt *q, int rc, storage_sensor_t *out, err_t *err)
+static int sensor_one(storage_t *st, sqldb_stmt_t *q, int rc, storage_sensor_t *out, err_t *err)
 {
-    int ret = rc == SQLITE_OK ? stg_row(st, q, err, "reading a sensor")
+    int ret = rc == SQLDB_OK ? stg_row(st, q, err, "reading a sensor")
                               : stg_error(st, rc, err, "reading a sensor");
     if (ret == 0 && read_sensor(q, out)) ret = err_set(err, -ENOMEM, "sensor: out of memory");
     stg_reset(q);
@@ -106,8 +106,8 @@ static int sensor_one(storage_t *st, sqlite3_stmt *q, int rc, storage_sensor_t *
 
 int storage_sensor_get(storage_t *st, int64_t id, storage_sensor_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "sensor get: NULL argument");
     memset(out, 0, sizeof *out);
     if ((ret = stg_stmt(st, STG_SENSOR_GET, &q, err))) return ret;
@@ -119,8 +119,8 @@ int storage_sensor_get(storage_t *st, int64_t id, storage_sensor_t *out, err_t *
 int storage_sensor_find(storage_t *st, const char *model, const char *serial,
                         storage_sensor_t *out, err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out || !model || !serial)
         return err_set(err, -EINVAL, "sensor find: NULL argument");
     memset(out, 0, sizeof *out);
@@ -135,8 +135,8 @@ int storage_sensor_find(storage_t *st, const char *model, const char *serial,
 int storage_sensor_list(storage_t *st, int limit, int offset, storage_sensor_list_t *out,
                         err_t *err)
 {
-    sqlite3_stmt *q;
-    int ret, rc = SQLITE_OK;
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
     if (!st || !out) return err_set(err, -EINVAL, "sensor list: NULL argument");
     memset(out, 0, sizeof *out);
     if (offset < 0) return err_set(err, -EINVAL, "sensor list offset: %d, need >= 0", offset);
@@ -146,7 +146,7 @@ int storage_sensor_list(storage_t *st, int limit, int offset, storage_sensor_lis
     if ((ret = stg_stmt(st, STG_SENSOR_LIST, &q, err))) goto out;
     stg_bind_int(q, 1, limit > 0 ? limit : -1, &rc);
     stg_bind_int(q, 2, offset, &rc);
-    if (rc != SQLITE_OK) {
+    if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "listing sensors");
         goto out;

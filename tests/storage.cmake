@@ -6,6 +6,15 @@ if(TARGET ipsstore)
     set_tests_properties(test_storage PROPERTIES TIMEOUT 80) # busy, ASan: 20 s (optimised 11 s)
     # white-box: it reads storage/storage_int.h (the migrations) to build an old schema by hand
     target_include_directories(test_storage PRIVATE ${PROJECT_SOURCE_DIR}/storage)
+    # the same tests on PostgreSQL (the server of tests/pg.cmake), each database a schema
+    if(TEST pg_server_start)
+        add_test(NAME test_storage_pg
+                 COMMAND test_storage --pg-uri-file ${IPSD_PG_DIR}/uri
+                 WORKING_DIRECTORY ${IPSD_TEST_DATA})
+        set_tests_properties(test_storage_pg PROPERTIES FIXTURES_REQUIRED pg
+                             SKIP_RETURN_CODE 77 TIMEOUT 120
+                             ENVIRONMENT "PGPASSFILE=${IPSD_PG_DIR}/pgpass")
+    endif()
     ipsd_add_test(test_storage_ptc ipsstore) # photon-transfer history (schema 4), jobs (5)
     target_include_directories(test_storage_ptc PRIVATE ${PROJECT_SOURCE_DIR}/storage)
     ipsd_add_test(test_storage_backup ipsstore) # SQLite (raw reads of the copy) comes with it

@@ -1,9 +1,12 @@
-/* test_storage.c: storage/ against real SQLite files in a mkdtemp directory (removed at the end).
+/* test_storage.c: storage/ against real SQLite files in a mkdtemp directory (removed at the end),
+ * or, given `--pg URI` (a PostgreSQL server the suite started: tests/pg_server.sh), against
+ * PostgreSQL, each database name of the tests then a schema of its own, made afresh.
  * Expected values come from the test's own inputs and from independent readers: the raw SQLite
- * API on a separate connection (schema version, journal mode, row counts, BLOB bytes against
- * hand-written little-endian hex) and the sqlite3 command-line shell. */
+ * API or libpq on a separate connection (schema version, journal mode, row counts, BLOB bytes
+ * against hand-written little-endian hex) and the sqlite3 command-line shell. */
 #define _GNU_SOURCE /* mkdtemp, strdup under -std=c11 */
 #include <dirent.h>
+#include <libpq-fe.h>
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
@@ -21,16 +24,97 @@
 #include "storage_int.h" /* stg_migrations[0]: to make a schema-1 database by hand */
 
 static char tmpdir[512];
+static const char *pg_uri; /* --pg URI: PostgreSQL instead of SQLite files */
 static int64_t fake_now = 1700000000000; /* the clock of the handles that install it */
 
 static int64_t fake_clock(void *ctx) { return *(int64_t *)ctx; }
 
+/* ---- PostgreSQL: a schema per database name, and the independent reader (libpq) --------- */
+
+/* The schema standing for name: "t_" and its letters and digits ("calib.db": t_calibdb). */
+static void pg_schema(const char *name, char *out, size_t n)
+{
+    size_t k = (size_t)snprintf(out, n, "t_");
+    for (const char *c = name; *c && k + 1 < n; c++)
+        if ((*c >= 'a' && *c <= 'z') || (*c >= '0' && *c <= '9')) out[k++] = *c;
+    out[k] = '\0';
+}
+
+static PGconn *pg_connect(const char *name)
+{
+    PGconn *c = PQconnectdb(pg_uri);
+    if (PQstatus(c) != CONNECTION_OK) {
+        fprintf(stderr, "libpq: %s", PQerrorMessage(c));
+        PQfinish(c);
+        return NULL;
+    }
+    char schema[64], sql[128];
+    pg_schema(name, schema, sizeof schema);
+    snprintf(sql, sizeof sql, "SET search_path = %s; SET client_min_messages = warning", schema);
+    PQclear(PQexec(c, sql));
+    return c;
+}
+
+/* Makes name's schema afresh the first time a test uses the name, with the two SQLite functions
+ * the tests' raw SQL uses (hex of a BLOB, zeroblob, a number's json_extract). */
+static void pg_fresh(const char *name)
+{
+    static char seen[64][64];
+    static int n_seen;
+    for (int i = 0; i < n_seen; i++)
+        if (!strcmp(seen[i], name)) return;
+    if (n_seen < 64) snprintf(seen[n_seen++], sizeof seen[0], "%s", name);
+    char schema[64], sql[1536];
+    pg_schema(name, schema, sizeof schema);
+    PGconn *c = pg_connect(name);
+    if (!c) return;
+    snprintf(sql, sizeof sql,
+             "SET client_min_messages = warning; DROP SCHEMA IF EXISTS %s CASCADE; "
+             "CREATE SCHEMA %s; SET search_path = %s; "
+             "CREATE FUNCTION hex(bytea) RETURNS text LANGUAGE sql IMMUTABLE "
+             "AS 'SELECT upper(encode($1, ''hex''))'; "
+             "CREATE FUNCTION zeroblob(integer) RETURNS bytea LANGUAGE sql IMMUTABLE "
+             "AS 'SELECT decode(repeat(''00'', $1), ''hex'')'; "
+             "CREATE FUNCTION json_extract(text, text) RETURNS numeric LANGUAGE sql IMMUTABLE "
+             "AS 'SELECT ($1::json #>> ARRAY[substr($2, 3)])::numeric'",
+             schema, schema, schema);
+    PGresult *r = PQexec(c, sql);
+    if (PQresultStatus(r) != PGRES_COMMAND_OK) fprintf(stderr, "%s", PQresultErrorMessage(r));
+    CHECK(PQresultStatus(r) == PGRES_COMMAND_OK);
+    PQclear(r);
+    PQfinish(c);
+}
+
+/* The first column of the first row of sql in name's schema, NULL when none (caller PQclears
+ * *res). */
+static const char *pg_first(const char *name, const char *sql, PGresult **res)
+{
+    *res = NULL;
+    PGconn *c = pg_connect(name);
+    if (!c) return NULL;
+    *res = PQexec(c, sql);
+    PQfinish(c);
+    return PQresultStatus(*res) == PGRES_TUPLES_OK && PQntuples(*res) > 0 &&
+                   !PQgetisnull(*res, 0, 0)
+               ? PQgetvalue(*res, 0, 0)
+               : NULL;
+}
+
+/* What storage_open is given for name: a file in tmpdir, or the URI with name's schema. */
 static const char *db_path(const char *name)
 {
     static char buf[8][1024];
     static int next;
     char *p = buf[next++ % 8];
-    snprintf(p, sizeof buf[0], "%s/%s", tmpdir, name);
+    if (pg_uri) {
+        char schema[64];
+        pg_schema(name, schema, sizeof schema);
+        pg_fresh(name);
+        snprintf(p, sizeof buf[0], "%s%coptions=-csearch_path%%3D%s", pg_uri,
+                 strchr(pg_uri, '?') ? '&' : '?', schema);
+    } else {
+        snprintf(p, sizeof buf[0], "%s/%s", tmpdir, name);
+    }
     return p;
 }
 
@@ -49,6 +133,14 @@ static storage_t *open_db(const char *name)
 
 static int64_t raw_int(const char *name, const char *sql)
 {
+    if (pg_uri) {
+        PGresult *r;
+        const char *v = pg_first(name, sql, &r);
+        /* a boolean reads as SQLite's 1 or 0 */
+        int64_t x = !v ? -999 : !strcmp(v, "t") ? 1 : !strcmp(v, "f") ? 0 : strtoll(v, NULL, 10);
+        PQclear(r);
+        return x;
+    }
     sqlite3 *db = NULL;
     sqlite3_stmt *s = NULL;
     int64_t v = -999;
@@ -62,9 +154,16 @@ static int64_t raw_int(const char *name, const char *sql)
 
 static void raw_text(const char *name, const char *sql, char *out, size_t n)
 {
+    snprintf(out, n, "(none)");
+    if (pg_uri) {
+        PGresult *r;
+        const char *v = pg_first(name, sql, &r);
+        if (v) snprintf(out, n, "%s", v);
+        PQclear(r);
+        return;
+    }
     sqlite3 *db = NULL;
     sqlite3_stmt *s = NULL;
-    snprintf(out, n, "(none)");
     if (sqlite3_open(db_path(name), &db) == SQLITE_OK &&
         sqlite3_prepare_v2(db, sql, -1, &s, NULL) == SQLITE_OK && sqlite3_step(s) == SQLITE_ROW &&
         sqlite3_column_text(s, 0))
@@ -80,8 +179,22 @@ static int raw_text_eq(const char *name, const char *sql, const char *want)
     return strcmp(got, want) == 0;
 }
 
+/* SQLITE_OK, SQLITE_CONSTRAINT (PostgreSQL: SQLSTATE class 23) or another SQLite code. */
 static int raw_exec(const char *name, const char *sql)
 {
+    if (pg_uri) {
+        PGconn *c = pg_connect(name);
+        if (!c) return SQLITE_CANTOPEN;
+        PGresult *r = PQexec(c, sql);
+        const char *state = PQresultErrorField(r, PG_DIAG_SQLSTATE);
+        int rc = PQresultStatus(r) == PGRES_COMMAND_OK || PQresultStatus(r) == PGRES_TUPLES_OK
+                     ? SQLITE_OK
+                 : state && !strncmp(state, "23", 2) ? SQLITE_CONSTRAINT
+                                                      : SQLITE_ERROR;
+        PQclear(r);
+        PQfinish(c);
+        return rc;
+    }
     sqlite3 *db = NULL;
     int rc = sqlite3_open(db_path(name), &db);
     if (rc == SQLITE_OK) {
@@ -377,22 +490,27 @@ static void test_raster(void)
     CHECK(storage_frame_last(st, scan, &last, &count, NULL) == 0 && last == 5 && count == 6);
     storage_close(st);
 
-    /* the sqlite3 shell reads what the code wrote (Debian package sqlite3) */
-    if (access("/usr/bin/sqlite3", X_OK) == 0) {
+    /* the database's own shell reads what the code wrote (Debian packages sqlite3 and
+     * postgresql-client) */
+    const char *shell = pg_uri ? "/usr/bin/psql -X -At" : "/usr/bin/sqlite3";
+    if (access(pg_uri ? "/usr/bin/psql" : "/usr/bin/sqlite3", X_OK) == 0) {
         char cmd[1024], line[128] = "";
-        snprintf(cmd, sizeof cmd, "/usr/bin/sqlite3 '%s' 'select count(*) from frames'",
+        snprintf(cmd, sizeof cmd, "%s '%s' -c 'select count(*) from frames'", shell,
                  db_path("raster.db"));
+        if (!pg_uri) /* sqlite3 takes the SQL as its second argument */
+            snprintf(cmd, sizeof cmd, "%s '%s' 'select count(*) from frames'", shell,
+                     db_path("raster.db"));
         FILE *p = popen(cmd, "r");
         CHECK(p && fgets(line, sizeof line, p) && atoi(line) == 6);
         CHECK(p && pclose(p) == 0);
         /* point 1's mean at pixel (0, 0) is 1000.25 = 0x408F420000000000, little-endian */
-        snprintf(cmd, sizeof cmd, "/usr/bin/sqlite3 '%s' 'select hex(substr(mean, 1, 8)) from "
-                 "frames where point_index = 1'", db_path("raster.db"));
+        snprintf(cmd, sizeof cmd, "%s '%s' %s 'select hex(substr(mean, 1, 8)) from "
+                 "frames where point_index = 1'", shell, db_path("raster.db"), pg_uri ? "-c" : "");
         p = popen(cmd, "r");
         CHECK(p && fgets(line, sizeof line, p) && strncmp(line, "0000000000428F40", 16) == 0);
         CHECK(p && pclose(p) == 0);
     } else {
-        printf("note: /usr/bin/sqlite3 not installed, shell check skipped\n");
+        printf("note: the database's shell is not installed, shell check skipped\n");
     }
 }
 
@@ -1511,6 +1629,71 @@ static void test_setup_release_upload(void)
     storage_close(st);
 }
 
+/* PostgreSQL: the version table, a reopen that changes nothing, a newer schema refused with
+ * nothing written, a URI that is not one, a wrong password (not in the message), and a writer
+ * that waits past the busy timeout for another instance's write transaction. */
+static void test_pg_open(void)
+{
+    const char *tables = "SELECT count(*) FROM information_schema.tables WHERE table_schema = "
+                         "current_schema() AND table_name IN ('sensors', 'scans', 'frames', "
+                         "'jobs', 'fits', 'calibrations', 'fit_maps', 'ptc', 'frame_times')";
+    storage_t *st = open_db("pgopen");
+    CHECK(raw_int("pgopen", "SELECT version FROM ipsd_schema") == storage_schema_version());
+    CHECK(raw_int("pgopen", "SELECT count(*) FROM ipsd_schema") == 1);
+    CHECK(raw_int("pgopen", tables) == 9);
+    int64_t sensor = make_sensor(st, "IMX-PG", "0001");
+    storage_close(st);
+    st = open_db("pgopen");
+    CHECK(raw_int("pgopen", "SELECT version FROM ipsd_schema") == storage_schema_version());
+    storage_sensor_t s;
+    CHECK(storage_sensor_get(st, sensor, &s, NULL) == 0 && strcmp(s.model, "IMX-PG") == 0);
+    storage_sensor_free(&s);
+    storage_close(st);
+
+    char sql[160];
+    snprintf(sql, sizeof sql, "CREATE TABLE ipsd_schema (version integer NOT NULL); "
+                              "INSERT INTO ipsd_schema VALUES (%d)", storage_schema_version() + 1);
+    const char *newer = db_path("pgnewer");
+    CHECK(raw_exec("pgnewer", sql) == SQLITE_OK);
+    err_t err = {{0}};
+    CHECK(storage_open(newer, &st, &err) == -ENOTSUP && st == NULL && strstr(err.msg, "newer"));
+    CHECK(raw_int("pgnewer", "SELECT version FROM ipsd_schema") == storage_schema_version() + 1);
+    CHECK(raw_int("pgnewer", tables) == 0);
+
+    CHECK(storage_open("postgresql://127.0.0.1/ipsd?no_such_parameter=1", &st, &err) == -EINVAL &&
+          st == NULL);
+    CHECK(strstr(err.msg, "cannot open database") && strstr(err.msg, "no_such_parameter") &&
+          !strchr(err.msg, '\n'));
+    printf("bad URI: %s\n", err.msg);
+    char wrong[512];
+    const char *at = strstr(pg_uri, "@"), *scheme = strstr(pg_uri, "://");
+    CHECK(at && scheme);
+    if (at && scheme) {
+        snprintf(wrong, sizeof wrong, "%.*s:NotThePassword%s", (int)(at - pg_uri), pg_uri, at);
+        CHECK(storage_open(wrong, &st, &err) == -EIO && st == NULL);
+        CHECK(strstr(err.msg, "password") && !strstr(err.msg, "NotThePassword"));
+        printf("wrong password: %s\n", err.msg);
+    }
+
+    /* another instance in a write transaction: a write gives up after the busy timeout, a read
+     * goes on */
+    st = open_db("pgopen");
+    PGconn *other = pg_connect("pgopen");
+    PGresult *r = PQexec(other, "BEGIN; SELECT pg_advisory_xact_lock(1768977252)"); /* "ipsd" */
+    CHECK(PQresultStatus(r) == PGRES_TUPLES_OK);
+    PQclear(r);
+    CHECK(storage_set_busy_timeout(st, 20, NULL) == 0);
+    int64_t id = 0;
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &id, &err) == -EBUSY);
+    storage_job_list_t l;
+    CHECK(storage_job_list(st, STORAGE_ANY, STORAGE_ANY, 0, 0, 0, &l, NULL) == 0 && l.total == 0);
+    storage_job_list_free(&l);
+    PQclear(PQexec(other, "COMMIT"));
+    PQfinish(other);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{}", 0, &id, NULL) == 0 && id == 1);
+    storage_close(st);
+}
+
 static void remove_tmpdir(void)
 {
     DIR *d = opendir(tmpdir);
@@ -1523,8 +1706,37 @@ static void remove_tmpdir(void)
     CHECK(rmdir(tmpdir) == 0);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+    if (argc == 3 && !strcmp(argv[1], "--pg-uri-file")) {
+        /* the URI the suite's server wrote (tests/pg_server.sh), its password in PGPASSFILE */
+        static char uri[512];
+        FILE *f = fopen(argv[2], "r");
+        if (!f || !fgets(uri, sizeof uri, f)) {
+            fprintf(stderr, "no PostgreSQL server for the tests (%s): skipped\n", argv[2]);
+            return 77;
+        }
+        fclose(f);
+        uri[strcspn(uri, "\r\n")] = '\0';
+        pg_uri = uri;
+        test_pg_open();
+        test_sensor_scan_roundtrip();
+        test_frame_roundtrip();
+        test_frames_unique();
+        test_raster();
+        test_claim_concurrent();
+        test_requeue();
+        test_cancel();
+        test_gate();
+        test_fits();
+        test_fit_store_done();
+        test_fit_store_unit();
+        test_calibrations();
+        test_pagination();
+        test_promote();
+        test_setup_release_upload();
+        CHECK_DONE();
+    }
     const char *base = getenv("TMPDIR");
     snprintf(tmpdir, sizeof tmpdir, "%s/ipsd-test-storage-XXXXXX", base && *base ? base : "/tmp");
     if (!mkdtemp(tmpdir)) {

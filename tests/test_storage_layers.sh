@@ -36,7 +36,13 @@ rm -f "${TMPDIR:-/tmp}/tsort.$$"
 # (1b) exactly the documented calls (docs/schema.md, "The code"): keep the two in step
 want='storage.c storage_gate.c
 storage_backup.c storage.c
+storage_backup.c sqldb_sqlite.c
 storage.c storage_sql.c
+storage.c storage_sql_pg.c
+storage.c sqldb.c
+storage.c sqldb_sqlite.c
+sqldb.c sqldb_sqlite.c
+sqldb.c sqldb_pg.c
 storage_calib.c storage.c
 storage_calib.c storage_sensor.c
 storage_compose.c storage.c
