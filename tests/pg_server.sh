@@ -7,7 +7,7 @@
 #                                  DIR/uri (postgresql://ipsd_writer@127.0.0.1:PORT/ipsd, no
 #                                  password) and DIR/pgpass (PGPASSFILE=DIR/pgpass), prints the
 #                                  URI. A DIR whose server runs: prints its URI and does nothing.
-#   tests/pg_server.sh stop DIR    stops the server (fast: open sessions are ended) and removes DIR
+#   tests/pg_server.sh stop DIR    stops the server (fast: open connections are closed) and removes DIR
 #
 # The database ipsd belongs to ipsd_writer (LOGIN, password); ipsd_reader (LOGIN, password) may
 # only read what ipsd_writer makes. The superuser "postgres" has a generated password
