@@ -387,6 +387,16 @@ void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx)
     st->clock_ctx = ctx;
 }
 
+int storage_set_claimant(storage_t *st, const char *name)
+{
+    if (!st || (name && !*name)) return -EINVAL;
+    char *copy = name ? strdup(name) : NULL;
+    if (name && !copy) return -ENOMEM;
+    free(st->claimant);
+    st->claimant = copy;
+    return 0;
+}
+
 int64_t storage_now_ms(storage_t *st)
 {
     if (st->clock) return st->clock(st->clock_ctx);
@@ -666,5 +676,6 @@ void storage_close(storage_t *st)
     stg_gate_leave(st); /* a transaction left open is rolled back by the close */
     for (int i = 0; i < STG_N; i++) sqldb_finalize(st->stmt[i]);
     sqldb_close(st->db);
+    free(st->claimant);
     free(st);
 }

@@ -116,6 +116,12 @@ int storage_set_busy_timeout(storage_t *st, int ms, err_t *err);
  * Default (fn NULL): CLOCK_REALTIME. Tests and simulations may install their own. */
 typedef int64_t (*storage_clock_fn)(void *ctx);
 void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx);
+
+/* Names the ipsd this handle works for (its bench name; NULL: unnamed, the default): the scan
+ * and ptc jobs it enqueues belong to that bench (only a handle of the same name claims them),
+ * the jobs it claims record it, and a running job is reported on and ended only by a handle of
+ * its claimant. 0 or -ENOMEM / -EINVAL (an empty name). */
+int storage_set_claimant(storage_t *st, const char *name);
 int64_t storage_now_ms(storage_t *st);
 
 /* States of scans and jobs; stored as their names ("queued", "running", "done", "failed",
@@ -340,6 +346,9 @@ typedef struct storage_job {
     int64_t scan_id, fit_id; /* links, 0 = none */
     char *fit_ids;           /* a job of every pixel ("pixels" in params): a JSON array of the fits
                               * it stored, in the order stored (fits.job_id); NULL otherwise */
+    char *bench;             /* the bench whose instrument runs it (a scan or ptc job enqueued by
+                              * a named handle); NULL: any ipsd may run it */
+    char *claimed_by;        /* the ipsd that claimed it last; NULL: never, or an unnamed one */
 } storage_job_t;
 
 typedef struct storage_job_list {
@@ -379,10 +388,15 @@ int storage_job_get(storage_t *st, int64_t id, storage_job_t *out, err_t *err);
 /* Jobs newest first, filtered by kind and state (STORAGE_ANY: any) and scan (0: any). */
 int storage_job_list(storage_t *st, int kind, int state, int64_t scan_id, int limit, int offset,
                      storage_job_list_t *out, err_t *err);
-/* For start-up after a crash: every running job whose heartbeat is at least stale_ms old (0:
+/* storage_job_requeue_claimed: the same for the jobs one claimant left running (NULL: anyone's):
+ * an ipsd that shares the database with others requeues only its own at start-up, and another
+ * instance's once their lease (stale_ms without a heartbeat) has run out.
+ * For start-up after a crash: every running job whose heartbeat is at least stale_ms old (0:
  * every running job) goes back to queued, unless it has been claimed max_attempts times already
  * (max_attempts > 0), in which case it fails with an "abandoned" error. Counts in *requeued and
  * *failed (either may be NULL). Scans are not touched: the scan job's worker resumes its scan. */
+int storage_job_requeue_claimed(storage_t *st, const char *claimant, int64_t stale_ms,
+                                int max_attempts, int *requeued, int *failed, err_t *err);
 int storage_job_requeue_stale(storage_t *st, int64_t stale_ms, int max_attempts, int *requeued,
                               int *failed, err_t *err);
 void storage_job_free(storage_job_t *j);

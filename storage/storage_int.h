@@ -95,7 +95,8 @@ enum stg_id {
     "started_ms, finished_ms, scan_id, fit_id, "                                                  \
     "CASE WHEN json_type(params, '$.pixels') = 'text' THEN coalesce((SELECT "                     \
     "json_group_array(f.id) OVER (ORDER BY f.id ROWS BETWEEN UNBOUNDED PRECEDING AND "            \
-    "UNBOUNDED FOLLOWING) FROM fits f WHERE f.job_id = jobs.id LIMIT 1), '[]') END"
+    "UNBOUNDED FOLLOWING) FROM fits f WHERE f.job_id = jobs.id LIMIT 1), '[]') END, "             \
+    "bench, claimed_by"
 #define STG_FIT_COLS                                                                              \
     "f.id, f.scan_id, f.dcol, f.drow, f.noise_model, f.best_r_aic, f.best_r_bic, f.f_value, "     \
     "f.p_value, f.result, f.created_ms, m.sensor_id, m.pixel_col, m.pixel_row, m.r, c.id, "       \
@@ -129,6 +130,7 @@ struct storage {
     int gate_held;        /* this handle is in a write transaction through the gate */
     int calib_dirty;      /* this write transaction stored a calibration (storage_gate.c) */
     int64_t changes_at_begin; /* sqldb_total_changes when it began */
+    char *claimant; /* the ipsd this handle works for (storage_set_claimant), NULL unnamed */
 };
 
 /* The write gate around BEGIN IMMEDIATE .. COMMIT / ROLLBACK (no-ops without a gate): enter

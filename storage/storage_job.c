@@ -33,6 +33,8 @@ void storage_job_free(storage_job_t *j)
     free(j->params);
     free(j->error);
     free(j->fit_ids);
+    free(j->bench);
+    free(j->claimed_by);
     memset(j, 0, sizeof *j);
 }
 
@@ -65,6 +67,8 @@ static int read_job(sqldb_stmt_t *s, void *item)
     o->scan_id = stg_col_id(s, 12);
     o->fit_id = stg_col_id(s, 13);
     o->fit_ids = stg_col_text(s, 14, &oom);
+    o->bench = stg_col_text(s, 15, &oom);
+    o->claimed_by = stg_col_text(s, 16, &oom);
     if (oom) storage_job_free(o);
     return oom ? -ENOMEM : 0;
 }
@@ -87,6 +91,8 @@ int stg_job_insert(storage_t *st, storage_job_kind_t kind, const char *params_js
     stg_bind_text(q, 2, params_json, &rc);
     stg_bind_int(q, 3, storage_now_ms(st), &rc);
     stg_bind_id(q, 4, scan_id, &rc);
+    /* a job for the instrument belongs to this handle's bench; a fit to anyone */
+    stg_bind_text(q, 5, kind == STORAGE_JOB_FIT ? NULL : st->claimant, &rc);
     if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "enqueueing a job");
@@ -140,6 +146,7 @@ static int next_queued(storage_t *st, unsigned kinds, int64_t *id, err_t *err)
     if ((ret = stg_stmt(st, STG_JOB_NEXT, &q, err))) return ret;
     for (int k = 0; k < N_KINDS; k++)
         stg_bind_text(q, k + 1, kinds & STORAGE_JOB_BIT(k) ? kind_names[k] : NULL, &rc);
+    stg_bind_text(q, 4, st->claimant, &rc);
     ret = rc == SQLDB_OK ? stg_row(st, q, err, "finding a queued job")
                           : stg_error(st, rc, err, "finding a queued job");
     *id = ret == 0 ? sqldb_col_int64(q, 0) : 0;
@@ -171,6 +178,7 @@ int storage_job_claim_kinds(storage_t *st, unsigned kinds, storage_job_t *out, e
     if ((ret = stg_stmt(st, STG_JOB_START, &q, err))) goto out;
     stg_bind_int(q, 1, id, &rc);
     stg_bind_int(q, 2, storage_now_ms(st), &rc);
+    stg_bind_text(q, 3, st->claimant, &rc);
     if (rc != SQLDB_OK) {
         stg_reset(q);
         ret = stg_error(st, rc, err, "claiming a job");
@@ -198,10 +206,16 @@ static int not_running(storage_t *st, int64_t id, const char *what, err_t *err)
     if (ret == -ENOENT) {
         err_set(err, ret, "%s: job %lld does not exist", what, (long long)id);
     } else if (ret == 0) {
-        const char *state = (const char *)sqldb_col_text(q, 0);
+        const char *state = sqldb_col_text(q, 0), *by = sqldb_col_text(q, 3);
         int cancelled = state && strcmp(state, "cancelled") == 0;
-        ret = err_set(err, cancelled ? -ECANCELED : -ESTALE, "%s: job %lld is %s, not running",
-                      what, (long long)id, state ? state : "?");
+        int running = state && strcmp(state, "running") == 0;
+        if (running && (by ? !st->claimant || strcmp(by, st->claimant) : st->claimant != NULL))
+            ret = err_set(err, -ESTALE, "%s: job %lld was taken over by %s (its lease ran out)",
+                          what, (long long)id, by ? by : "an unnamed ipsd");
+        else
+            ret = err_set(err, cancelled ? -ECANCELED : -ESTALE,
+                          "%s: job %lld is %s, not running", what, (long long)id,
+                          state ? state : "?");
     }
     stg_reset(q);
     return ret;
@@ -222,6 +236,7 @@ int storage_job_heartbeat(storage_t *st, int64_t id, double progress, int points
     stg_bind_int(q, 2, storage_now_ms(st), &rc);
     stg_bind_double(q, 3, progress, &rc);
     stg_bind_int(q, 4, points_done, &rc);
+    stg_bind_text(q, 5, st->claimant, &rc);
     if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job heartbeat");
@@ -249,6 +264,7 @@ int stg_job_finish(storage_t *st, int64_t id, storage_state_t state, const char 
     stg_bind_text(q, 2, storage_state_name(state), &rc);
     stg_bind_text(q, 3, error, &rc);
     stg_bind_int(q, 4, storage_now_ms(st), &rc);
+    stg_bind_text(q, 5, st->claimant, &rc);
     if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job finish");
@@ -264,6 +280,7 @@ int storage_job_release(storage_t *st, int64_t id, err_t *err)
     if (!st) return err_set(err, -EINVAL, "job release: NULL handle");
     if ((ret = stg_stmt(st, STG_JOB_RELEASE, &q, err))) return ret;
     stg_bind_int(q, 1, id, &rc);
+    stg_bind_text(q, 2, st->claimant, &rc);
     if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job release");
@@ -282,6 +299,7 @@ int stg_job_step(storage_t *st, int64_t id, int from, double progress, err_t *er
     stg_bind_int(q, 3, from + 1, &rc);
     stg_bind_double(q, 4, progress, &rc);
     stg_bind_int(q, 5, storage_now_ms(st), &rc);
+    stg_bind_text(q, 6, st->claimant, &rc);
     if (rc != SQLDB_OK) {
         stg_reset(q);
         return stg_error(st, rc, err, "job step");
@@ -399,9 +417,10 @@ out:
     return ret;
 }
 
-/* Runs one of the two requeue statements (bound: stale-before time, max attempts, now). */
+/* Runs one of the two requeue statements (bound: stale-before time, max attempts, now, the
+ * claimant whose jobs they are or NULL). */
 static int requeue_step(storage_t *st, enum stg_id id, int64_t before, int max_attempts,
-                        int *count, err_t *err)
+                        const char *claimant, int *count, err_t *err)
 {
     sqldb_stmt_t *q;
     int ret, rc = SQLDB_OK;
@@ -410,6 +429,9 @@ static int requeue_step(storage_t *st, enum stg_id id, int64_t before, int max_a
     if (id == STG_JOB_ABANDON) {
         stg_bind_int(q, 2, max_attempts, &rc);
         stg_bind_int(q, 3, storage_now_ms(st), &rc);
+        stg_bind_text(q, 4, claimant, &rc);
+    } else {
+        stg_bind_text(q, 2, claimant, &rc);
     }
     if (rc != SQLDB_OK) {
         stg_reset(q);
@@ -423,6 +445,12 @@ static int requeue_step(storage_t *st, enum stg_id id, int64_t before, int max_a
 int storage_job_requeue_stale(storage_t *st, int64_t stale_ms, int max_attempts, int *requeued,
                               int *failed, err_t *err)
 {
+    return storage_job_requeue_claimed(st, NULL, stale_ms, max_attempts, requeued, failed, err);
+}
+
+int storage_job_requeue_claimed(storage_t *st, const char *claimant, int64_t stale_ms,
+                                int max_attempts, int *requeued, int *failed, err_t *err)
+{
     int n_requeued = 0, n_failed = 0;
     if (!st || stale_ms < 0)
         return err_set(err, -EINVAL, "job requeue: need a handle and stale_ms >= 0");
@@ -430,8 +458,10 @@ int storage_job_requeue_stale(storage_t *st, int64_t stale_ms, int max_attempts,
     int ret = stg_begin_write(st, err);
     if (ret) return ret;
     /* first fail those out of attempts, then requeue the rest */
-    if ((ret = requeue_step(st, STG_JOB_ABANDON, before, max_attempts, &n_failed, err)) ||
-        (ret = requeue_step(st, STG_JOB_REQUEUE, before, max_attempts, &n_requeued, err))) {
+    if ((ret = requeue_step(st, STG_JOB_ABANDON, before, max_attempts, claimant, &n_failed,
+                            err)) ||
+        (ret = requeue_step(st, STG_JOB_REQUEUE, before, max_attempts, claimant, &n_requeued,
+                            err))) {
         stg_rollback(st);
         return ret;
     }

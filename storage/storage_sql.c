@@ -370,6 +370,12 @@ const char *const stg_migrations[] = {
     "    PRIMARY KEY (scan_id, point_index)\n"
     ");\n"
     "PRAGMA user_version = 10;\n",
+    /* 11: several ipsd on one database (PostgreSQL). bench: the bench whose instrument runs a
+     * scan or photon-transfer job (NULL: any ipsd may claim it, as every fit job); claimed_by:
+     * the ipsd (its bench name) that claimed it last, whose heartbeat is the job's lease. */
+    "ALTER TABLE jobs ADD COLUMN bench TEXT CHECK (bench IS NULL OR length(bench) > 0);\n"
+    "ALTER TABLE jobs ADD COLUMN claimed_by TEXT;\n"
+    "PRAGMA user_version = 11;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 
@@ -462,40 +468,48 @@ const char *const stg_sql[STG_N] = {
     [STG_FRAME_MEANS] = "SELECT point_index, stage_x_um, stage_y_um, mean "
                         "FROM frames WHERE scan_id = ?1 ORDER BY point_index",
 
-    [STG_JOB_INSERT] = "INSERT INTO jobs (kind, params, state, created_ms, scan_id) "
-                       "VALUES (?1, ?2, 'queued', ?3, ?4)",
+    [STG_JOB_INSERT] = "INSERT INTO jobs (kind, params, state, created_ms, scan_id, bench) "
+                       "VALUES (?1, ?2, 'queued', ?3, ?4, ?5)",
     [STG_JOB_GET] = "SELECT " STG_JOB_COLS " FROM jobs WHERE id = ?1",
-    /* the oldest queued job of up to three kinds (NULL: no kind) */
+    /* the oldest queued job of up to three kinds (NULL: no kind) that this ipsd may run: one
+     * of no bench, or of its own bench (?4) */
     [STG_JOB_NEXT] = "SELECT id FROM jobs WHERE kind IN (?1, ?2, ?3) AND state = 'queued' "
-                     "ORDER BY id LIMIT 1",
+                     "AND (bench IS NULL OR bench = ?4) ORDER BY id LIMIT 1",
     [STG_JOB_START] = "UPDATE jobs SET state = 'running', attempts = attempts + 1, "
-                      "heartbeat_ms = ?2, started_ms = coalesce(started_ms, ?2) "
+                      "heartbeat_ms = ?2, started_ms = coalesce(started_ms, ?2), claimed_by = ?3 "
                       "WHERE id = ?1 AND state = 'queued'",
+    /* a running job changes only through its claimant (?N: this handle's name, NULL unnamed): a
+     * job whose lease another ipsd took over is no longer the late one's to report or end */
     [STG_JOB_HEARTBEAT] = "UPDATE jobs SET heartbeat_ms = ?2, progress = ?3, points_done = ?4 "
-                          "WHERE id = ?1 AND state = 'running'",
+                          "WHERE id = ?1 AND state = 'running' AND claimed_by IS ?5",
     [STG_JOB_FINISH] =
         "UPDATE jobs SET state = ?2, error = ?3, finished_ms = ?4, heartbeat_ms = ?4, "
         "progress = CASE WHEN ?2 = 'done' THEN 1 ELSE progress END "
-        "WHERE id = ?1 AND state = 'running'",
+        "WHERE id = ?1 AND state = 'running' AND claimed_by IS ?5",
     [STG_JOB_CANCEL] = "UPDATE jobs SET state = 'cancelled', finished_ms = ?2 "
                        "WHERE id = ?1 AND state IN ('queued', 'running')",
-    [STG_JOB_STATE] = "SELECT state, kind, scan_id FROM jobs WHERE id = ?1",
+    [STG_JOB_STATE] = "SELECT state, kind, scan_id, claimed_by FROM jobs WHERE id = ?1",
     [STG_JOB_ABANDON] =
         "UPDATE jobs SET state = 'failed', finished_ms = ?3, "
         "error = 'abandoned after ' || attempts || ' attempts (stale heartbeat)' "
-        "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1 AND ?2 > 0 AND attempts >= ?2",
+        "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1 AND ?2 > 0 AND attempts >= ?2 "
+        "AND (?4 IS NULL OR claimed_by = ?4)",
+    /* ?2: only the jobs this claimant left running (NULL: anyone's) */
     [STG_JOB_REQUEUE] = "UPDATE jobs SET state = 'queued', heartbeat_ms = NULL "
-                        "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1",
+                        "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1 "
+                        "AND (?2 IS NULL OR claimed_by = ?2)",
     /* a graceful stop gives the claim back: the job runs again as if never claimed */
     [STG_JOB_RELEASE] = "UPDATE jobs SET state = 'queued', heartbeat_ms = NULL, "
-                        "attempts = max(attempts - 1, 0) WHERE id = ?1 AND state = 'running'",
+                        "attempts = max(attempts - 1, 0) WHERE id = ?1 AND state = 'running' "
+                        "AND claimed_by IS ?2",
     [STG_JOB_COUNT] = "SELECT count(*) FROM jobs " JOB_FILTER,
     [STG_JOB_LIST] =
         "SELECT " STG_JOB_COLS " FROM jobs " JOB_FILTER " ORDER BY id DESC LIMIT ?4 OFFSET ?5",
     [STG_JOB_SET_FIT] = "UPDATE jobs SET fit_id = ?2 WHERE id = ?1",
     /* one unit of a running job done: only from the count the caller read (no unit twice) */
     [STG_JOB_STEP] = "UPDATE jobs SET points_done = ?3, progress = ?4, heartbeat_ms = ?5 "
-                     "WHERE id = ?1 AND state = 'running' AND points_done = ?2",
+                     "WHERE id = ?1 AND state = 'running' AND points_done = ?2 "
+                     "AND claimed_by IS ?6",
 
     [STG_FIT_INSERT] = "INSERT INTO fits (scan_id, dcol, drow, noise_model, best_r_aic, "
                        "best_r_bic, f_value, p_value, result, created_ms) "

@@ -239,6 +239,10 @@ const char *const stg_pg_migrations[] = {
         "CREATE INDEX ptc_sensor ON ptc (sensor_id, id);\n"
         "INSERT INTO ipsd_schema (version) SELECT 10 WHERE NOT EXISTS (SELECT FROM ipsd_schema);\n"
         "UPDATE ipsd_schema SET version = 10;\n",
+    /* 11: several ipsd on one database (storage_sql.c's migration 11) */
+    [10] = "ALTER TABLE jobs ADD COLUMN bench TEXT CHECK (bench IS NULL OR length(bench) > 0);\n"
+           "ALTER TABLE jobs ADD COLUMN claimed_by TEXT;\n"
+           "UPDATE ipsd_schema SET version = 11;\n",
 };
 
 /* ---- statements ---------------------------------------------------------------------------- */
@@ -283,7 +287,7 @@ const char *const stg_pg_migrations[] = {
     "started_ms, finished_ms, scan_id, fit_id, "                                                   \
     "CASE WHEN json_typeof(params::json -> 'pixels') = 'string' THEN coalesce((SELECT "            \
     "'[' || string_agg(f.id::text, ',' ORDER BY f.id) || ']' FROM fits f "                         \
-    "WHERE f.job_id = jobs.id), '[]') END"
+    "WHERE f.job_id = jobs.id), '[]') END, bench, claimed_by"
 
 /* Placeholders are ?N here too: the driver writes them $N and counts them (sqldb.h).
  * STG_BEGIN_WRITE and STG_BEGIN_READ have none: the driver knows SQLite's "BEGIN IMMEDIATE" and
@@ -310,10 +314,25 @@ const char *const stg_sql_pg[STG_N] = {
         "UPDATE jobs SET state = 'failed', finished_ms = ?3, "
         "error = 'abandoned after ' || attempts || ' attempts (stale heartbeat)' "
         "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1 AND ?2::bigint > 0 "
-        "AND attempts >= ?2::bigint",
+        "AND attempts >= ?2::bigint AND (?4::text IS NULL OR claimed_by = ?4::text)",
+    [STG_JOB_REQUEUE] = "UPDATE jobs SET state = 'queued', heartbeat_ms = NULL "
+                        "WHERE state = 'running' AND coalesce(heartbeat_ms, 0) <= ?1 "
+                        "AND (?2::text IS NULL OR claimed_by = ?2::text)",
+    /* SQLite's "claimed_by IS ?N" (equal, NULL equal to NULL) */
+    [STG_JOB_HEARTBEAT] = "UPDATE jobs SET heartbeat_ms = ?2, progress = ?3, points_done = ?4 "
+                          "WHERE id = ?1 AND state = 'running' "
+                          "AND claimed_by IS NOT DISTINCT FROM ?5::text",
+    [STG_JOB_FINISH] =
+        "UPDATE jobs SET state = ?2, error = ?3, finished_ms = ?4, heartbeat_ms = ?4, "
+        "progress = CASE WHEN ?2 = 'done' THEN 1 ELSE progress END "
+        "WHERE id = ?1 AND state = 'running' AND claimed_by IS NOT DISTINCT FROM ?5::text",
+    [STG_JOB_STEP] = "UPDATE jobs SET points_done = ?3, progress = ?4, heartbeat_ms = ?5 "
+                     "WHERE id = ?1 AND state = 'running' AND points_done = ?2 "
+                     "AND claimed_by IS NOT DISTINCT FROM ?6::text",
     /* scalar max() is greatest() */
     [STG_JOB_RELEASE] = "UPDATE jobs SET state = 'queued', heartbeat_ms = NULL, "
-                        "attempts = greatest(attempts - 1, 0) WHERE id = ?1 AND state = 'running'",
+                        "attempts = greatest(attempts - 1, 0) WHERE id = ?1 AND state = 'running' "
+                        "AND claimed_by IS NOT DISTINCT FROM ?2::text",
     [STG_JOB_COUNT] = "SELECT count(*) FROM jobs " PG_JOB_FILTER,
     [STG_JOB_LIST] = "SELECT " PG_JOB_COLS " FROM jobs " PG_JOB_FILTER
                      " ORDER BY id DESC " PG_LIMIT_OFFSET("4", "5"),

@@ -258,7 +258,7 @@ static void test_open_migrate(void)
     struct stat sb;
     char mode[32];
     CHECK(stat(db_path("open.db"), &sb) == 0);
-    CHECK(storage_schema_version() == 10); /* docs/schema.md: "currently 10" (keep in step) */
+    CHECK(storage_schema_version() == 11); /* docs/schema.md: "currently 11" (keep in step) */
     CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
     raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
     CHECK(strcmp(mode, "wal") == 0);
@@ -1413,7 +1413,7 @@ static void test_migrate_v7(void)
     CHECK(strstr(maps7, "shrunk") && strstr(calibs7, "alice")); /* the dumps hold the rows */
     storage_t *st = open_db("v7m.db");
     if (!st) return;
-    CHECK(raw_int("v7m.db", "PRAGMA user_version") == 10);
+    CHECK(raw_int("v7m.db", "PRAGMA user_version") == storage_schema_version());
     /* migration 9: map_note, NULL on every older row */
     CHECK(raw_int("v7m.db", "SELECT count(*) FROM calibrations WHERE map_note IS NULL") == 3);
     CHECK(raw_int("v7m.db", "SELECT count(*) FROM fit_maps WHERE map_note IS NULL") == 2);
@@ -1629,6 +1629,72 @@ static void test_setup_release_upload(void)
     storage_close(st);
 }
 
+/* Several ipsd on one database: a scan job belongs to the bench that queued it, a fit job to
+ * anyone; a claimant's heartbeats are its lease: once it runs out another ipsd queues the job
+ * again and the late claimant can neither report on it nor end it; at start-up an ipsd requeues
+ * only what it left running itself. */
+static void test_claimants(void)
+{
+    storage_t *a = open_db("claimants.db"), *b = open_db("claimants.db"),
+              *f = open_db("claimants.db");
+    CHECK(storage_set_claimant(a, "bench-a") == 0 && storage_set_claimant(b, "bench-b") == 0 &&
+          storage_set_claimant(f, "fitter") == 0);
+    CHECK(storage_set_claimant(a, "") == -EINVAL);
+    int64_t scan = make_running_scan(a, make_sensor(a, "IMX-C", "1")), sj = 0, fj = 0, bj = 0;
+    err_t err = {{0}};
+    CHECK(storage_job_enqueue(a, STORAGE_JOB_SCAN, "{}", scan, &sj, NULL) == 0);
+    CHECK(storage_job_enqueue(a, STORAGE_JOB_FIT, "{}", scan, &fj, NULL) == 0);
+    CHECK(storage_job_enqueue(b, STORAGE_JOB_SCAN, "{}", scan, &bj, NULL) == 0);
+    storage_job_t j;
+    CHECK(storage_job_get(a, sj, &j, NULL) == 0 && j.bench && !strcmp(j.bench, "bench-a") &&
+          !j.claimed_by);
+    storage_job_free(&j);
+    CHECK(storage_job_get(a, fj, &j, NULL) == 0 && !j.bench);
+    storage_job_free(&j);
+    /* b's instrument takes only b's scan job; the fit goes to whoever asks */
+    CHECK(storage_job_claim(b, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == bj);
+    storage_job_free(&j);
+    CHECK(storage_job_claim(b, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == 0);
+    CHECK(storage_job_claim(b, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == fj &&
+          j.claimed_by && !strcmp(j.claimed_by, "bench-b"));
+    storage_job_free(&j);
+    CHECK(storage_job_claim(a, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == sj);
+    storage_job_free(&j);
+    /* only the claimant reports on a running job */
+    CHECK(storage_job_heartbeat(a, fj, 0.5, 0, &err) == -ESTALE && strstr(err.msg, "bench-b"));
+    CHECK(storage_job_heartbeat(b, fj, 0.5, 0, NULL) == 0);
+
+    /* b goes silent for a minute: its lease (30 s here) runs out, a's does not */
+    fake_now += 60000;
+    CHECK(storage_job_heartbeat(a, sj, 0.5, 1, NULL) == 0 &&
+          storage_job_heartbeat(b, bj, 0.1, 0, NULL) == 0);
+    int requeued = -1, failed = -1;
+    CHECK(storage_job_requeue_claimed(f, NULL, 30000, 5, &requeued, &failed, NULL) == 0);
+    CHECK(requeued == 1 && failed == 0); /* the fit */
+    CHECK(storage_job_claim(f, STORAGE_JOB_FIT, &j, NULL) == 0 && j.id == fj && j.attempts == 2);
+    storage_job_free(&j);
+    CHECK(storage_job_finish(b, fj, STORAGE_DONE, NULL, &err) == -ESTALE &&
+          strstr(err.msg, "taken over by fitter"));
+    CHECK(storage_job_heartbeat(b, fj, 0.9, 0, NULL) == -ESTALE);
+    CHECK(storage_job_release(b, fj, NULL) == -ESTALE);
+    CHECK(storage_job_finish(f, fj, STORAGE_DONE, NULL, NULL) == 0);
+    CHECK(raw_int("claimants.db", "SELECT count(*) FROM jobs WHERE state = 'done'") == 1);
+
+    /* b restarts: it requeues its own scan job, not a's */
+    CHECK(storage_job_requeue_claimed(b, "bench-b", 0, 5, &requeued, &failed, NULL) == 0 &&
+          requeued == 1);
+    CHECK(storage_job_get(a, sj, &j, NULL) == 0 && j.state == STORAGE_RUNNING);
+    storage_job_free(&j);
+    CHECK(storage_job_get(a, bj, &j, NULL) == 0 && j.state == STORAGE_QUEUED);
+    storage_job_free(&j);
+    CHECK(storage_job_claim(a, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == 0); /* b's, not a's */
+    CHECK(storage_job_claim(b, STORAGE_JOB_SCAN, &j, NULL) == 0 && j.id == bj);
+    storage_job_free(&j);
+    storage_close(a);
+    storage_close(b);
+    storage_close(f);
+}
+
 /* PostgreSQL: the version table, a reopen that changes nothing, a newer schema refused with
  * nothing written, a URI that is not one, a wrong password (not in the message), and a writer
  * that waits past the busy timeout for another instance's write transaction. */
@@ -1726,6 +1792,7 @@ int main(int argc, char **argv)
         test_raster();
         test_claim_concurrent();
         test_requeue();
+        test_claimants();
         test_cancel();
         test_gate();
         test_fits();
@@ -1752,6 +1819,7 @@ int main(int argc, char **argv)
     test_raster();
     test_claim_concurrent();
     test_requeue();
+    test_claimants();
     test_cancel();
     test_busy();
     test_gate();
