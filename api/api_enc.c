@@ -91,6 +91,10 @@ json_t *api_enc_job(const storage_job_t *j)
         json_object_set_new(o, "fit_ids", json_is_array(ids) ? ids : json_array());
         if (!json_is_array(ids)) json_decref(ids);
     }
+    if (o) {
+        json_object_set_new(o, "bench", str_or_null(j->bench));
+        json_object_set_new(o, "claimed_by", str_or_null(j->claimed_by));
+    }
     return o;
 }
 

@@ -93,6 +93,9 @@ void api_h_health(api_req_t *q)
     if (body) {
         json_object_set_new(body, "camera", c ? c : json_null());
         json_object_set_new(body, "stage", json_string(cfg->stage));
+        json_object_set_new(body, "bench_name", json_string(cfg->bench_name));
+        json_object_set_new(body, "database",
+                            json_string(storage_is_postgres(cfg->db_path) ? "postgresql" : "sqlite"));
     } else {
         json_decref(c);
     }

@@ -247,7 +247,9 @@ void api_h_scans_create(api_req_t *q)
     err_t err = {{0}};
     if (st && read_scan(q, o, st, &sc, &p) == 0) {
         int ret = srv_scan_submit(q->srv, st, &sc, &p, &scan_id, &job_id, &err);
-        if (ret) {
+        if (ret == -ENOTSUP) {
+            api_error(q, 409, "conflict", NULL, "%s", err.msg);
+        } else if (ret) {
             api_error_rc(q, ret, NULL, err.msg);
         } else {
             reply_scan_job(q, st, 202, scan_id, job_id);
@@ -315,7 +317,9 @@ void api_h_scan_resume(api_req_t *q)
     err_t err = {{0}};
     if (api_arg_id(q, 0, "scan", &id) || !(st = api_db(q))) return;
     int ret = srv_scan_resume(q->srv, st, id, &job, &err);
-    if (ret)
+    if (ret == -ENOTSUP)
+        api_error(q, 409, "conflict", NULL, "%s", err.msg);
+    else if (ret)
         api_error_rc(q, ret, NULL, err.msg);
     else
         reply_scan_job(q, st, 202, id, job);

@@ -20,11 +20,13 @@
 #define EVENT_RING 4096 /* events kept for slow readers */
 #define IDLE_POLL_MS 1000 /* workers also poll: jobs may be queued by another process */
 
-/* One ipsd per database: start-up requeues every job left running, which would take a second
+/* One ipsd per SQLite file: start-up requeues every job left running, which would take a second
  * instance's running jobs from it. An advisory lock on DB-ipsd.lock (released by the kernel when
- * the process dies, so a kill -9 leaves no stale lock) makes the second one refuse to start. */
+ * the process dies, so a kill -9 leaves no stale lock) makes the second one refuse to start.
+ * A PostgreSQL database is shared: each ipsd requeues only its own jobs (requeue_interrupted). */
 static int lock_db(srv_t *srv, err_t *err)
 {
+    if (srv->shared) return 0;
     char path[4096];
     if (snprintf(path, sizeof path, "%s-ipsd.lock", srv->cfg.db_path) >= (int)sizeof path)
         return err_set(err, -ENAMETOOLONG, "database path too long");
@@ -44,13 +46,16 @@ static int lock_db(srv_t *srv, err_t *err)
 }
 
 /* Start-up housekeeping on one handle: every job left running was interrupted by a crash (a
- * graceful stop gives jobs back), so it runs again unless it has used up its attempts. */
+ * graceful stop gives jobs back), so it runs again unless it has used up its attempts. On a
+ * shared database, only the jobs this ipsd left running: the others' are theirs until their
+ * lease runs out (srv_lease_sweep). */
 static int requeue_interrupted(srv_t *srv, err_t *err)
 {
     storage_t *st = srv_db_get(srv, err);
     if (!st) return -EIO;
     int requeued = 0, failed = 0;
-    int ret = storage_job_requeue_stale(st, 0, srv->cfg.max_attempts, &requeued, &failed, err);
+    int ret = storage_job_requeue_claimed(st, srv->shared ? srv->cfg.bench_name : NULL, 0,
+                                          srv->cfg.max_attempts, &requeued, &failed, err);
     srv_db_put(srv, st);
     if (ret == 0 && (requeued || failed))
         fprintf(stderr,
@@ -89,6 +94,7 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
     if (!srv) return err_set(err, -ENOMEM, "out of memory");
     srv->cfg = *cfg;
     srv->lock_fd = -1;
+    srv->shared = storage_is_postgres(cfg->db_path);
     pthread_mutex_init(&srv->mu, NULL);
     pthread_cond_init(&srv->cv, NULL);
     int ret = 0;
@@ -97,7 +103,9 @@ int srv_open(const srv_config_t *cfg, srv_t **out, err_t *err)
         (ret = srv_bench_check(cfg->bench, cfg->stage, &srv->camera, err)) ||
         (ret = lock_db(srv, err)) || (ret = storage_gate_new(&srv->gate)) ||
         (ret = arm_storage_hooks(srv, err)) ||
-        (ret = srv_dbpool_open(cfg->db_path, srv->gate, &srv->pool, err)) ||
+        (ret = storage_gate_listen(srv->gate, cfg->db_path, err)) ||
+        (ret = srv_dbpool_open(cfg->db_path, srv->shared ? cfg->bench_name : NULL, srv->gate,
+                               &srv->pool, err)) ||
         (ret = requeue_interrupted(srv, err)) ||
         (ret = srv_events_open(EVENT_RING, cfg->heartbeat_s * 1000, &srv->events, err))) {
         if (ret == -ENOMEM) err_set(err, ret, "out of memory");
@@ -118,7 +126,12 @@ int srv_start(srv_t *srv, err_t *err)
     for (int i = 0; i < n && ret == 0; i++) {
         srv_worker_t *w = &srv->workers[i];
         w->srv = srv;
+        if (i == 0 && !strcmp(srv->cfg.bench, "none")) continue; /* no instrument: no scanner */
         if ((ret = storage_open(srv->cfg.db_path, &w->st, err))) break;
+        if (srv->shared && storage_set_claimant(w->st, srv->cfg.bench_name)) {
+            ret = err_set(err, -ENOMEM, "out of memory");
+            break;
+        }
         storage_set_gate(w->st, srv->gate);
         int rc = pthread_create(&w->thread, NULL, i == 0 ? srv_scanner_main : srv_fitter_main, w);
         if (rc) ret = err_set(err, -rc, "cannot start a worker thread: %s", strerror(rc));
@@ -216,12 +229,35 @@ void srv_worker_loop(srv_worker_t *w, unsigned kinds, const char *name,
             continue;
         }
         if (job.id == 0) {
+            srv_lease_sweep(w);
             srv_wait_work(w->srv, IDLE_POLL_MS);
             continue;
         }
         run(w, &job);
         storage_job_free(&job);
     }
+}
+
+void srv_lease_sweep(srv_worker_t *w)
+{
+    srv_t *srv = w->srv;
+    if (!srv->shared) return;
+    /* one idle worker of this ipsd looks, about four times a lease */
+    int64_t now = clock_wall_ms(), last = atomic_load(&srv->lease_swept_ms);
+    if (now - last < srv->cfg.lease_s * 250LL ||
+        !atomic_compare_exchange_strong(&srv->lease_swept_ms, &last, now))
+        return;
+    int requeued = 0, failed = 0;
+    err_t err;
+    if (storage_job_requeue_claimed(w->st, NULL, srv->cfg.lease_s * 1000LL, srv->cfg.max_attempts,
+                                    &requeued, &failed, &err))
+        fprintf(stderr, "ipsd: lease sweep: %s\n", err.msg);
+    else if (requeued || failed)
+        fprintf(stderr,
+                "ipsd: %d job(s) whose ipsd stopped reporting for %d s queued again, %d "
+                "abandoned after %d attempts\n",
+                requeued, srv->cfg.lease_s, failed, srv->cfg.max_attempts);
+    if (requeued) srv_notify_work(srv);
 }
 
 void srv_notify_work(srv_t *srv)
@@ -289,11 +325,21 @@ static void publish_stored(srv_t *srv, storage_t *st, int64_t id, int points_tot
     storage_job_free(&j);
 }
 
+/* A scan asked of an ipsd without an instrument (--bench none). */
+static int no_instrument(srv_t *srv, err_t *err)
+{
+    return err_set(err, -ENOTSUP,
+                   "this ipsd (%s) has no instrument (--bench none): it only fits; submit the "
+                   "scan to the ipsd of the bench that holds the sensor",
+                   srv->cfg.bench_name);
+}
+
 int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const srv_scan_params_t *p,
                     int64_t *scan_id, int64_t *job_id, err_t *err)
 {
     storage_sensor_t sn;
     if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
+    if (!strcmp(srv->cfg.bench, "none")) return no_instrument(srv, err);
     int ret = storage_sensor_get(st, sc->sensor_id, &sn, err);
     if (ret) return ret;
     int nx;
@@ -315,6 +361,7 @@ int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const s
 int srv_scan_resume(srv_t *srv, storage_t *st, int64_t scan_id, int64_t *job_id, err_t *err)
 {
     if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
+    if (!strcmp(srv->cfg.bench, "none")) return no_instrument(srv, err);
     storage_scan_t sc;
     int ret = storage_scan_resume(st, scan_id, job_id, err);
     if (ret) return ret;

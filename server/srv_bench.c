@@ -38,6 +38,11 @@ int srv_bench_check(const char *bench, const char *stage, cam_info_t *camera, er
         snprintf(camera->model, sizeof camera->model, "simulated bench");
         return 0;
     }
+    if (strcmp(kind, "none") == 0) {
+        snprintf(camera->backend, sizeof camera->backend, "none");
+        snprintf(camera->model, sizeof camera->model, "no instrument");
+        return 0;
+    }
     cam_info_t *infos = NULL;
     size_t n = 0, i = 0;
     ret = cam_list(kind, &infos, &n, err);

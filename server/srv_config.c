@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "base/opts.h"
 #include "base/parse.h"
@@ -24,12 +25,20 @@ static const char usage[] =
     "usage: ipsd [options]\n"
     "  --listen ADDR:PORT   address to serve HTTP on (default 127.0.0.1:8080; [::1]:PORT for\n"
     "                       IPv6; port 0 picks a free port)\n"
-    "  --db FILE            SQLite database (default var/ipsd.db; its directory must exist)\n"
+    "  --db FILE|URI        SQLite database file (default var/ipsd.db; its directory must exist),\n"
+    "                       or a PostgreSQL database several benches share:\n"
+    "                       postgresql://USER@HOST[:PORT]/DB (its password from PGPASSFILE or\n"
+    "                       ~/.pgpass, never in the URI)\n"
+    "  --bench-name NAME    this bench's name on a shared database: its scan jobs are claimed\n"
+    "                       only by the ipsd of that name (default: the host name)\n"
+    "  --lease S            on a shared database, a job whose ipsd has not reported for S\n"
+    "                       seconds is queued again for another (default 30)\n"
     "  --bench BENCH        the instrument: sim (the simulated bench, default), libcamera (a\n"
     "                       V4L2 sensor) or aravis (a GenICam camera: GigE Vision, USB3\n"
     "                       Vision), the first camera found, or libcamera:ID / aravis:ID for\n"
     "                       the camera of that id (see --list-cameras); fails at start when\n"
-    "                       the camera is not found\n"
+    "                       the camera is not found; none: no instrument, an ipsd that only\n"
+    "                       fits (a fit worker on a shared database)\n"
     "  --list-cameras       prints the cameras every camera backend finds, one a line\n"
     "                       (BACKEND:ID, vendor, model, serial), and exits\n"
     "  --stage STAGE        the motion stage the bench's camera works with: sim (default) or a\n"
@@ -101,6 +110,31 @@ const char *srv_config_usage(void)
     return usage;
 }
 
+/* A password in a connection URI: "user:secret@" or a password= parameter. */
+static int uri_has_password(const char *uri)
+{
+    const char *auth = strstr(uri, "://");
+    if (auth) {
+        auth += 3;
+        size_t n = strcspn(auth, "@/?");
+        if (auth[n] == '@' && memchr(auth, ':', n)) return 1;
+    }
+    return strstr(uri, "?password=") || strstr(uri, "&password=");
+}
+
+/* --bench-name: 1 to 63 letters, digits, '.', '_' or '-' (it names jobs in the database). */
+static int bench_name(const char *arg, srv_config_t *cfg, err_t *err)
+{
+    size_t n = strlen(arg);
+    if (n == 0 || n >= sizeof cfg->bench_name ||
+        strspn(arg, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-") != n)
+        return err_set(err, -EINVAL,
+                       "--bench-name must be 1 to 63 letters, digits, '.', '_' or '-' (got '%s')",
+                       arg);
+    snprintf(cfg->bench_name, sizeof cfg->bench_name, "%s", arg);
+    return 0;
+}
+
 srv_config_t srv_config_default(void)
 {
     srv_config_t c = {.port = 8080,
@@ -119,11 +153,16 @@ srv_config_t srv_config_default(void)
                       .max_fit_points = 10000,
                       .max_fit_r = 32,
                       .max_jitter_evals = 40000000,
+                      .lease_s = 30,
                       .calibration_map = STORAGE_MAP_KRIGED};
     snprintf(c.host, sizeof c.host, "127.0.0.1");
     snprintf(c.db_path, sizeof c.db_path, "var/ipsd.db");
     snprintf(c.bench, sizeof c.bench, "sim");
     snprintf(c.stage, sizeof c.stage, "sim");
+    char host[256] = "";
+    err_t ignored;
+    if (gethostname(host, sizeof host - 1) != 0 || bench_name(host, &c, &ignored) != 0)
+        snprintf(c.bench_name, sizeof c.bench_name, "bench");
     struct stat sb;
     snprintf(c.web_dir, sizeof c.web_dir, "%s",
              stat(IPSD_WEB_DIR, &sb) == 0 && S_ISDIR(sb.st_mode) ? IPSD_WEB_DIR : "web");
@@ -224,6 +263,8 @@ enum {
     O_ATTEMPTS,
     O_CAMTIMEOUT,
     O_CALIBMAP,
+    O_BENCHNAME,
+    O_LEASE,
     O_HELP
 };
 
@@ -263,6 +304,8 @@ static const struct option opts[] = {
     {"max-attempts", required_argument, NULL, O_ATTEMPTS},
     {"camera-timeout", required_argument, NULL, O_CAMTIMEOUT},
     {"calibration-map", required_argument, NULL, O_CALIBMAP},
+    {"bench-name", required_argument, NULL, O_BENCHNAME},
+    {"lease", required_argument, NULL, O_LEASE},
     {"help", no_argument, NULL, O_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -276,7 +319,18 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
     case O_LISTEN:
         return parse_listen(arg, cfg, err);
     case O_DB:
+        if (storage_is_postgres(arg) && uri_has_password(arg))
+            return err_set(err, -EINVAL,
+                           "--db: a password in the URI would show in the process list and the "
+                           "logs; put it in PGPASSFILE or ~/.pgpass");
         return copy_path("db", arg, cfg->db_path, sizeof cfg->db_path, err);
+    case O_BENCHNAME:
+        return bench_name(arg, cfg, err);
+    case O_LEASE:
+        if (parse_long(arg, 2, 86400, &v))
+            return err_set(err, -EINVAL, "--lease must be 2..86400 seconds (got '%s')", arg);
+        cfg->lease_s = (int)v;
+        return 0;
     case O_WEB:
         return copy_path("web", arg, cfg->web_dir, sizeof cfg->web_dir, err);
     case O_PORTFILE:
@@ -302,11 +356,13 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
         size_t kind = strcspn(arg, ":");
         int named = arg[kind] == ':';
         if (!((kind == 3 && !strncmp(arg, "sim", 3) && !named) ||
+              (kind == 4 && !strncmp(arg, "none", 4) && !named) ||
               (kind == 9 && !strncmp(arg, "libcamera", 9)) ||
               (kind == 6 && !strncmp(arg, "aravis", 6))) ||
             (named && !arg[kind + 1]) || strlen(arg) >= sizeof cfg->bench)
             return err_set(err, -EINVAL,
-                           "--bench must be sim, libcamera[:ID] or aravis[:ID] (got '%s')", arg);
+                           "--bench must be sim, libcamera[:ID], aravis[:ID] or none (got '%s')",
+                           arg);
         snprintf(cfg->bench, sizeof cfg->bench, "%s", arg);
         return 0;
     }

@@ -24,7 +24,10 @@ typedef struct srv_token {
 typedef struct srv_config {
     char host[64];                /* numeric IPv4 or IPv6 address to bind ("127.0.0.1") */
     int port;                     /* 0: any free port (see port_file) */
-    char db_path[SRV_PATH_MAX];   /* "var/ipsd.db" */
+    char db_path[SRV_PATH_MAX];   /* "var/ipsd.db", or a postgresql:// URI (no password) */
+    char bench_name[64];          /* --bench-name: this ipsd on a shared database (the host name) */
+    int lease_s;                  /* --lease: another ipsd's running job is taken over after its
+                                     claimant's heartbeat is this old (30; a shared database) */
     char bench[160];              /* --bench: "sim", or a camera backend ("libcamera", "aravis")
                                      with ":DEVICE-ID" when one camera is named */
     char stage[1024];             /* --stage: "sim" or a stage string (instrument/stage.h) */

@@ -9,17 +9,19 @@
 
 struct srv_dbpool {
     pthread_mutex_t mu;
-    char *path;
+    char *path, *claimant; /* claimant: storage_set_claimant of every handle, NULL none */
     storage_gate_t *gate;
     storage_t **idle;
     size_t n_idle, cap;
 };
 
-int srv_dbpool_open(const char *path, storage_gate_t *gate, srv_dbpool_t **out, err_t *err)
+int srv_dbpool_open(const char *path, const char *claimant, storage_gate_t *gate,
+                    srv_dbpool_t **out, err_t *err)
 {
     srv_dbpool_t *p = calloc(1, sizeof *p);
     *out = NULL;
-    if (!p || !(p->path = strdup(path))) {
+    if (!p || !(p->path = strdup(path)) || (claimant && !(p->claimant = strdup(claimant)))) {
+        if (p) free(p->path);
         free(p);
         return err_set(err, -ENOMEM, "database pool: out of memory");
     }
@@ -36,6 +38,7 @@ void srv_dbpool_close(srv_dbpool_t *p)
         storage_close(p->idle[i]);
     free(p->idle);
     free(p->path);
+    free(p->claimant);
     pthread_mutex_destroy(&p->mu);
     free(p);
 }
@@ -48,6 +51,11 @@ storage_t *srv_dbpool_get(srv_dbpool_t *p, err_t *err)
     pthread_mutex_unlock(&p->mu);
     if (st) return st;
     if (storage_open(p->path, &st, err)) return NULL;
+    if (storage_set_claimant(st, p->claimant)) {
+        storage_close(st);
+        err_set(err, -ENOMEM, "database pool: out of memory");
+        return NULL;
+    }
     storage_set_gate(st, p->gate);
     return st;
 }

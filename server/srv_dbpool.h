@@ -12,7 +12,8 @@ typedef struct srv_dbpool srv_dbpool_t;
 
 /* A pool over the database at path (copied); every handle it opens writes through gate
  * (storage_set_gate; NULL: none), which must outlive the pool. *out is the caller's (srv_dbpool_close). */
-int srv_dbpool_open(const char *path, storage_gate_t *gate, srv_dbpool_t **out, err_t *err);
+int srv_dbpool_open(const char *path, const char *claimant, storage_gate_t *gate,
+                    srv_dbpool_t **out, err_t *err);
 
 /* Closes every handle and frees the pool; every handle must have been given back. Accepts NULL. */
 void srv_dbpool_close(srv_dbpool_t *p);

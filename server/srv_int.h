@@ -33,7 +33,9 @@ struct srv {
     atomic_int stopping;
     srv_worker_t *workers; /* [0] the scan worker, then the fit workers */
     int n_workers, stopped;
-    int lock_fd; /* flock on DB-ipsd.lock: one ipsd per database, -1 when not held */
+    int lock_fd; /* flock on DB-ipsd.lock: one ipsd per SQLite file, -1 when not held */
+    int shared;  /* the database is PostgreSQL's, shared with other ipsd (claims, leases) */
+    _Atomic int64_t lease_swept_ms; /* the last look for other instances' expired leases */
     srv_failpoints_t *failpoints; /* armed test hooks (IPSD_FAILPOINTS), NULL: none */
     atomic_int backup_running;    /* a POST /api/backup is copying (srv_backup.c) */
     int64_t unrecorded_job;       /* under mu: a scan job failed whose failure the storage */
@@ -46,6 +48,11 @@ struct srv {
  * process) when there is none, until the server stops. name is for log lines. */
 void srv_worker_loop(srv_worker_t *w, unsigned kinds, const char *name,
                      void (*run)(srv_worker_t *w, storage_job_t *job));
+
+/* On a shared database, now and then (about four times a lease, one idle worker of this ipsd):
+ * the jobs whose claimant stopped reporting for --lease seconds are queued again, so a crashed
+ * ipsd's fits go to another and its scans wait for its bench. No-op on an SQLite file. */
+void srv_lease_sweep(srv_worker_t *w);
 
 /* Wakes every worker waiting for work. */
 void srv_notify_work(srv_t *srv);

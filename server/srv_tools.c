@@ -63,6 +63,11 @@ int srv_tool_hash_token(void)
 int srv_tool_backup(const srv_config_t *cfg)
 {
     struct stat sb;
+    if (storage_is_postgres(cfg->db_path)) {
+        fprintf(stderr, "ipsd: --backup copies an SQLite database; a PostgreSQL database is "
+                        "backed up with pg_dump (docs/operations.md)\n");
+        return 2;
+    }
     if (stat(cfg->db_path, &sb) != 0) { /* storage_open would create an empty one */
         fprintf(stderr, "ipsd: --backup: no database %s: %s\n", cfg->db_path, strerror(errno));
         return 2;

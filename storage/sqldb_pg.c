@@ -17,6 +17,7 @@
 #include <errno.h>
 #include <inttypes.h>
 #include <libpq-fe.h>
+#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -517,6 +518,27 @@ static const struct sqldb_ops pg_ops = {
     .blob_read = pg_blob_read,
     .checkpoint = pg_checkpoint,
 };
+
+int sqldb_pg_wait_notify(sqldb_t *db, int timeout_ms)
+{
+    if (!db || db->ops != &pg_ops) return -ENOTSUP;
+    pg_t *p = DB(db);
+    int sock = PQsocket(p->c);
+    if (sock < 0 || PQstatus(p->c) != CONNECTION_OK) return -EIO;
+    struct pollfd fd = {.fd = sock, .events = POLLIN};
+    int n = 0;
+    if (poll(&fd, 1, timeout_ms) < 0 && errno != EINTR) return -EIO;
+    if (!PQconsumeInput(p->c) || PQstatus(p->c) != CONNECTION_OK) {
+        set_err(p, PQerrorMessage(p->c));
+        return -EIO;
+    }
+    PGnotify *note;
+    while ((note = PQnotifies(p->c))) {
+        n++;
+        PQfreemem(note);
+    }
+    return n;
+}
 
 /* uri without a password: "user:secret@" becomes "user@", and a password= parameter goes. */
 static void redact(const char *uri, char *out, size_t size)

@@ -357,7 +357,12 @@ int stg_commit(storage_t *st, err_t *err)
     /* a write transaction that changed rows: the storage took a write (a claim that found no
      * job changes nothing and proves nothing) */
     int wrote = st->gate_held && sqldb_total_changes(st->db) != st->changes_at_begin;
-    int ret = run_fixed(st, STG_COMMIT, err, "committing");
+    int ret = 0;
+    /* a shared database: the other instances hear of a calibration when this commits */
+    if (st->calib_dirty && sqldb_dialect(st->db) == SQLDB_POSTGRES &&
+        sqldb_exec(st->db, stg_pg_notify) != SQLDB_OK)
+        ret = stg_error(st, SQLDB_IOERR, err, "announcing a calibration");
+    if (ret == 0) ret = run_fixed(st, STG_COMMIT, err, "committing");
     if (ret) {
         stg_rollback(st); /* e.g. a deferred foreign key failed: the transaction stays open */
     } else {
@@ -386,6 +391,8 @@ void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx)
     st->clock = fn;
     st->clock_ctx = ctx;
 }
+
+int storage_is_postgres(const char *target) { return sqldb_is_postgres_uri(target); }
 
 int storage_set_claimant(storage_t *st, const char *name)
 {

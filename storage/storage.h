@@ -82,6 +82,11 @@ const char *storage_fault_name(int fault);
  * - max_pages > 0: every handle given the gate afterwards (storage_set_gate) caps the database at
  *   that many pages (PRAGMA max_page_count), so SQLite itself answers SQLITE_FULL beyond it.
  * Returns 0 or -ENAMETOOLONG. */
+/* On a PostgreSQL database (target a postgresql:// URI), starts the thread that hears of the
+ * calibrations other ipsd store (storage_listen.c), so that storage_calib_generation moves for
+ * them too; until it listens, storage_calib_generation answers -ENOTSUP there. No-op for an
+ * SQLite file. 0 or a negative errno. */
+int storage_gate_listen(storage_gate_t *g, const char *target, err_t *err);
 int storage_gate_set_test_faults(storage_gate_t *g, const char *fault_file, long long max_pages);
 
 /* The schema version this code creates and understands (PRAGMA user_version). */
@@ -122,6 +127,10 @@ void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx);
  * the jobs it claims record it, and a running job is reported on and ended only by a handle of
  * its claimant. 0 or -ENOMEM / -EINVAL (an empty name). */
 int storage_set_claimant(storage_t *st, const char *name);
+
+/* 1 when target names a PostgreSQL database (a postgresql:// or postgres:// URI: a database
+ * several ipsd may share), 0 for an SQLite file. */
+int storage_is_postgres(const char *target);
 int64_t storage_now_ms(storage_t *st);
 
 /* States of scans and jobs; stored as their names ("queued", "running", "done", "failed",

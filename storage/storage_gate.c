@@ -34,6 +34,7 @@ struct storage_gate {
     int64_t full_pages, full_free; /* at the last "full" fault: the database's (free) pages */
     char fault_file[PATH_MAX]; /* test hook: "" none */
     long long max_pages;       /* test hook: 0 none */
+    struct stg_listener *listener; /* a shared database's calibrations (storage_listen.c) */
 };
 
 int storage_gate_new(storage_gate_t **out)
@@ -50,6 +51,7 @@ int storage_gate_new(storage_gate_t **out)
 void storage_gate_free(storage_gate_t *g)
 {
     if (!g) return;
+    stg_listener_stop(g->listener);
     pthread_cond_destroy(&g->cv);
     pthread_mutex_destroy(&g->mu);
     pthread_mutex_destroy(&g->health_mu);
@@ -147,9 +149,18 @@ int stg_gate_injected(storage_t *st)
     return SQLDB_FULL; /* "full", or anything else */
 }
 
+int storage_gate_listen(storage_gate_t *g, const char *target, err_t *err)
+{
+    if (!g || g->listener || !sqldb_is_postgres_uri(target)) return 0;
+    return stg_listener_start(&g->calib_gen, target, &g->listener, err);
+}
+
 int storage_calib_generation(storage_t *st, uint64_t *gen)
 {
     if (!st || !st->gate) return -ENOTSUP;
+    /* a shared database: only while other instances' calibrations are heard of */
+    if (sqldb_dialect(st->db) == SQLDB_POSTGRES && !stg_listener_listening(st->gate->listener))
+        return -ENOTSUP;
     *gen = atomic_load(&st->gate->calib_gen);
     return 0;
 }

@@ -4,6 +4,7 @@
 #ifndef IPSD_STORAGE_INT_H
 #define IPSD_STORAGE_INT_H
 
+#include <stdatomic.h>
 #include <stdint.h>
 
 #include "storage/storage.h"
@@ -132,6 +133,14 @@ struct storage {
     int64_t changes_at_begin; /* sqldb_total_changes when it began */
     char *claimant; /* the ipsd this handle works for (storage_set_claimant), NULL unnamed */
 };
+
+/* storage_listen.c: the thread that LISTENs for other instances' calibrations on a shared
+ * PostgreSQL database and moves the gate's calibration generation *gen for each. */
+struct stg_listener;
+int stg_listener_start(atomic_uint_least64_t *gen, const char *uri, struct stg_listener **out,
+                       err_t *err);
+int stg_listener_listening(const struct stg_listener *l);
+void stg_listener_stop(struct stg_listener *l);
 
 /* The write gate around BEGIN IMMEDIATE .. COMMIT / ROLLBACK (no-ops without a gate): enter
  * returns 0 or -EDEADLK when this thread holds the gate through another handle. */

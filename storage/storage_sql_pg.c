@@ -346,3 +346,6 @@ const char *const stg_sql_pg[STG_N] = {
     [STG_PTC_HISTORY] = "SELECT " STG_PTC_COLS " FROM ptc WHERE sensor_id = ?1 "
                         "ORDER BY id DESC " PG_LIMIT("2"),
 };
+
+const char *const stg_pg_notify = "NOTIFY ipsd_calibrations";
+const char *const stg_pg_listen = "LISTEN ipsd_calibrations";

@@ -19,4 +19,9 @@ extern const char *const stg_pg_migrations[];
  * too; it also runs SQLite's two BEGINs its own way). */
 extern const char *const stg_sql_pg[STG_N];
 
+/* The channel of stored calibrations: sent inside the transaction that stores one (delivered
+ * at its commit), heard by every ipsd on the database (storage_listen.c). */
+extern const char *const stg_pg_notify;
+extern const char *const stg_pg_listen;
+
 #endif

@@ -35,6 +35,10 @@ rm -f "${TMPDIR:-/tmp}/tsort.$$"
 
 # (1b) exactly the documented calls (docs/schema.md, "The code"): keep the two in step
 want='storage.c storage_gate.c
+storage_gate.c sqldb.c
+storage_gate.c storage_listen.c
+storage_listen.c sqldb_pg.c
+storage_listen.c storage_sql_pg.c
 storage_backup.c storage.c
 storage_backup.c sqldb_sqlite.c
 storage.c storage_sql.c

@@ -1,0 +1,178 @@
+#!/usr/bin/env python3
+"""test_server_shared.py IPSD IPS URI-FILE: several ipsd on one PostgreSQL database (the server
+the suite started, tests/pg_server.sh; its URI in URI-FILE, the password in PGPASSFILE).
+
+Two benches (each its own simulated bench, --bench-name bench-a and bench-b) and a fit worker
+without an instrument (--bench none) share a fresh schema. Each bench scans; a bench is killed
+(SIGKILL, the `crash` failpoint) in the middle of a scan and started again; the other bench is
+killed during a fit, and the fit worker takes that fit over once its lease (--lease 2) has run
+out. psql, reading the database independently, then checks that nothing was lost and nothing
+written twice: every scan has each of its points once, every single-pixel fit job one fit, every
+pixel one current calibration, and each scan job was claimed only by its own bench. A calibration
+stored through one ipsd reaches another's reply cache (LISTEN/NOTIFY)."""
+import json
+import os
+import subprocess
+import sys
+
+import ipsd_http
+from ipsd_http import Ipsd, wait_for
+
+RASTER = {"area_px": 3, "step_um": 0.6, "sub_px": 3, "frames": 2}
+
+
+class PgDb:
+    """The shared database read with psql (Debian's postgresql-client), one statement a call."""
+
+    def __init__(self, uri):
+        self.uri = uri
+
+    def all(self, sql):
+        out = subprocess.run(["psql", "-X", "-At", "-F", "\t", "-v", "ON_ERROR_STOP=1",
+                              self.uri, "-c", sql], capture_output=True, text=True, timeout=60)
+        if out.returncode != 0:
+            raise RuntimeError("psql: %s: %s" % (sql, out.stderr.strip()))
+        return [tuple(line.split("\t")) for line in out.stdout.splitlines() if line]
+
+    def val(self, sql):
+        rows = self.all(sql)
+        return rows[0][0] if rows else None
+
+
+def fresh_schema(base, schema):
+    """The URI of a new, empty schema of the suite's database."""
+    subprocess.run(["psql", "-X", "-q", "-v", "ON_ERROR_STOP=1", base, "-c",
+                    "SET client_min_messages = warning; DROP SCHEMA IF EXISTS %s CASCADE; "
+                    "CREATE SCHEMA %s" % (schema, schema)], check=True, timeout=60)
+    return "%s%soptions=-csearch_path%%3D%s" % (base, "&" if "?" in base else "?", schema)
+
+
+def daemon(exe, tmp, name, uri, daemons):
+    d = Ipsd(exe, os.path.join(tmp, name))
+    os.makedirs(d.tmp, exist_ok=True)
+    d.db = uri
+    daemons.append(d)
+    return d
+
+
+def test(c, t, argv, daemons):
+    try:
+        with open(argv[3]) as f:
+            base = f.read().strip()
+    except OSError:
+        print("no PostgreSQL server for the tests (%s): skipped" % argv[3])
+        raise SystemExit(77)
+    uri = fresh_schema(base, "t_shared")
+    db = PgDb(uri)
+    a = daemon(argv[1], t, "a", uri, daemons)
+    b = daemon(argv[1], t, "b", uri, daemons)
+    w = daemon(argv[1], t, "w", uri, daemons)
+    a.start("--bench-name", "bench-a", "--lease", "2")
+    b.start("--bench-name", "bench-b", "--lease", "2")
+    w.start("--bench", "none", "--bench-name", "fitter", "--lease", "2")
+
+    # ---- three ipsd on one database, each saying what it is ----
+    for d, name, bench in ((a, "bench-a", "sim"), (b, "bench-b", "sim"), (w, "fitter", "none")):
+        h = d.get("/api/health").json()
+        c.eq((h.get("database"), h.get("bench_name"), h.get("bench")), ("postgresql", name, bench),
+             "%s: health names the shared database, its name and its bench" % name)
+    r = a.post("/api/sensors", {"model": "IMX-S", "serial": "shared-1", "pitch_um": 6})
+    c.status(r, 201, "a sensor, created through bench-a")
+    sensor = r.json()["id"]
+    c.eq(b.get("/api/sensors/%d" % sensor).status, 200, "bench-b sees it")
+    r = w.post("/api/scans", {"sensor_id": sensor, "poi": {"col": 10, "row": 10}, "raster": RASTER})
+    c.error(r, 409, "", "the fit worker has no instrument: a scan is refused")
+    c.ok("no instrument" in r.text, "the refusal says why")
+
+    # ---- each bench scans; bench-a is killed after 4 points of its second scan ----
+    def scan(d, col):
+        r = d.post("/api/scans", {"sensor_id": sensor, "poi": {"col": col, "row": 20},
+                                  "raster": RASTER, "seed": col})
+        c.status(r, 202, "a scan submitted to %s" % d.tmp)
+        return r.json()["scan"]["id"], r.json()["job"]["id"]
+    s1, j1 = scan(a, 10)
+    s2, j2 = scan(b, 30)
+    c.ok(a.wait_job(j1, "done") and b.wait_job(j2, "done"), "both benches' scans are done")
+    c.eq(db.all("SELECT id, bench, claimed_by FROM jobs WHERE kind = 'scan' ORDER BY id"),
+         [(str(j1), "bench-a", "bench-a"), (str(j2), "bench-b", "bench-b")],
+         "each scan job belongs to, and was run by, its own bench")
+    a.stop_term()
+    a.start("--bench-name", "bench-a", "--lease", "2", failpoints="scan.point=crash@4")
+    s3, j3 = scan(a, 50)
+    c.eq(a.wait_exit(), -9, "bench-a crashed (SIGKILL) after 4 points of its scan")
+    c.eq(db.val("SELECT state || ' ' || claimed_by FROM jobs WHERE id = %d" % j3),
+         "running bench-a", "its scan job is left running, claimed by bench-a")
+    c.eq(b.get("/api/jobs/%d" % j3).json().get("bench"), "bench-a",
+         "the API says whose bench it is")
+    a.start("--bench-name", "bench-a", "--lease", "2")
+    c.ok(a.wait_job(j3, "done"), "bench-a back: its scan resumed and is done")
+
+    # ---- bench-b is killed during a fit: the fit worker takes it over after the lease ----
+    fits_so_far = [int(x[0]) for x in db.all("SELECT id FROM jobs WHERE kind = 'fit'")]
+    c.ok(all(w.wait_job(j, "done") for j in fits_so_far), "the first three scans' fits are done")
+    # only bench-b runs now, so that it is the one that claims the next fit
+    c.eq((a.stop_term(), b.stop_term(), w.stop_term()), (0, 0, 0), "all three stop")
+    b.start("--bench-name", "bench-b", "--lease", "2", failpoints="fit.step=crash@1")
+    s4, j4 = scan(b, 70)
+    c.eq(b.wait_exit(), -9, "bench-b crashed during the automatic fit of its scan")
+    fit_job = db.val("SELECT id FROM jobs WHERE kind = 'fit' AND scan_id = %d" % s4)
+    c.ok(fit_job is not None, "the scan queued its automatic fit")
+    c.eq(db.val("SELECT claimed_by FROM jobs WHERE id = %s" % fit_job), "bench-b",
+         "bench-b had claimed that fit")
+    w.start("--bench", "none", "--bench-name", "fitter", "--lease", "2")
+    c.ok(w.wait_job(int(fit_job), "done"), "the fit worker ran the fit after bench-b's lease ran out")
+    c.eq(db.val("SELECT claimed_by || ' ' || attempts FROM jobs WHERE id = %s" % fit_job),
+         "fitter 2", "claimed a second time, by the fit worker")
+    a.start("--bench-name", "bench-a", "--lease", "2")
+    b.start("--bench-name", "bench-b", "--lease", "2")
+    every_fit = [int(x[0]) for x in db.all("SELECT id FROM jobs WHERE kind = 'fit'")]
+    c.ok(all(w.wait_job(j, "done") for j in every_fit), "every fit job is done")
+
+    # ---- a calibration stored through one ipsd reaches the others' reply caches ----
+    pix = "/api/sensors/%d/pixels/10/20/calibration" % sensor
+
+    def current():
+        return int(db.val("SELECT id FROM calibrations WHERE sensor_id = %d AND pixel_col = 10 "
+                          "AND pixel_row = 20 AND superseded_by IS NULL" % sensor))
+    first = current()
+    h0 = a.get("/api/health").json()["calibration_cache"]
+    reads = [a.get(pix).json().get("id") for _ in range(3)]
+    h1 = a.get("/api/health").json()["calibration_cache"]
+    c.eq(reads, [first] * 3, "bench-a reads the pixel's calibration")
+    c.ok(h1["hits"] - h0["hits"] >= 2, "from its reply cache after the first read")
+    path = os.path.join(t, "pixel.json")
+    subprocess.run([argv[2], "simulate", "--scene", "paperlike", "--seed", "7", "-o", path],
+                   check=True, stdout=subprocess.DEVNULL)
+    with open(path) as f:
+        scan_file = json.load(f)
+    r = b.post("/api/fits", {"scan": scan_file, "sensor_id": sensor,
+                             "pixel": {"col": 10, "row": 20}, "r_max": 2})
+    c.status(r, 202, "a new map of that pixel, fitted through bench-b")
+    c.ok(r.status == 202 and b.wait_job(r.json()["job"]["id"], "done"), "and stored")
+    c.ok(current() != first, "the database holds the new calibration as current")
+    c.ok(wait_for(lambda: a.get(pix).json().get("id") == current()),
+         "bench-a's next reads serve it (the notification emptied its cache's view)")
+
+    # ---- nothing lost, nothing twice (read by psql) ----
+    c.eq(db.all("SELECT id FROM scans WHERE state <> 'done' OR points_done <> points_total OR "
+                "points_total <> (SELECT count(*) FROM frames f WHERE f.scan_id = scans.id)"),
+         [], "every scan is done with each of its points stored once")
+    c.eq(db.val("SELECT count(*) FROM scans"), "4", "four scans")
+    c.eq(db.all("SELECT j.id FROM jobs j WHERE j.kind = 'fit' AND "
+                "(SELECT count(*) FROM fits f WHERE f.job_id = j.id) <> 1"), [],
+         "every fit job stored exactly one fit")
+    c.eq(db.all("SELECT sensor_id, pixel_col, pixel_row FROM calibrations WHERE superseded_by IS "
+                "NULL GROUP BY 1, 2, 3 HAVING count(*) > 1"), [],
+         "every pixel has one current calibration")
+    c.eq(db.val("SELECT count(*) FROM calibrations WHERE superseded_by IS NULL"), "4",
+         "four pixels calibrated, one per scan")
+    c.eq(db.val("SELECT count(*) FROM calibrations WHERE pixel_col = 10 AND pixel_row = 20"), "2",
+         "the re-fitted pixel keeps its history: two calibrations, one current")
+    c.eq(db.all("SELECT id FROM jobs WHERE kind = 'scan' AND claimed_by <> bench"), [],
+         "no scan job was ever run by another bench")
+    for d in (a, b, w):
+        c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
+
+
+if __name__ == "__main__":
+    sys.exit(ipsd_http.main(test, sys.argv))
