@@ -20,13 +20,30 @@
 #define EVENT_RING 4096 /* events kept for slow readers */
 #define IDLE_POLL_MS 1000 /* workers also poll: jobs may be queued by another process */
 
+/* On a shared database, one ipsd per bench name: two would both run that bench's scans. The lock
+ * is the database's, held by a connection of its own for the life of the process (released by
+ * the server when it dies, so a kill -9 leaves none). */
+static int lock_bench_name(srv_t *srv, err_t *err)
+{
+    char name[128];
+    snprintf(name, sizeof name, "bench %s", srv->cfg.bench_name);
+    int ret = storage_open(srv->cfg.db_path, &srv->lock_st, err);
+    if (ret == 0) ret = storage_lock_name(srv->lock_st, name, err);
+    if (ret == -EBUSY)
+        return err_set(err, -EBUSY,
+                       "bench %s is in use by another ipsd on database %s: give each ipsd its own "
+                       "--bench-name",
+                       srv->cfg.bench_name, srv->cfg.db_path);
+    return ret;
+}
+
 /* One ipsd per SQLite file: start-up requeues every job left running, which would take a second
  * instance's running jobs from it. An advisory lock on DB-ipsd.lock (released by the kernel when
  * the process dies, so a kill -9 leaves no stale lock) makes the second one refuse to start.
  * A PostgreSQL database is shared: each ipsd requeues only its own jobs (requeue_interrupted). */
 static int lock_db(srv_t *srv, err_t *err)
 {
-    if (srv->shared) return 0;
+    if (srv->shared) return lock_bench_name(srv, err);
     char path[4096];
     if (snprintf(path, sizeof path, "%s-ipsd.lock", srv->cfg.db_path) >= (int)sizeof path)
         return err_set(err, -ENAMETOOLONG, "database path too long");
@@ -170,6 +187,7 @@ void srv_close(srv_t *srv)
     srv_config_free(&srv->cfg);
     srv_failpoints_close(srv->failpoints);
     if (srv->lock_fd >= 0) close(srv->lock_fd); /* releases the flock */
+    storage_close(srv->lock_st);                /* and a shared database's bench lock */
     free(srv);
 }
 

@@ -35,6 +35,7 @@ struct srv {
     int n_workers, stopped;
     int lock_fd; /* flock on DB-ipsd.lock: one ipsd per SQLite file, -1 when not held */
     int shared;  /* the database is PostgreSQL's, shared with other ipsd (claims, leases) */
+    storage_t *lock_st; /* shared: the connection holding this bench name's lock, else NULL */
     _Atomic int64_t lease_swept_ms; /* the last look for other instances' expired leases */
     srv_failpoints_t *failpoints; /* armed test hooks (IPSD_FAILPOINTS), NULL: none */
     atomic_int backup_running;    /* a POST /api/backup is copying (srv_backup.c) */

@@ -5,7 +5,7 @@
  * - statements are prepared on the server at their first step (PQprepare), parameters sent as
  *   text, BLOBs as binary bytea; rows come back as text, bytea hex-decoded on first read;
  * - "BEGIN IMMEDIATE" (SQLite's write transaction, one writer at a time) becomes BEGIN and a
- *   transaction-scoped advisory lock that every ipsd on the database takes to write: writers stay
+ *   transaction-scoped advisory lock (of the current schema) that every ipsd on it takes to write: writers stay
  *   serialized across instances, so every read-then-write of storage/ keeps the meaning it has on
  *   SQLite; readers never wait;
  * - "BEGIN" (a consistent multi-statement read) becomes a REPEATABLE READ transaction: one
@@ -286,8 +286,10 @@ static sqldb_rc_t begin(pg_stmt_t *q)
     pg_t *p = q->db;
     if (q->kind == BEGIN_READ) return run(p, "BEGIN ISOLATION LEVEL REPEATABLE READ");
     sqldb_rc_t rc = run(p, "BEGIN ISOLATION LEVEL READ COMMITTED");
-    char lock[64];
-    snprintf(lock, sizeof lock, "SELECT pg_advisory_xact_lock(%d)", PG_WRITE_LOCK_KEY);
+    char lock[96];
+    /* one lock per schema: each schema is a database of its own to ipsd */
+    snprintf(lock, sizeof lock, "SELECT pg_advisory_xact_lock(%d, hashtext(current_schema()))",
+             PG_WRITE_LOCK_KEY);
     if (rc == SQLDB_OK && (rc = run(p, lock)) != SQLDB_OK) {
         char why[sizeof p->err];
         memcpy(why, p->err, sizeof why);

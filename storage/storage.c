@@ -394,6 +394,24 @@ void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx)
 
 int storage_is_postgres(const char *target) { return sqldb_is_postgres_uri(target); }
 
+int storage_lock_name(storage_t *st, const char *name, err_t *err)
+{
+    if (!st || !name) return err_set(err, -EINVAL, "lock: NULL argument");
+    if (sqldb_dialect(st->db) != SQLDB_POSTGRES)
+        return err_set(err, -ENOTSUP, "a named lock is a shared database's");
+    sqldb_stmt_t *s = NULL;
+    int rc = sqldb_prepare(st->db, stg_pg_lock_name, 0, &s), ret = 0;
+    if (rc == SQLDB_OK) rc = sqldb_bind_text(s, 1, name);
+    if (rc == SQLDB_OK) rc = sqldb_step(s);
+    if (rc == SQLDB_ROW)
+        ret = sqldb_col_int64(s, 0) ? 0 : err_set(err, -EBUSY, "%s is held by another connection",
+                                                  name);
+    else
+        ret = stg_error(st, rc == SQLDB_DONE ? SQLDB_ERROR : rc, err, "taking a named lock");
+    sqldb_finalize(s);
+    return ret;
+}
+
 int storage_set_claimant(storage_t *st, const char *name)
 {
     if (!st || (name && !*name)) return -EINVAL;

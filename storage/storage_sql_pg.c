@@ -349,3 +349,5 @@ const char *const stg_sql_pg[STG_N] = {
 
 const char *const stg_pg_notify = "NOTIFY ipsd_calibrations";
 const char *const stg_pg_listen = "LISTEN ipsd_calibrations";
+const char *const stg_pg_lock_name =
+    "SELECT pg_try_advisory_lock(1768977252, hashtext(current_schema() || ' ' || ?1))";

@@ -6,7 +6,10 @@
   (IPSD_FAILPOINTS, docs/server.md "Test hooks") so a scan or a fit is held at a known point.
 - Client: one long-lived HTTP/1.1 client per daemon (http.client, one kept-alive connection).
 - EventStream: a reader of GET /api/events in a thread, keeping every line it got.
-- sql(): the database read by Python's sqlite3 module, an independent reader of what ipsd stored.
+- Db: the database read by Python's sqlite3 module, an independent reader of what ipsd stored.
+- PostgreSQL: with IPSD_TEST_PG_URI_FILE set (tests/server.cmake's *_pg tests: the server of
+  tests/pg.cmake), every Ipsd gets a fresh schema of that server's database as its --db, and Db
+  reads it with psql instead (the same SQL where SQLite's runs there too).
 - wait_for(): polls a condition until a generous deadline: tests wait for states, never for time.
 - Checks: counts checks and failures; finish() prints the tally and gives the exit status.
 - Recording: with IPSD_API_RECORD_DIR set (tests/server.cmake sets it), every answer a Client or
@@ -35,10 +38,12 @@ try:  # Linux: ipsd gets SIGKILL when the test dies (e.g. killed by ctest's TIME
 except (OSError, AttributeError):
     _die_with_parent = None
 
+_PG_URI_FILE = os.environ.get("IPSD_TEST_PG_URI_FILE")
 _RECORD_DIR = os.environ.get("IPSD_API_RECORD_DIR")
 if _RECORD_DIR:  # this test's answers of an earlier run are stale: start its record afresh
     os.makedirs(_RECORD_DIR, exist_ok=True)
-    _RECORD_PREFIX = os.path.basename(sys.argv[0]).rsplit(".", 1)[0] + "."
+    _RECORD_PREFIX = (os.path.basename(sys.argv[0]).rsplit(".", 1)[0] +
+                      (".pg." if _PG_URI_FILE else "."))
     for _f in os.listdir(_RECORD_DIR):
         if _f.startswith(_RECORD_PREFIX) and _f.endswith(".jsonl"):
             os.remove(os.path.join(_RECORD_DIR, _f))
@@ -236,13 +241,38 @@ class EventStream:
                 events=[l[6:] for l in self.snapshot() if l.startswith("data: ")])
 
 
+_pg_schemas = 0
+
+
+def pg_fresh_database():
+    """With IPSD_TEST_PG_URI_FILE: the URI of a new, empty schema of the suite's PostgreSQL
+    database (a name of this process's own); None without it."""
+    global _pg_schemas
+    if not _PG_URI_FILE:
+        return None
+    if not os.path.exists(_PG_URI_FILE):
+        print("no PostgreSQL server for the tests (%s): skipped" % _PG_URI_FILE)
+        raise SystemExit(77)
+    with open(_PG_URI_FILE) as f:
+        base = f.read().strip()
+    _pg_schemas += 1
+    schema = "t_%d_%d" % (os.getpid(), _pg_schemas)
+    subprocess.run(["psql", "-X", "-q", "-v", "ON_ERROR_STOP=1", base, "-c",
+                    "SET client_min_messages = warning; DROP SCHEMA IF EXISTS %s CASCADE; "
+                    "CREATE SCHEMA %s; CREATE FUNCTION %s.hex(bytea) RETURNS text LANGUAGE sql "
+                    "IMMUTABLE AS 'SELECT upper(encode($1, ''hex''))'" % (schema, schema, schema)],
+                   check=True, timeout=60)
+    return "%s%soptions=-csearch_path%%3D%s" % (base, "&" if "?" in base else "?", schema)
+
+
 class Ipsd:
-    """The daemon under test on tmp/ipsd.db (log: tmp/ipsd.log, appended over restarts)."""
+    """The daemon under test on tmp/ipsd.db, or with IPSD_TEST_PG_URI_FILE on a fresh schema of
+    the suite's PostgreSQL database (log: tmp/ipsd.log, appended over restarts)."""
 
     def __init__(self, exe, tmp):
         self.exe = exe
         self.tmp = tmp
-        self.db = os.path.join(tmp, "ipsd.db")
+        self.db = pg_fresh_database() or os.path.join(tmp, "ipsd.db")
         self.log = os.path.join(tmp, "ipsd.log")
         self.fp_dir = os.path.join(tmp, "failpoints")
         self.proc = None
@@ -381,12 +411,83 @@ class Ipsd:
         return None
 
 
+class _PsqlConn:
+    """Db's reader of a PostgreSQL database: psql, one statement a call, its ? parameters written
+    in as SQL literals, each value read back as the type SQLite's module would give (integer,
+    real, text, bytes for bytea, None for NULL)."""
+
+    NULL = "\x1e"
+
+    def __init__(self, uri):
+        self.uri = uri
+
+    @staticmethod
+    def _literal(v):
+        if v is None:
+            return "NULL"
+        if isinstance(v, bool):
+            return "1" if v else "0"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, bytes):
+            return "'\\x%s'::bytea" % v.hex()
+        return "'%s'" % str(v).replace("'", "''")
+
+    @classmethod
+    def _value(cls, text):
+        if text == cls.NULL:
+            return None
+        if text.startswith("\\x"):
+            return bytes.fromhex(text[2:])
+        if text in ("t", "f"):  # a boolean, which SQLite gives as 1 or 0
+            return int(text == "t")
+        for kind in (int, float):
+            try:
+                return kind(text)
+            except ValueError:
+                pass
+        return text
+
+    def execute(self, query, args=()):
+        parts = query.split("?")
+        if len(parts) - 1 != len(args):
+            raise ValueError("%d parameters for %d placeholders: %s" % (len(args),
+                                                                       len(parts) - 1, query))
+        sql = parts[0] + "".join(self._literal(a) + p for a, p in zip(args, parts[1:]))
+        out = subprocess.run(["psql", "-X", "-At", "-F", "\x1f", "-P", "null=" + self.NULL,
+                              "-v", "ON_ERROR_STOP=1", self.uri, "-c", sql],
+                             capture_output=True, text=True, timeout=DEADLINE_S)
+        if out.returncode != 0:
+            raise RuntimeError("psql: %s: %s" % (sql, out.stderr.strip()))
+        rows = [tuple(self._value(v) for v in line.split("\x1f"))
+                for line in out.stdout.split("\n") if line]
+        return _Rows(rows)
+
+    def close(self):
+        pass
+
+
+class _Rows:
+    def __init__(self, rows):
+        self.rows = rows
+
+    def fetchall(self):
+        return self.rows
+
+    def fetchone(self):
+        return self.rows[0] if self.rows else None
+
+
 class Db:
     """The test database read (and, for crafted rows, written) by Python's sqlite3 module: each
-    statement in its own transaction, so it sees what ipsd committed."""
+    statement in its own transaction, so it sees what ipsd committed. A postgresql:// URI is read
+    with psql instead (_PsqlConn)."""
 
     def __init__(self, path):
-        self.conn = sqlite3.connect(path, timeout=DEADLINE_S, isolation_level=None)
+        if path.startswith(("postgresql://", "postgres://")):
+            self.conn = _PsqlConn(path)
+        else:
+            self.conn = sqlite3.connect(path, timeout=DEADLINE_S, isolation_level=None)
 
     def all(self, query, *args):
         return self.conn.execute(query, args).fetchall()

@@ -187,13 +187,13 @@ def is_transaction(sql):
 
 # The driver knows SQLite's two BEGINs by their text and runs them its own way (sqldb_pg.c): a
 # write takes the writers' advisory lock after BEGIN, a read is one REPEATABLE READ snapshot.
-WRITE_LOCK = "SELECT pg_advisory_xact_lock(1768977252)"
+WRITE_LOCK = "SELECT pg_advisory_xact_lock(1768977252, hashtext(current_schema()))"
 
 
 def driver_runs(sql):
     """the statements the driver runs for a transaction statement's text"""
     if re.match(r"\s*BEGIN\s+IMMEDIATE\b", sql, re.I):
-        return ["BEGIN", WRITE_LOCK]
+        return ["BEGIN ISOLATION LEVEL READ COMMITTED", WRITE_LOCK]
     if re.match(r"\s*BEGIN\s*$", sql, re.I):
         return ["BEGIN ISOLATION LEVEL REPEATABLE READ"]
     return [sql]

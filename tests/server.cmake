@@ -50,6 +50,25 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
             FIXTURES_SETUP api_records)
     endforeach()
+    # the HTTP tests whose ipsd does not depend on SQLite again, each ipsd on a fresh schema of the
+    # PostgreSQL server of tests/pg.cmake and the database read back with psql
+    # (tests/ipsd_http.py); the same timeouts as their SQLite runs
+    if(TEST pg_server_start)
+        foreach(t flow:130 restart:380 input:80 promote:120 region:120 calib_cache:90 crash:150
+                fitstop:300 allpixels:200 points:120 scanend:120 ptc:300 security:60)
+            string(REPLACE ":" ";" t ${t})
+            list(GET t 0 name)
+            list(GET t 1 timeout)
+            add_test(NAME test_server_${name}_pg
+                     COMMAND ${Python3_EXECUTABLE} -B
+                             ${CMAKE_CURRENT_SOURCE_DIR}/test_server_${name}.py $<TARGET_FILE:ipsd>
+                             $<TARGET_FILE:ips>
+                     WORKING_DIRECTORY ${IPSD_TEST_DATA})
+            set_tests_properties(test_server_${name}_pg PROPERTIES TIMEOUT ${timeout}
+                FIXTURES_REQUIRED pg FIXTURES_SETUP api_records SKIP_RETURN_CODE 77
+                ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};IPSD_TEST_PG_URI_FILE=${IPSD_PG_DIR}/uri;PGPASSFILE=${IPSD_PG_DIR}/pgpass")
+        endforeach()
+    endif()
     # several ipsd on one PostgreSQL database (the server of tests/pg.cmake): two benches and a
     # fit worker, a bench killed mid-scan and another mid-fit (about 20 s optimised)
     if(TEST pg_server_start)

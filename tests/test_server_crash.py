@@ -64,7 +64,7 @@ def test(c, t, argv, daemons):
                     "(SELECT fit_id FROM jobs WHERE fit_id IS NOT NULL)"), 0,
              "%s: no orphaned fit" % what)
         c.eq(db.val("SELECT count(*) FROM (SELECT fit_id FROM jobs WHERE fit_id IS NOT NULL "
-                    "GROUP BY fit_id HAVING count(*) > 1)"), 0, "%s: no fit shared by jobs" % what)
+                    "GROUP BY fit_id HAVING count(*) > 1) shared"), 0, "%s: no fit shared by jobs" % what)
         c.eq(db.val("SELECT count(*) FROM fits"),
              db.val("SELECT count(*) FROM jobs WHERE kind = 'fit' AND state = 'done'"),
              "%s: one fit per done fit job" % what)

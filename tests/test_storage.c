@@ -1745,7 +1745,8 @@ static void test_pg_open(void)
      * goes on */
     st = open_db("pgopen");
     PGconn *other = pg_connect("pgopen");
-    PGresult *r = PQexec(other, "BEGIN; SELECT pg_advisory_xact_lock(1768977252)"); /* "ipsd" */
+    PGresult *r = PQexec(other, "BEGIN; SELECT pg_advisory_xact_lock(1768977252, " /* "ipsd" */
+                                "hashtext(current_schema()))");
     CHECK(PQresultStatus(r) == PGRES_TUPLES_OK);
     PQclear(r);
     CHECK(storage_set_busy_timeout(st, 20, NULL) == 0);
