@@ -10,7 +10,12 @@
  *   SQLite; readers never wait;
  * - "BEGIN" (a consistent multi-statement read) becomes a REPEATABLE READ transaction: one
  *   snapshot, as SQLite's read transactions in WAL mode;
- * - the busy timeout is lock_timeout; SQLSTATEs map to sqldb_rc_t.
+ * - the busy timeout is lock_timeout; SQLSTATEs map to sqldb_rc_t;
+ * - a lost connection (the server restarted, the network dropped) is opened again at the next
+ *   statement outside a transaction, its settings and prepared statements made again; a read or
+ *   a BEGIN that found it lost is tried once more on the new one (neither can have changed
+ *   anything). Inside a transaction the loss is an error until the caller rolls back: the server
+ *   rolled the transaction back, so a later COMMIT must not pretend to have stored it.
  * Hand-written over libpq because no maintained C library offers a driver seam over both. */
 #include "sqldb.h"
 
@@ -34,6 +39,10 @@ typedef struct {
     char err[512];  /* the last error's words */
     int64_t changes, total;
     unsigned next_stmt; /* names of server-side prepared statements */
+    unsigned epoch;     /* connections made so far: a statement prepared in another is gone */
+    int busy_ms;        /* the lock_timeout set (-1: none), set again on a new connection */
+    int txn;            /* inside a transaction this driver began */
+    int txn_lost;       /* and its connection was lost: only a ROLLBACK ends it */
 } pg_t;
 
 typedef enum { PLAIN, BEGIN_WRITE, BEGIN_READ, UTILITY } pg_kind_t;
@@ -43,6 +52,7 @@ typedef struct {
     pg_t *db;
     pg_kind_t kind;
     char name[24]; /* its server-side name, "" until prepared */
+    unsigned epoch; /* the connection it was prepared on (pg_t.epoch) */
     char *sql;     /* with $N placeholders */
     int nparams, readonly;
     char **vals; /* bound values (owned), NULL for SQL NULL */
@@ -217,7 +227,7 @@ static void pg_finalize(sqldb_stmt_t *s)
 {
     pg_stmt_t *q = ST(s);
     pg_reset(s);
-    if (q->name[0] && PQstatus(q->db->c) == CONNECTION_OK) {
+    if (q->name[0] && q->epoch == q->db->epoch && PQstatus(q->db->c) == CONNECTION_OK) {
         char sql[64];
         snprintf(sql, sizeof sql, "DEALLOCATE %s", q->name);
         PQclear(PQexec(q->db->c, sql));
@@ -280,12 +290,69 @@ static sqldb_rc_t pg_bind_blob(sqldb_stmt_t *s, int i, const void *v, size_t n)
     return bind(s, i, v ? v : &empty, n, 1); /* an empty BLOB is not NULL */
 }
 
+static int lost(pg_t *p) { return PQstatus(p->c) != CONNECTION_OK; }
+
+/* Outside a transaction: a lost connection opened again (PQreset), with its settings. */
+static sqldb_rc_t reconnect(pg_t *p)
+{
+    if (!lost(p)) return SQLDB_OK;
+    PQreset(p->c);
+    if (lost(p)) {
+        char why[sizeof p->err];
+        snprintf(why, sizeof why, "the database connection is lost, and opening it again failed: %s",
+                 PQerrorMessage(p->c));
+        set_err(p, why);
+        return SQLDB_IOERR;
+    }
+    p->epoch++;
+    char sql[64];
+    snprintf(sql, sizeof sql, "SET lock_timeout = %d", p->busy_ms > 0 ? p->busy_ms : 0);
+    sqldb_rc_t rc = run(p, "SET client_min_messages = warning");
+    if (rc == SQLDB_OK && p->busy_ms >= 0) rc = run(p, sql);
+    return rc;
+}
+
+/* A statement without result rows, run again once on a new connection when the first try found
+ * the connection lost (for what changes nothing: BEGIN, SET). */
+static sqldb_rc_t run_retry(pg_t *p, const char *sql)
+{
+    sqldb_rc_t rc = reconnect(p);
+    if (rc == SQLDB_OK && (rc = run(p, sql)) != SQLDB_OK && lost(p) && reconnect(p) == SQLDB_OK)
+        rc = run(p, sql);
+    return rc;
+}
+
+/* COMMIT and ROLLBACK, with the driver's view of the transaction. */
+static sqldb_rc_t end_transaction(pg_stmt_t *q)
+{
+    pg_t *p = q->db;
+    int rollback = starts_with_word(q->sql, "ROLLBACK");
+    if (p->txn_lost || (p->txn && lost(p))) {
+        p->txn = p->txn_lost = 0;
+        if (rollback) return SQLDB_OK; /* the server rolled it back when the connection went */
+        set_err(p, "the database connection was lost inside the transaction: the server rolled "
+                   "it back, nothing of it was stored");
+        return SQLDB_IOERR;
+    }
+    sqldb_rc_t rc = run(p, q->sql);
+    p->txn = 0; /* COMMIT ends the transaction even when it fails (a deferred key) */
+    return rc;
+}
+
 /* BEGIN IMMEDIATE and BEGIN, as the top of the file says. */
 static sqldb_rc_t begin(pg_stmt_t *q)
 {
     pg_t *p = q->db;
-    if (q->kind == BEGIN_READ) return run(p, "BEGIN ISOLATION LEVEL REPEATABLE READ");
-    sqldb_rc_t rc = run(p, "BEGIN ISOLATION LEVEL READ COMMITTED");
+    if (p->txn) {
+        set_err(p, "a transaction is open already");
+        return SQLDB_ERROR;
+    }
+    if (q->kind == BEGIN_READ) {
+        sqldb_rc_t rc = run_retry(p, "BEGIN ISOLATION LEVEL REPEATABLE READ");
+        p->txn = rc == SQLDB_OK;
+        return rc;
+    }
+    sqldb_rc_t rc = run_retry(p, "BEGIN ISOLATION LEVEL READ COMMITTED");
     char lock[96];
     /* one lock per schema: each schema is a database of its own to ipsd */
     snprintf(lock, sizeof lock, "SELECT pg_advisory_xact_lock(%d, hashtext(current_schema()))",
@@ -296,7 +363,41 @@ static sqldb_rc_t begin(pg_stmt_t *q)
         run(p, "ROLLBACK");
         memcpy(p->err, why, sizeof why);
     }
+    p->txn = rc == SQLDB_OK;
     return rc;
+}
+
+/* Prepares q on the current connection when it is not (yet, or since a reconnection). */
+static sqldb_rc_t prepare_on_server(pg_stmt_t *q)
+{
+    pg_t *p = q->db;
+    if (q->name[0] && q->epoch == p->epoch) return SQLDB_OK;
+    char name[sizeof q->name];
+    snprintf(name, sizeof name, "ipsd_%u", p->next_stmt++);
+    PGresult *r = PQprepare(p->c, name, q->sql, q->nparams, NULL);
+    sqldb_rc_t rc = r && PQresultStatus(r) == PGRES_COMMAND_OK ? SQLDB_OK : result_rc(p, r);
+    PQclear(r);
+    if (rc != SQLDB_OK) return rc;
+    memcpy(q->name, name, sizeof name);
+    q->epoch = p->epoch;
+    return SQLDB_OK;
+}
+
+/* Prepares (when needed) and executes q: its result, or NULL with the code in *rc. */
+static PGresult *execute(pg_stmt_t *q, sqldb_rc_t *rc)
+{
+    pg_t *p = q->db;
+    if ((*rc = prepare_on_server(q)) != SQLDB_OK) return NULL;
+    PGresult *r = PQexecPrepared(p->c, q->name, q->nparams, (const char *const *)q->vals, q->lens,
+                                 q->fmts, 0);
+    ExecStatusType st = r ? PQresultStatus(r) : PGRES_FATAL_ERROR;
+    if (st == PGRES_COMMAND_OK || st == PGRES_TUPLES_OK) {
+        *rc = SQLDB_OK;
+        return r;
+    }
+    *rc = result_rc(p, r);
+    PQclear(r);
+    return NULL;
 }
 
 static sqldb_rc_t pg_step(sqldb_stmt_t *s)
@@ -308,26 +409,25 @@ static sqldb_rc_t pg_step(sqldb_stmt_t *s)
         return ++q->row < q->nrows ? SQLDB_ROW : SQLDB_DONE;
     }
     if (q->kind != PLAIN) {
-        sqldb_rc_t rc = q->kind == UTILITY ? run(p, q->sql) : begin(q);
+        sqldb_rc_t rc = q->kind == UTILITY ? end_transaction(q) : begin(q);
         return rc == SQLDB_OK ? SQLDB_DONE : rc;
     }
-    if (!q->name[0]) {
-        char name[sizeof q->name];
-        snprintf(name, sizeof name, "ipsd_%u", p->next_stmt++);
-        PGresult *r = PQprepare(p->c, name, q->sql, q->nparams, NULL);
-        sqldb_rc_t rc = r && PQresultStatus(r) == PGRES_COMMAND_OK ? SQLDB_OK : result_rc(p, r);
-        PQclear(r);
-        if (rc != SQLDB_OK) return rc;
-        memcpy(q->name, name, sizeof name);
+    sqldb_rc_t rc;
+    if (p->txn && (p->txn_lost || lost(p))) {
+        p->txn_lost = 1;
+        set_err(p, "the database connection was lost inside the transaction: the server rolled "
+                   "it back");
+        return SQLDB_IOERR;
     }
-    PGresult *r = PQexecPrepared(p->c, q->name, q->nparams, (const char *const *)q->vals, q->lens,
-                                 q->fmts, 0);
-    ExecStatusType st = r ? PQresultStatus(r) : PGRES_FATAL_ERROR;
-    if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) {
-        sqldb_rc_t rc = result_rc(p, r);
-        PQclear(r);
+    if (!p->txn && (rc = reconnect(p)) != SQLDB_OK) return rc;
+    PGresult *r = execute(q, &rc);
+    /* a read alone found the connection lost: nothing changed, so once more on a new one */
+    if (!r && !p->txn && q->readonly && lost(p) && reconnect(p) == SQLDB_OK) r = execute(q, &rc);
+    if (!r) {
+        if (p->txn && lost(p)) p->txn_lost = 1;
         return rc;
     }
+    ExecStatusType st = PQresultStatus(r);
     p->changes = strtoll(PQcmdTuples(r), NULL, 10);
     p->total += p->changes;
     if (st == PGRES_COMMAND_OK) {
@@ -433,11 +533,7 @@ static int64_t pg_last_insert_id(sqldb_t *db)
     return id;
 }
 
-static int pg_in_transaction(sqldb_t *db)
-{
-    PGTransactionStatusType t = PQtransactionStatus(DB(db)->c);
-    return t == PQTRANS_INTRANS || t == PQTRANS_INERROR || t == PQTRANS_ACTIVE;
-}
+static int pg_in_transaction(sqldb_t *db) { return DB(db)->txn; }
 
 static const char *pg_errmsg(sqldb_t *db)
 {
@@ -452,7 +548,8 @@ static sqldb_rc_t pg_busy_timeout(sqldb_t *db, int ms)
 {
     char sql[48];
     snprintf(sql, sizeof sql, "SET lock_timeout = %d", ms);
-    return run(DB(db), sql);
+    DB(db)->busy_ms = ms;
+    return DB(db)->txn ? run(DB(db), sql) : run_retry(DB(db), sql);
 }
 
 static sqldb_rc_t pg_blob_read(sqldb_t *db, const char *table, const char *column, int64_t id,
@@ -460,6 +557,7 @@ static sqldb_rc_t pg_blob_read(sqldb_t *db, const char *table, const char *colum
 {
     pg_t *p = DB(db);
     char sql[256], ids[24];
+    if (!p->txn && reconnect(p) != SQLDB_OK) return SQLDB_IOERR;
     snprintf(sql, sizeof sql, "SELECT substring(%s from %zu for %zu) FROM %s WHERE id = $1", column,
              offset + 1, n, table);
     snprintf(ids, sizeof ids, "%" PRId64, id);
@@ -575,6 +673,7 @@ int sqldb_pg_open(const char *uri, sqldb_t **out, err_t *err)
     pg_t *p = calloc(1, sizeof *p);
     if (!p) return err_set(err, -ENOMEM, "cannot open database: out of memory");
     p->base.ops = &pg_ops;
+    p->busy_ms = -1;
     redact(uri, p->name, sizeof p->name);
     /* a malformed URI is the caller's mistake, not the server's: say so before connecting */
     char *why = NULL;

@@ -8,6 +8,7 @@
 #                                  password) and DIR/pgpass (PGPASSFILE=DIR/pgpass), prints the
 #                                  URI. A DIR whose server runs: prints its URI and does nothing.
 #   tests/pg_server.sh stop DIR    stops the server (fast: open connections are closed) and removes DIR
+#   tests/pg_server.sh restart DIR stops it (its clients cut off) and starts it again on the same port
 #
 # The database ipsd belongs to ipsd_writer (LOGIN, password); ipsd_reader (LOGIN, password) may
 # only read what ipsd_writer makes. The superuser "postgres" has a generated password
@@ -27,13 +28,13 @@ die() {
     say "$*"
     exit 1
 }
-usage() { die "usage: $0 start|stop DIR"; }
+usage() { die "usage: $0 start|stop|restart DIR"; }
 
 (($# == 2)) || usage
 cmd=$1
 dir_arg=$2
 [[ -n "$dir_arg" ]] || usage
-case "$cmd" in start | stop) ;; *) usage ;; esac
+case "$cmd" in start | stop | restart) ;; *) usage ;; esac
 
 # PostgreSQL's server binaries: IPSD_PG_BINDIR when set (only there), else Debian's PostgreSQL
 # 15, else pg_config's, else the PATH's.
@@ -125,6 +126,19 @@ server_running() {
     "${RUN[@]}" "$BIN/pg_ctl" status -D "$rt/data" >/dev/null 2>&1 &&
         "$BIN/pg_isready" -q -h 127.0.0.1 -p "$port" -t 5 >/dev/null 2>&1
 }
+
+# restart: the running server of DIR stopped (fast: its clients' connections are cut, as when a
+# lab's server restarts) and started again on the same port and data, ready before it returns
+if [[ "$cmd" == restart ]]; then
+    check_ours
+    [[ -n "$BIN" && -f "$DIR/port" ]] || die "no server of pg_server.sh in $DIR"
+    rt=$(run_dir)
+    "${RUN[@]}" "$BIN/pg_ctl" restart -D "$rt/data" -m fast -l "$rt/log" \
+        -o "-p $(cat "$DIR/port")" -w -t "$READY_TIMEOUT_S" >/dev/null ||
+        die "the server of $DIR did not restart (log: $rt/log)"
+    server_running "$rt" || die "the server of $DIR is not ready after its restart"
+    exit 0
+fi
 
 if [[ "$cmd" == stop ]]; then
     [[ -e "$DIR" ]] || exit 0

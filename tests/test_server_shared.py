@@ -153,21 +153,45 @@ def test(c, t, argv, daemons):
     c.ok(wait_for(lambda: a.get(pix).json().get("id") == current()),
          "bench-a's next reads serve it (the notification emptied its cache's view)")
 
+    # ---- the database server restarts under a scan held mid-raster: every ipsd carries on ----
+    b.stop_term()
+    b.start("--bench-name", "bench-b", "--lease", "2", failpoints="scan.point=hold@3")
+    s5, j5 = scan(b, 90)
+    c.ok(b.wait_held("scan.point", j5), "a scan of bench-b held after its third point")
+    restart = subprocess.run(["bash", os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                                   "pg_server.sh"), "restart",
+                              os.path.dirname(os.path.abspath(argv[3]))],
+                             capture_output=True, text=True, timeout=300)
+    c.eq(restart.returncode, 0, "the PostgreSQL server restarted (its connections cut): " +
+         restart.stderr.strip())
+    b.release("scan.point", j5)
+    c.ok(b.wait_job(j5, "done"), "the held scan went on over new connections and is done")
+    c.status(a.get("/api/sensors/%d" % sensor), 200, "bench-a reads after the restart")
+    r = a.post("/api/sensors", {"model": "IMX-S", "serial": "after-restart", "pitch_um": 6})
+    c.status(r, 201, "and writes")
+    c.eq(a.get("/api/health").json().get("storage"), "ok", "bench-a's storage is ok")
+    r = b.post("/api/fits", {"scan": scan_file, "sensor_id": sensor,
+                             "pixel": {"col": 10, "row": 20}, "r_max": 3})
+    c.ok(r.status == 202 and b.wait_job(r.json()["job"]["id"], "done"),
+         "a third map of the pixel stored through bench-b")
+    c.ok(wait_for(lambda: a.get(pix).json().get("id") == current()),
+         "bench-a hears of it: its listener is back on the restarted server")
+
     # ---- nothing lost, nothing twice (read by psql) ----
     c.eq(db.all("SELECT id FROM scans WHERE state <> 'done' OR points_done <> points_total OR "
                 "points_total <> (SELECT count(*) FROM frames f WHERE f.scan_id = scans.id)"),
          [], "every scan is done with each of its points stored once")
-    c.eq(db.val("SELECT count(*) FROM scans"), "4", "four scans")
+    c.eq(db.val("SELECT count(*) FROM scans"), "5", "five scans")
     c.eq(db.all("SELECT j.id FROM jobs j WHERE j.kind = 'fit' AND "
                 "(SELECT count(*) FROM fits f WHERE f.job_id = j.id) <> 1"), [],
          "every fit job stored exactly one fit")
     c.eq(db.all("SELECT sensor_id, pixel_col, pixel_row FROM calibrations WHERE superseded_by IS "
                 "NULL GROUP BY 1, 2, 3 HAVING count(*) > 1"), [],
          "every pixel has one current calibration")
-    c.eq(db.val("SELECT count(*) FROM calibrations WHERE superseded_by IS NULL"), "4",
-         "four pixels calibrated, one per scan")
-    c.eq(db.val("SELECT count(*) FROM calibrations WHERE pixel_col = 10 AND pixel_row = 20"), "2",
-         "the re-fitted pixel keeps its history: two calibrations, one current")
+    c.eq(db.val("SELECT count(*) FROM calibrations WHERE superseded_by IS NULL"), "5",
+         "five pixels calibrated, one per scan")
+    c.eq(db.val("SELECT count(*) FROM calibrations WHERE pixel_col = 10 AND pixel_row = 20"), "3",
+         "the re-fitted pixel keeps its history: three calibrations, one current")
     c.eq(db.all("SELECT id FROM jobs WHERE kind = 'scan' AND claimed_by <> bench"), [],
          "no scan job was ever run by another bench")
     for d in (a, b, w):
