@@ -352,12 +352,16 @@ static sqldb_rc_t begin(pg_stmt_t *q)
         p->txn = rc == SQLDB_OK;
         return rc;
     }
-    sqldb_rc_t rc = run_retry(p, "BEGIN ISOLATION LEVEL READ COMMITTED");
-    char lock[96];
-    /* one lock per schema: each schema is a database of its own to ipsd */
-    snprintf(lock, sizeof lock, "SELECT pg_advisory_xact_lock(%d, hashtext(current_schema()))",
+    /* one lock per schema: each schema is a database of its own to ipsd; BEGIN and the lock in
+     * one round trip (a scan stores a point in each such transaction) */
+    char sql[160];
+    snprintf(sql, sizeof sql,
+             "BEGIN ISOLATION LEVEL READ COMMITTED; "
+             "SELECT pg_advisory_xact_lock(%d, hashtext(current_schema()))",
              PG_WRITE_LOCK_KEY);
-    if (rc == SQLDB_OK && (rc = run(p, lock)) != SQLDB_OK) {
+    sqldb_rc_t rc = run_retry(p, sql);
+    if (rc != SQLDB_OK && PQtransactionStatus(p->c) == PQTRANS_INERROR) {
+        /* BEGIN ran, the lock did not (its timeout): the transaction is open, and ends here */
         char why[sizeof p->err];
         memcpy(why, p->err, sizeof why);
         run(p, "ROLLBACK");
