@@ -129,7 +129,7 @@ void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx);
 int storage_set_claimant(storage_t *st, const char *name);
 
 /* Takes, for the life of the handle, the database-wide lock of name (a shared PostgreSQL
- * database: a session advisory lock, released when the handle closes or its process dies):
+ * database: an advisory lock a connection holds, released when the handle closes or its process dies):
  * 0, -EBUSY when another connection holds it, -ENOTSUP on an SQLite file (one ipsd per file is
  * a file lock there: server/srv.c). */
 int storage_lock_name(storage_t *st, const char *name, err_t *err);

@@ -23,7 +23,7 @@ extern const char *const stg_sql_pg[STG_N];
  * at its commit), heard by every ipsd on the database (storage_listen.c). */
 extern const char *const stg_pg_notify;
 extern const char *const stg_pg_listen;
-/* storage_lock_name: a session advisory lock of ?1 (a text) in the current schema, in the key
+/* storage_lock_name: a connection-held advisory lock of ?1 (a text) in the current schema, in the key
  * space of ipsd's write lock */
 extern const char *const stg_pg_lock_name;
 
