@@ -31,6 +31,10 @@ static const char usage[] =
     "                       ~/.pgpass, never in the URI)\n"
     "  --bench-name NAME    this bench's name on a shared database: its scan jobs are claimed\n"
     "                       only by the ipsd of that name (default: the host name)\n"
+    "  --db-copy FROM TO    copies every row of database FROM (e.g. a bench's SQLite file) into\n"
+    "                       TO (e.g. the lab's postgresql:// database) under TO's ids, and\n"
+    "                       exits; run again, it copies only what is new. FROM's scan jobs\n"
+    "                       join --bench-name's bench\n"
     "  --lease S            on a shared database, a job whose ipsd has not reported for S\n"
     "                       seconds is queued again for another (default 30)\n"
     "  --bench BENCH        the instrument: sim (the simulated bench, default), libcamera (a\n"
@@ -265,6 +269,7 @@ enum {
     O_CALIBMAP,
     O_BENCHNAME,
     O_LEASE,
+    O_DBCOPY,
     O_HELP
 };
 
@@ -306,6 +311,7 @@ static const struct option opts[] = {
     {"calibration-map", required_argument, NULL, O_CALIBMAP},
     {"bench-name", required_argument, NULL, O_BENCHNAME},
     {"lease", required_argument, NULL, O_LEASE},
+    {"db-copy", required_argument, NULL, O_DBCOPY},
     {"help", no_argument, NULL, O_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -326,6 +332,11 @@ static int one_option(int c, const char *arg, void *user, err_t *err)
         return copy_path("db", arg, cfg->db_path, sizeof cfg->db_path, err);
     case O_BENCHNAME:
         return bench_name(arg, cfg, err);
+    case O_DBCOPY:
+        if (storage_is_postgres(arg) && uri_has_password(arg))
+            return err_set(err, -EINVAL, "--db-copy: a password in the URI would show in the "
+                                         "process list; put it in PGPASSFILE or ~/.pgpass");
+        return copy_path("db-copy", arg, cfg->copy_from, sizeof cfg->copy_from, err);
     case O_LEASE:
         if (parse_long(arg, 2, 86400, &v))
             return err_set(err, -EINVAL, "--lease must be 2..86400 seconds (got '%s')", arg);
@@ -496,6 +507,17 @@ int srv_config_parse(int argc, char **argv, srv_config_t *cfg, err_t *err)
                                 &first, err);
     if (ret == 1) fputs(usage, stdout);
     if (ret) return ret;
+    if (cfg->copy_from[0]) { /* --db-copy FROM TO: TO is the one argument after the options */
+        if (first != argc - 1)
+            return err_set(err, -EINVAL, "--db-copy FROM TO: give the target TO (a database "
+                                         "file or postgresql:// URI) after the options");
+        if (storage_is_postgres(argv[first]) && uri_has_password(argv[first]))
+            return err_set(err, -EINVAL, "--db-copy: a password in the URI would show in the "
+                                         "process list; put it in PGPASSFILE or ~/.pgpass");
+        if ((ret = copy_path("db-copy", argv[first], cfg->copy_to, sizeof cfg->copy_to, err)))
+            return ret;
+        first = argc;
+    }
     if (first < argc) return err_set(err, -EINVAL, "unexpected argument '%s'", argv[first]);
     int writes = 0;
     for (int i = 0; i < cfg->n_tokens; i++)

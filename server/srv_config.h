@@ -44,6 +44,8 @@ typedef struct srv_config {
     char cors_origin[256];        /* --cors-origin: the one origin allowed, "" CORS off */
     char backup_dir[SRV_PATH_MAX]; /* where POST /api/backup writes, "" backups off */
     char backup_out[SRV_PATH_MAX]; /* --backup OUT: back the database up to OUT and exit */
+    char copy_from[SRV_PATH_MAX];  /* --db-copy FROM TO: copy FROM into TO (copy_to) and exit */
+    char copy_to[SRV_PATH_MAX];
     int hash_token;               /* --hash-token: print the hash line of stdin's token, exit */
     int list_cameras;             /* --list-cameras: print every backend's cameras, exit */
     char web_dir[SRV_PATH_MAX];   /* static files of the dashboard */

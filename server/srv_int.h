@@ -97,5 +97,8 @@ int srv_tool_hash_token(void);
 /* --list-cameras: every backend's cameras on stdout (0, or 1 when stdout fails). */
 int srv_tool_list_cameras(void);
 int srv_tool_backup(const srv_config_t *cfg);
+/* --db-copy FROM TO: copies database FROM into TO (storage_copy), prints what it copied; exit
+ * status 0, 2 for bad input (FROM missing, the same database), 1 when the copy failed. */
+int srv_tool_db_copy(const srv_config_t *cfg);
 
 #endif

@@ -116,9 +116,11 @@ int srv_main(int argc, char **argv, const srv_frontend_t *fe)
         fprintf(stderr, "ipsd: %s\n", err.msg);
         return 2;
     }
-    if (cfg.hash_token || cfg.backup_out[0] || cfg.list_cameras) { /* one-shot modes, no server */
+    if (cfg.hash_token || cfg.backup_out[0] || cfg.list_cameras || cfg.copy_from[0]) {
+        /* one-shot modes, no server */
         rc = cfg.hash_token     ? srv_tool_hash_token()
              : cfg.list_cameras ? srv_tool_list_cameras()
+             : cfg.copy_from[0] ? srv_tool_db_copy(&cfg)
                                 : srv_tool_backup(&cfg);
         srv_config_free(&cfg);
         return rc;

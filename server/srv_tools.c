@@ -92,3 +92,33 @@ int srv_tool_backup(const srv_config_t *cfg)
            (long long)info.bytes, info.pages, info.schema_version, info.integrity);
     return 0;
 }
+
+int srv_tool_db_copy(const srv_config_t *cfg)
+{
+    struct stat sb;
+    if (!storage_is_postgres(cfg->copy_from) && stat(cfg->copy_from, &sb) != 0) {
+        /* storage_open would create an empty one */
+        fprintf(stderr, "ipsd: --db-copy: no database %s: %s\n", cfg->copy_from, strerror(errno));
+        return 2;
+    }
+    storage_t *from = NULL, *to = NULL;
+    storage_copy_info_t info;
+    err_t err = {{0}};
+    int ret = storage_open(cfg->copy_from, &from, &err);
+    if (!ret) ret = storage_open(cfg->copy_to, &to, &err);
+    if (!ret) ret = storage_copy(from, to, cfg->bench_name, &info, &err);
+    storage_close(from);
+    storage_close(to);
+    if (ret) {
+        fprintf(stderr, "ipsd: --db-copy: %s\n", err.msg);
+        return ret == -EINVAL || ret == -ENOTSUP ? 2 : 1;
+    }
+    printf("ipsd: copied %s into %s: %lld sensor(s) (%lld more found there), %lld scan(s) "
+           "(%lld points), %lld job(s), %lld fit(s), %lld calibration(s), %lld ptc; %lld "
+           "copied before\n",
+           cfg->copy_from, cfg->copy_to, (long long)info.sensors, (long long)info.sensors_matched,
+           (long long)info.scans, (long long)info.frames, (long long)info.jobs,
+           (long long)info.fits, (long long)info.calibrations, (long long)info.ptc,
+           (long long)info.skipped);
+    return 0;
+}

@@ -134,6 +134,22 @@ int storage_set_claimant(storage_t *st, const char *name);
  * a file lock there: server/srv.c). */
 int storage_lock_name(storage_t *st, const char *name, err_t *err);
 
+/* What storage_copy did: rows copied per table (frames: points of the scans copied), sensors
+ * found in the target already (the same model and serial), and units skipped because an earlier
+ * copy of the same source had copied them. */
+typedef struct storage_copy_info {
+    int64_t sensors, sensors_matched, scans, frames, jobs, fits, ptc, calibrations, skipped;
+} storage_copy_info_t;
+
+/* Copies every row of database from into database to (ipsd --db-copy: a bench's SQLite file into
+ * the lab's PostgreSQL database), under the target's ids, keeping the provenance (states, times,
+ * histories) and recording each copied row in the target (copied_rows, under the source's own id)
+ * so that a second run copies only what is new. Scan and ptc jobs that name no bench get bench
+ * (NULL: left without). Each unit is one transaction of the target (storage_copy.c). -EINVAL when
+ * from and to are the same database; a negative errno naming the row that failed. */
+int storage_copy(storage_t *from, storage_t *to, const char *bench, storage_copy_info_t *info,
+                 err_t *err);
+
 /* 1 when target names a PostgreSQL database (a postgresql:// or postgres:// URI: a database
  * several ipsd may share), 0 for an SQLite file. */
 int storage_is_postgres(const char *target);

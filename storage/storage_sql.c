@@ -376,6 +376,24 @@ const char *const stg_migrations[] = {
     "ALTER TABLE jobs ADD COLUMN bench TEXT CHECK (bench IS NULL OR length(bench) > 0);\n"
     "ALTER TABLE jobs ADD COLUMN claimed_by TEXT;\n"
     "PRAGMA user_version = 11;\n",
+    /* 12: a database copied into another (ipsd --db-copy). database_info: this database's own
+     * id (random, made once), which names it as the origin of what it gives another; copied_rows:
+     * each row copied here from an origin, its id there and here, so a second copy of the same
+     * origin copies nothing twice. */
+    "CREATE TABLE database_info (\n"
+    "    id         TEXT    NOT NULL CHECK (length(id) = 32),\n"
+    "    created_ms INTEGER NOT NULL\n"
+    ");\n"
+    "INSERT INTO database_info VALUES (lower(hex(randomblob(16))), "
+    "CAST((julianday('now') - 2440587.5) * 86400000 AS INTEGER));\n"
+    "CREATE TABLE copied_rows (\n"
+    "    origin    TEXT    NOT NULL,\n"
+    "    tbl       TEXT    NOT NULL,\n"
+    "    source_id INTEGER NOT NULL,\n"
+    "    target_id INTEGER NOT NULL,\n"
+    "    PRIMARY KEY (origin, tbl, source_id)\n"
+    ");\n"
+    "PRAGMA user_version = 12;\n",
 };
 const int stg_n_migrations = (int)(sizeof stg_migrations / sizeof stg_migrations[0]);
 

@@ -243,6 +243,21 @@ const char *const stg_pg_migrations[] = {
     [10] = "ALTER TABLE jobs ADD COLUMN bench TEXT CHECK (bench IS NULL OR length(bench) > 0);\n"
            "ALTER TABLE jobs ADD COLUMN claimed_by TEXT;\n"
            "UPDATE ipsd_schema SET version = 11;\n",
+    /* 12: storage_sql.c's migration 12 */
+    [11] = "CREATE TABLE database_info (\n"
+           "    id         TEXT   NOT NULL CHECK (length(id) = 32),\n"
+           "    created_ms BIGINT NOT NULL\n"
+           ");\n"
+           "INSERT INTO database_info VALUES (md5(random()::text || clock_timestamp()::text), "
+           "(extract(epoch FROM clock_timestamp()) * 1000)::bigint);\n"
+           "CREATE TABLE copied_rows (\n"
+           "    origin    TEXT   NOT NULL,\n"
+           "    tbl       TEXT   NOT NULL,\n"
+           "    source_id BIGINT NOT NULL,\n"
+           "    target_id BIGINT NOT NULL,\n"
+           "    PRIMARY KEY (origin, tbl, source_id)\n"
+           ");\n"
+           "UPDATE ipsd_schema SET version = 12;\n",
 };
 
 /* ---- statements ---------------------------------------------------------------------------- */

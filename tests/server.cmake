@@ -81,6 +81,17 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};PGPASSFILE=${IPSD_PG_DIR}/pgpass"
             FIXTURES_SETUP api_records)
     endif()
+    # a bench's SQLite database copied into the PostgreSQL one (ipsd --db-copy), twice
+    if(TEST pg_server_start)
+        add_test(NAME test_server_dbcopy
+                 COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_server_dbcopy.py
+                         $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> ${IPSD_PG_DIR}/uri
+                 WORKING_DIRECTORY ${IPSD_TEST_DATA})
+        set_tests_properties(test_server_dbcopy PROPERTIES TIMEOUT 300 FIXTURES_REQUIRED pg
+            SKIP_RETURN_CODE 77
+            ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};PGPASSFILE=${IPSD_PG_DIR}/pgpass"
+            FIXTURES_SETUP api_records)
+    endif()
     # SIGTERM under a flood of connections, with epoll removals slowed by an LD_PRELOAD shim
     # (test_server_quiesce.py: 30 starts and stops, ~10 s optimised)
     add_library(shim_epoll_slowdel MODULE shim_epoll_slowdel.c)

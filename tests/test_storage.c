@@ -258,7 +258,7 @@ static void test_open_migrate(void)
     struct stat sb;
     char mode[32];
     CHECK(stat(db_path("open.db"), &sb) == 0);
-    CHECK(storage_schema_version() == 11); /* docs/schema.md: "currently 11" (keep in step) */
+    CHECK(storage_schema_version() == 12); /* docs/schema.md: "currently 12" (keep in step) */
     CHECK(raw_int("open.db", "PRAGMA user_version") == storage_schema_version());
     raw_text("open.db", "PRAGMA journal_mode", mode, sizeof mode);
     CHECK(strcmp(mode, "wal") == 0);

@@ -40,6 +40,7 @@ storage_gate.c storage_listen.c
 storage_listen.c sqldb_pg.c
 storage_listen.c storage_sql_pg.c
 storage_backup.c storage.c
+storage_copy.c storage.c
 storage_backup.c sqldb_sqlite.c
 storage.c storage_sql.c
 storage.c storage_sql_pg.c
