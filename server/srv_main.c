@@ -140,10 +140,14 @@ int srv_main(int argc, char **argv, const srv_frontend_t *fe)
     signal(SIGPIPE, SIG_IGN);
     mem_setup(&cfg);
     srv_t *srv = NULL;
-    if (srv_open(&cfg, &srv, &err)) {
+    if ((rc = srv_open(&cfg, &srv, &err))) {
         fprintf(stderr, "ipsd: %s\n", err.msg);
+        /* a shared database the command line got wrong (a malformed URI, refused credentials, a
+         * schema newer than this ipsd) is bad input; an SQLite file keeps exit status 1 */
+        int bad = storage_is_postgres(cfg.db_path) &&
+                  (rc == -EINVAL || rc == -EACCES || rc == -ENOTSUP);
         srv_config_free(&cfg);
-        return 1;
+        return bad ? 2 : 1;
     }
     srv_config_free(&cfg);
     rc = serve(srv, fe, &sigs);

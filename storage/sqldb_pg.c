@@ -697,7 +697,12 @@ int sqldb_pg_open(const char *uri, sqldb_t **out, err_t *err)
     p->c = PQconnectdb(uri);
     if (!p->c || PQstatus(p->c) != CONNECTION_OK) {
         set_err(p, p->c ? PQerrorMessage(p->c) : "out of memory");
-        int ret = err_set(err, -EIO, "cannot open database %s: %s", p->name, p->err);
+        /* refused credentials are the caller's to fix (-EACCES), not a fault of the server */
+        int denied = p->c && (PQconnectionNeedsPassword(p->c) ||
+                              strstr(p->err, "password authentication failed") ||
+                              strstr(p->err, "no password supplied"));
+        int ret = err_set(err, denied ? -EACCES : -EIO, "cannot open database %s: %s", p->name,
+                          p->err);
         pg_close(&p->base);
         return ret;
     }

@@ -64,6 +64,34 @@ def test(c, t, argv, daemons):
         raise SystemExit(77)
     uri = fresh_schema(base, "t_shared")
     db = PgDb(uri)
+
+    # ---- bad input: one line, exit 2, nothing written ----
+    newer = fresh_schema(base, "t_newer")
+    subprocess.run(["psql", "-X", "-q", "-v", "ON_ERROR_STOP=1", newer, "-c",
+                    "CREATE TABLE ipsd_schema (version integer NOT NULL); "
+                    "INSERT INTO ipsd_schema VALUES (999)"], check=True, timeout=60)
+    wrong_pass = os.path.join(t, "wrong.pgpass")
+    with open(os.environ["PGPASSFILE"]) as f, open(wrong_pass, "w") as g:
+        g.write("".join(line.rsplit(":", 1)[0] + ":not-the-password\n" for line in f))
+    os.chmod(wrong_pass, 0o600)
+    for db_arg, env, what in (
+            (base + "?no_such_parameter=1", {}, "a malformed URI"),
+            (newer, {}, "a database of a newer schema"),
+            (uri, {"PGPASSFILE": wrong_pass}, "a wrong password"),
+            ("postgresql://ipsd_writer:secret@127.0.0.1/ipsd", {}, "a password in the URI")):
+        r = subprocess.run([argv[1], "--listen", "127.0.0.1:0", "--db", db_arg],
+                           capture_output=True, text=True, timeout=60,
+                           env={**os.environ, **env})
+        c.eq((r.returncode, len(r.stderr.strip().splitlines())), (2, 1),
+             "%s: exit 2 and one line (%s)" % (what, r.stderr.strip()))
+        c.ok("secret" not in r.stderr and "not-the-password" not in r.stderr,
+             "%s: no password in the message" % what)
+    c.eq(PgDb(newer).all("SELECT version FROM ipsd_schema"), [("999",)],
+         "the newer database is left as it was")
+    c.eq(PgDb(newer).val("SELECT count(*) FROM information_schema.tables WHERE "
+                         "table_schema = 't_newer'"), "1", "nothing was created in it")
+    c.eq(db.val("SELECT count(*) FROM information_schema.tables WHERE table_schema = "
+                "'t_shared'"), "0", "nor in the schema the wrong password was refused on")
     a = daemon(argv[1], t, "a", uri, daemons)
     b = daemon(argv[1], t, "b", uri, daemons)
     w = daemon(argv[1], t, "w", uri, daemons)
@@ -177,7 +205,9 @@ def test(c, t, argv, daemons):
     c.ok(wait_for(lambda: a.get(pix).json().get("id") == current()),
          "bench-a hears of it: its listener is back on the restarted server")
 
-    # ---- nothing lost, nothing twice (read by psql) ----
+    # ---- nothing lost, nothing twice (read by psql), once every fit has ended ----
+    every_fit = [int(x[0]) for x in db.all("SELECT id FROM jobs WHERE kind = 'fit'")]
+    c.ok(all(a.wait_job(j, "done") for j in every_fit), "every fit job is done")
     c.eq(db.all("SELECT id FROM scans WHERE state <> 'done' OR points_done <> points_total OR "
                 "points_total <> (SELECT count(*) FROM frames f WHERE f.scan_id = scans.id)"),
          [], "every scan is done with each of its points stored once")

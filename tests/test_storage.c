@@ -1736,7 +1736,7 @@ static void test_pg_open(void)
     CHECK(at && scheme);
     if (at && scheme) {
         snprintf(wrong, sizeof wrong, "%.*s:NotThePassword%s", (int)(at - pg_uri), pg_uri, at);
-        CHECK(storage_open(wrong, &st, &err) == -EIO && st == NULL);
+        CHECK(storage_open(wrong, &st, &err) == -EACCES && st == NULL);
         CHECK(strstr(err.msg, "password") && !strstr(err.msg, "NotThePassword"));
         printf("wrong password: %s\n", err.msg);
     }
