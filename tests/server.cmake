@@ -69,16 +69,16 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
                 ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};IPSD_TEST_PG_URI_FILE=${IPSD_PG_DIR}/uri;PGPASSFILE=${IPSD_PG_DIR}/pgpass")
         endforeach()
     endif()
-    # several ipsd on one PostgreSQL database (the server of tests/pg.cmake): two benches and a
-    # fit worker, a bench killed mid-scan and another mid-fit (about 20 s optimised)
+    # several ipsd on one PostgreSQL database: two benches and a fit worker, a bench killed
+    # mid-scan and another mid-fit, the database server restarted (about 30 s optimised)
     if(TEST pg_server_start)
+        # its own server (it restarts it, which the other tests of the fixture must not see)
         add_test(NAME test_server_shared
                  COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_server_shared.py
-                         $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> ${IPSD_PG_DIR}/uri
+                         $<TARGET_FILE:ipsd> $<TARGET_FILE:ips>
                  WORKING_DIRECTORY ${IPSD_TEST_DATA})
-        set_tests_properties(test_server_shared PROPERTIES TIMEOUT 300 FIXTURES_REQUIRED pg
-            SKIP_RETURN_CODE 77
-            ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};PGPASSFILE=${IPSD_PG_DIR}/pgpass"
+        set_tests_properties(test_server_shared PROPERTIES TIMEOUT 400 SKIP_RETURN_CODE 77
+            ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
             FIXTURES_SETUP api_records)
     endif()
     # a bench's SQLite database copied into the PostgreSQL one (ipsd --db-copy), twice

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""test_server_shared.py IPSD IPS URI-FILE: several ipsd on one PostgreSQL database (the server
-the suite started, tests/pg_server.sh; its URI in URI-FILE, the password in PGPASSFILE).
+"""test_server_shared.py IPSD IPS: several ipsd on one PostgreSQL database, on a server of its
+own (tests/pg_server.sh in its temporary directory: the test restarts it, which the suite's
+shared server must not see while other tests use it).
 
 Two benches (each its own simulated bench, --bench-name bench-a and bench-b) and a fit worker
 without an instrument (--bench none) share a fresh schema. Each bench scans; a bench is killed
@@ -55,13 +56,29 @@ def daemon(exe, tmp, name, uri, daemons):
     return d
 
 
+PG_SERVER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "pg_server.sh")
+
+
 def test(c, t, argv, daemons):
-    try:
-        with open(argv[3]) as f:
-            base = f.read().strip()
-    except OSError:
-        print("no PostgreSQL server for the tests (%s): skipped" % argv[3])
+    pg_dir = os.path.join(t, "pg")
+    start = subprocess.run(["bash", PG_SERVER, "start", pg_dir], capture_output=True, text=True,
+                           timeout=600)
+    if start.returncode == 77:
+        print("no PostgreSQL server binaries: skipped")
         raise SystemExit(77)
+    try:
+        shared_database(c, t, argv, daemons, pg_dir, start)
+    finally:
+        for d in daemons:
+            d.cleanup()
+        subprocess.run(["bash", PG_SERVER, "stop", pg_dir], capture_output=True, timeout=300)
+
+
+def shared_database(c, t, argv, daemons, pg_dir, start):
+    c.eq(start.returncode, 0, "a PostgreSQL server of the test's own: " + start.stderr.strip())
+    os.environ["PGPASSFILE"] = os.path.join(pg_dir, "pgpass")
+    with open(os.path.join(pg_dir, "uri")) as f:
+        base = f.read().strip()
     uri = fresh_schema(base, "t_shared")
     db = PgDb(uri)
 
@@ -186,10 +203,8 @@ def test(c, t, argv, daemons):
     b.start("--bench-name", "bench-b", "--lease", "2", failpoints="scan.point=hold@3")
     s5, j5 = scan(b, 90)
     c.ok(b.wait_held("scan.point", j5), "a scan of bench-b held after its third point")
-    restart = subprocess.run(["bash", os.path.join(os.path.dirname(os.path.abspath(__file__)),
-                                                   "pg_server.sh"), "restart",
-                              os.path.dirname(os.path.abspath(argv[3]))],
-                             capture_output=True, text=True, timeout=300)
+    restart = subprocess.run(["bash", PG_SERVER, "restart", pg_dir], capture_output=True,
+                             text=True, timeout=300)
     c.eq(restart.returncode, 0, "the PostgreSQL server restarted (its connections cut): " +
          restart.stderr.strip())
     b.release("scan.point", j5)
