@@ -176,6 +176,21 @@ static int record(copy_t *c, const char *table, int64_t src, int64_t dst)
     return ret;
 }
 
+/* Runs an UPDATE of the target with ?1 = id and ?2 = text when text, else v. */
+static int update(copy_t *c, const char *sql, int64_t id, int64_t v, const char *text,
+                  const char *what)
+{
+    sqldb_stmt_t *q;
+    int ret = prepare(c->to, sql, &q, c->err), rc = SQLDB_OK;
+    if (ret) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    if (text) stg_bind_text(q, 2, text, &rc);
+    else stg_bind_int(q, 2, v, &rc);
+    ret = rc == SQLDB_OK ? stg_run(c->to, q, c->err, what) : stg_error(c->to, rc, c->err, what);
+    sqldb_finalize(q);
+    return ret;
+}
+
 /* ---- one row ----------------------------------------------------------------------------- */
 
 /* Binds the first n columns of source row s (its column 0 is the id, then the spec's) to q,
@@ -304,19 +319,10 @@ static int copy_unit(copy_t *c, const table_t *t, sqldb_stmt_t *s, int64_t *coun
         int64_t n = 0;
         ret = copy_children(c, &T_FIT_MAPS, "fit_id", "fit_id = ?1", src, &n);
     }
-    if (!ret && t == &T_JOBS && c->bench) { /* an SQLite file's jobs name no bench */
-        sqldb_stmt_t *q;
-        int rc = SQLDB_OK;
-        if (!(ret = prepare(c->to, "UPDATE jobs SET bench = ?2 WHERE id = ?1 AND bench IS NULL "
-                                   "AND kind <> 'fit'",
-                            &q, c->err))) {
-            stg_bind_int(q, 1, dst, &rc);
-            stg_bind_text(q, 2, c->bench, &rc);
-            ret = rc == SQLDB_OK ? stg_run(c->to, q, c->err, "copy: a job's bench")
-                                 : stg_error(c->to, rc, c->err, "copy: a job's bench");
-            sqldb_finalize(q);
-        }
-    }
+    if (!ret && t == &T_JOBS && c->bench) /* an SQLite file's jobs name no bench */
+        ret = update(c, "UPDATE jobs SET bench = ?2 WHERE id = ?1 AND bench IS NULL AND "
+                        "kind <> 'fit'",
+                     dst, 0, c->bench, "copy: a job's bench");
 out:
     if (ret) {
         stg_rollback(c->to);
@@ -342,7 +348,7 @@ static int copy_table(copy_t *c, const table_t *t, int64_t *count)
  * first, without theirs). */
 static int link_jobs_to_fits(copy_t *c)
 {
-    sqldb_stmt_t *s, *q;
+    sqldb_stmt_t *s;
     int ret = prepare(c->from, "SELECT id, fit_id FROM jobs WHERE fit_id IS NOT NULL ORDER BY id",
                       &s, c->err);
     if (ret) return ret;
@@ -356,15 +362,8 @@ static int link_jobs_to_fits(copy_t *c)
         if ((ret = mapped(c, "jobs", sqldb_col_int64(s, 0), &job)) ||
             (ret = mapped(c, "fits", sqldb_col_int64(s, 1), &fit)) || !job || !fit)
             continue;
-        if ((ret = prepare(c->to, "UPDATE jobs SET fit_id = ?2 WHERE id = ?1 AND fit_id IS NULL",
-                           &q, c->err)))
-            break;
-        rc = SQLDB_OK;
-        stg_bind_int(q, 1, job, &rc);
-        stg_bind_int(q, 2, fit, &rc);
-        ret = rc == SQLDB_OK ? stg_run(c->to, q, c->err, "copy: a job's fit")
-                             : stg_error(c->to, rc, c->err, "copy: a job's fit");
-        sqldb_finalize(q);
+        ret = update(c, "UPDATE jobs SET fit_id = ?2 WHERE id = ?1 AND fit_id IS NULL", job, fit,
+                     NULL, "copy: a job's fit");
     }
     sqldb_finalize(s);
     if (ret) {
@@ -467,17 +466,9 @@ static int copy_pixel(copy_t *c, int64_t sensor, int64_t col, int64_t row)
                 links[0] = cur;
                 relink = 1; /* and the target's supersedes it, once it is in */
             } else {          /* this one is newer: the target's is superseded by it */
-                sqldb_stmt_t *u;
-                if ((ret = prepare(c->to, "UPDATE calibrations SET superseded_by = ?2 WHERE id = ?1",
-                                   &u, c->err)))
+                if ((ret = update(c, "UPDATE calibrations SET superseded_by = ?2 WHERE id = ?1",
+                                  cur, dst[i], NULL, "copy: superseding a map")))
                     break;
-                int rc2 = SQLDB_OK;
-                stg_bind_int(u, 1, cur, &rc2);
-                stg_bind_int(u, 2, dst[i], &rc2);
-                ret = rc2 == SQLDB_OK ? stg_run(c->to, u, c->err, "copy: superseding a map")
-                                      : stg_error(c->to, rc2, c->err, "copy: superseding a map");
-                sqldb_finalize(u);
-                if (ret) break;
                 if (!links[1]) links[1] = cur;
             }
         }
@@ -496,19 +487,10 @@ static int copy_pixel(copy_t *c, int64_t sensor, int64_t col, int64_t row)
         }
         sqldb_finalize(q);
         q = NULL;
-        if (!ret && relink) {
-            sqldb_stmt_t *u;
-            if (!(ret = prepare(c->to, "UPDATE calibrations SET supersedes = ?2 WHERE id = ?1 "
-                                       "AND supersedes IS NULL",
-                                &u, c->err))) {
-                int rc2 = SQLDB_OK;
-                stg_bind_int(u, 1, cur, &rc2);
-                stg_bind_int(u, 2, dst[i], &rc2);
-                ret = rc2 == SQLDB_OK ? stg_run(c->to, u, c->err, "copy: linking a history")
-                                      : stg_error(c->to, rc2, c->err, "copy: linking a history");
-                sqldb_finalize(u);
-            }
-        }
+        if (!ret && relink)
+            ret = update(c, "UPDATE calibrations SET supersedes = ?2 WHERE id = ?1 AND "
+                            "supersedes IS NULL",
+                         cur, dst[i], NULL, "copy: linking a history");
         if (!ret) ret = record(c, "calibrations", src[i], dst[i]);
         if (!ret) c->info->calibrations++;
     }

@@ -18,12 +18,6 @@ from ipsd_http import Db, Ipsd
 RASTER = {"area_px": 3, "step_um": 0.6, "sub_px": 3, "frames": 2}
 
 
-def psql(uri, sql):
-    out = subprocess.run(["psql", "-X", "-At", "-F", "\t", "-v", "ON_ERROR_STOP=1", uri, "-c", sql],
-                         capture_output=True, text=True, timeout=60, check=True)
-    return [tuple(line.split("\t")) for line in out.stdout.splitlines() if line]
-
-
 def test(c, t, argv, daemons):
     try:
         with open(argv[3]) as f:
