@@ -105,7 +105,9 @@ def test(c, t, argv, daemons):
     c.status(r, 202, "queue a measurement")
     c.ok(r.headers.get("Location", "").startswith("/api/jobs/"), "Location names the job")
     job1 = r.json()["job"]
-    c.eq((job1["kind"], job1["state"]), ("ptc", "queued"), "a queued ptc job")
+    # a free instrument worker may claim the job before the reply reads it back
+    c.ok(job1["kind"] == "ptc" and job1["state"] in ("queued", "running"),
+         "a ptc job, queued or already claimed: %s/%s" % (job1["kind"], job1["state"]))
     c.eq(job1["params"], {"sensor_id": sensor, "levels": LEVELS, "roi_px": ROI, "flat_e": 0.0,
                           "seed": 1}, "the job's params")
     c.ok(d.wait_held("ptc.level", job1["id"]), "held after its second level")
