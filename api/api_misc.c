@@ -94,6 +94,7 @@ void api_h_health(api_req_t *q)
         json_object_set_new(body, "camera", c ? c : json_null());
         json_object_set_new(body, "stage", json_string(cfg->stage));
         json_object_set_new(body, "bench_name", json_string(cfg->bench_name));
+        json_object_set_new(body, "bench_lock", str_or_null(srv_bench_lock(q->srv)));
         json_object_set_new(body, "database",
                             json_string(storage_is_postgres(cfg->db_path) ? "postgresql" : "sqlite"));
     } else {

@@ -29,12 +29,47 @@ static int lock_bench_name(srv_t *srv, err_t *err)
     snprintf(name, sizeof name, "bench %s", srv->cfg.bench_name);
     int ret = storage_open(srv->cfg.db_path, &srv->lock_st, err);
     if (ret == 0) ret = storage_lock_name(srv->lock_st, name, err);
+    if (ret == 1) ret = 0; /* taken */
+    if (ret == 0) atomic_store(&srv->bench_lock, SRV_BENCH_LOCK_HELD);
     if (ret == -EBUSY)
         return err_set(err, -EBUSY,
                        "bench %s is in use by another ipsd on database %s: give each ipsd its own "
                        "--bench-name",
                        srv->cfg.bench_name, srv->cfg.db_path);
     return ret;
+}
+
+/* The idle scan worker's look at the bench name's lock, about four times a lease: the advisory
+ * lock ends with the connection that held it (a database server restart), and the handle's next
+ * statement opens a new one, so the look takes it again, or finds that another ipsd of the same
+ * name took it meanwhile: then the scan worker claims nothing (srv_worker_loop) until the other
+ * lets it go. Changes are logged once each. */
+static void keep_bench_lock(srv_worker_t *w)
+{
+    srv_t *srv = w->srv;
+    if (!srv->lock_st) return;
+    int64_t now_ms = clock_wall_ms();
+    if (now_ms - w->bench_lock_ms < srv->cfg.lease_s * 250LL) return;
+    w->bench_lock_ms = now_ms;
+    if (srv_failpoint(w, "bench.lock", NULL)) return; /* test hook: held, then stopping */
+    char name[128];
+    snprintf(name, sizeof name, "bench %s", srv->cfg.bench_name);
+    err_t err;
+    int ret = storage_lock_name(srv->lock_st, name, &err);
+    int now = ret == 0 || ret == 1 ? SRV_BENCH_LOCK_HELD
+              : ret == -EBUSY      ? SRV_BENCH_LOCK_LOST
+                                   : SRV_BENCH_LOCK_UNKNOWN;
+    int before = atomic_exchange(&srv->bench_lock, now);
+    if (ret == 1)
+        fprintf(stderr, "ipsd: bench %s: its lock on the database taken again (the connection that "
+                        "held it was lost)\n", srv->cfg.bench_name);
+    else if (now == SRV_BENCH_LOCK_LOST && before != now)
+        fprintf(stderr, "ipsd: bench %s: another ipsd of that name took its lock while this one's "
+                        "connection was lost: this ipsd claims no scan jobs until the other stops\n",
+                srv->cfg.bench_name);
+    else if (now == SRV_BENCH_LOCK_UNKNOWN && before != now)
+        fprintf(stderr, "ipsd: bench %s: its lock cannot be checked: %s\n", srv->cfg.bench_name,
+                err.msg);
 }
 
 /* One ipsd per SQLite file: start-up requeues every job left running, which would take a second
@@ -239,20 +274,37 @@ void srv_worker_loop(srv_worker_t *w, unsigned kinds, const char *name,
                      void (*run)(srv_worker_t *w, storage_job_t *job))
 {
     err_t err;
+    /* a bench's instrument jobs, claimed only while this ipsd holds the bench's name */
+    const unsigned bench_kinds = STORAGE_JOB_BIT(STORAGE_JOB_SCAN) | STORAGE_JOB_BIT(STORAGE_JOB_PTC);
     while (!atomic_load(&w->srv->stopping)) {
         storage_job_t job;
-        if (storage_job_claim_kinds(w->st, kinds, &job, &err)) {
+        unsigned now_kinds = kinds;
+        if (atomic_load(&w->srv->bench_lock) == SRV_BENCH_LOCK_LOST) now_kinds &= ~bench_kinds;
+        if (!now_kinds)
+            job.id = 0;
+        else if (storage_job_claim_kinds(w->st, now_kinds, &job, &err)) {
             fprintf(stderr, "ipsd: %s: %s\n", name, err.msg);
             srv_wait_work(w->srv, IDLE_POLL_MS);
             continue;
         }
         if (job.id == 0) {
+            if (kinds & bench_kinds) keep_bench_lock(w);
             srv_lease_sweep(w);
             srv_wait_work(w->srv, IDLE_POLL_MS);
             continue;
         }
         run(w, &job);
         storage_job_free(&job);
+    }
+}
+
+const char *srv_bench_lock(srv_t *srv)
+{
+    switch (atomic_load(&srv->bench_lock)) {
+    case SRV_BENCH_LOCK_HELD: return "held";
+    case SRV_BENCH_LOCK_LOST: return "lost";
+    case SRV_BENCH_LOCK_UNKNOWN: return "unknown";
+    default: return NULL;
     }
 }
 

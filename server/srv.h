@@ -40,6 +40,10 @@ void srv_close(srv_t *srv);
 const srv_config_t *srv_config(const srv_t *srv);
 /* The bench's camera as ipsd found it at start (backend "sim" for the simulated bench). */
 const cam_info_t *srv_camera(const srv_t *srv);
+/* On a shared database, this ipsd's bench-name lock as the last look found it: "held", "lost"
+ * (another ipsd of the name took it while this one's connection was lost) or "unknown" (the
+ * database did not answer); NULL on an SQLite file. */
+const char *srv_bench_lock(srv_t *srv);
 /* Non-zero once srv_stop has begun: the API answers writes with 503. */
 int srv_stopping(const srv_t *srv);
 srv_events_t *srv_events(srv_t *srv);

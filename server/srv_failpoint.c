@@ -43,7 +43,7 @@ static const char *const POINTS[] = {
     "scan.setup",       "scan.point",      "scan.finish", "fit.step",     "fit.before_store",
     "fit.after_store",  "fit.poll",        "fit.poll.lm", "fit.poll.nnls", "fit.poll.wiener",
     "fit.poll.geometry", "camera.frame",   "fit.pixel",   "ptc.level",    "ptc.before_store",
-    "ptc.after_store"};
+    "ptc.after_store",  "bench.lock"};
 
 static int parse_term(char *text, struct fp_term *t, err_t *err)
 {

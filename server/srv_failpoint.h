@@ -23,7 +23,8 @@
  * after each pixel's fit and the job's count are committed, before the next pixel), ptc.level
  * (a photon-transfer measurement, after each level of its series is measured and published),
  * ptc.before_store (its analysis done, before the transaction that stores it), ptc.after_store
- * (after that transaction committed). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
+ * (after that transaction committed), bench.lock (on a shared database, the idle scan worker
+ * before it looks at its bench name's lock; job 0: the first look is hit 1, at start). ACTION: hold (block the worker there), error (the point fails: -EIO), crash (the
  * process kills itself with SIGKILL there: a kill -9 at a known point) or off. @N: only the N-th hit of that point since ipsd started, counted over all
  * jobs; without it, every hit. Several terms may name one point.
  *

@@ -18,6 +18,7 @@ typedef struct srv_worker {
     int running;
     atomic_llong job; /* the job it runs, 0 when idle */
     atomic_int stop;  /* stops that job at its next check (cancel or shutdown) */
+    int64_t bench_lock_ms; /* the scan worker's last look at the bench name's lock (shared) */
 } srv_worker_t;
 
 typedef struct srv_failpoints srv_failpoints_t; /* test hooks, srv_failpoint.h */
@@ -36,6 +37,7 @@ struct srv {
     int lock_fd; /* flock on DB-ipsd.lock: one ipsd per SQLite file, -1 when not held */
     int shared;  /* the database is PostgreSQL's, shared with other ipsd (claims, leases) */
     storage_t *lock_st; /* shared: the connection holding this bench name's lock, else NULL */
+    atomic_int bench_lock; /* shared: SRV_BENCH_LOCK_* as last seen (srv_lease_sweep) */
     _Atomic int64_t lease_swept_ms; /* the last look for other instances' expired leases */
     srv_failpoints_t *failpoints; /* armed test hooks (IPSD_FAILPOINTS), NULL: none */
     atomic_int backup_running;    /* a POST /api/backup is copying (srv_backup.c) */
@@ -43,6 +45,11 @@ struct srv {
     char unrecorded_msg[256];     /* refuses to record yet (srv_scanner.c), and its error */
     cam_info_t camera;            /* the bench's camera as found at start (srv_bench_check) */
 };
+
+/* The bench name's lock on a shared database, as the last look found it: held, taken by another
+ * ipsd while this one's connection was lost (its scan worker claims nothing until it holds it
+ * again), or not known (the database did not answer). */
+enum { SRV_BENCH_LOCK_NONE, SRV_BENCH_LOCK_HELD, SRV_BENCH_LOCK_LOST, SRV_BENCH_LOCK_UNKNOWN };
 
 /* A worker's life: claims jobs of the kinds (a mask of STORAGE_JOB_BIT) in queue order and runs
  * each with run, waiting for new work (or polling every second, for jobs queued by another
@@ -52,7 +59,9 @@ void srv_worker_loop(srv_worker_t *w, unsigned kinds, const char *name,
 
 /* On a shared database, now and then (about four times a lease, one idle worker of this ipsd):
  * the jobs whose claimant stopped reporting for --lease seconds are queued again, so a crashed
- * ipsd's fits go to another and its scans wait for its bench. No-op on an SQLite file. */
+ * ipsd's fits go to another and its scans wait for its bench; and the bench name's lock is
+ * confirmed, or taken again after a database restart cut the connection that held it. No-op on
+ * an SQLite file. */
 void srv_lease_sweep(srv_worker_t *w);
 
 /* Wakes every worker waiting for work. */

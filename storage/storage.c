@@ -404,8 +404,10 @@ int storage_lock_name(storage_t *st, const char *name, err_t *err)
     if (rc == SQLDB_OK) rc = sqldb_bind_text(s, 1, name);
     if (rc == SQLDB_OK) rc = sqldb_step(s);
     if (rc == SQLDB_ROW)
-        ret = sqldb_col_int64(s, 0) ? 0 : err_set(err, -EBUSY, "%s is held by another connection",
-                                                  name);
+        ret = sqldb_col_int64(s, 0) == 1   ? 0
+              : sqldb_col_int64(s, 0) == 2 ? 1
+                                           : err_set(err, -EBUSY, "%s is held by another connection",
+                                                     name);
     else
         ret = stg_error(st, rc == SQLDB_DONE ? SQLDB_ERROR : rc, err, "taking a named lock");
     sqldb_finalize(s);

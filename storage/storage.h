@@ -129,9 +129,11 @@ void storage_set_clock(storage_t *st, storage_clock_fn fn, void *ctx);
 int storage_set_claimant(storage_t *st, const char *name);
 
 /* Takes, for the life of the handle, the database-wide lock of name (a shared PostgreSQL
- * database: an advisory lock a connection holds, released when the handle closes or its process dies):
- * 0, -EBUSY when another connection holds it, -ENOTSUP on an SQLite file (one ipsd per file is
- * a file lock there: server/srv.c). */
+ * database: an advisory lock a connection holds, released when the handle closes or its process dies),
+ * or confirms that the handle holds it: 0 when it held it already, 1 when it has just taken it (the
+ * first call, or after the handle's connection was opened again: a database server restart ends
+ * the lock with the old connection), -EBUSY when another connection holds it, -ENOTSUP on an
+ * SQLite file (one ipsd per file is a file lock there: server/srv.c). */
 int storage_lock_name(storage_t *st, const char *name, err_t *err);
 
 /* What storage_copy did: rows copied per table (frames: points of the scans copied), sensors

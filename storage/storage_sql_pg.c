@@ -365,4 +365,8 @@ const char *const stg_sql_pg[STG_N] = {
 const char *const stg_pg_notify = "NOTIFY ipsd_calibrations";
 const char *const stg_pg_listen = "LISTEN ipsd_calibrations";
 const char *const stg_pg_lock_name =
-    "SELECT pg_try_advisory_lock(1768977252, hashtext(current_schema() || ' ' || ?1))";
+    "SELECT CASE WHEN EXISTS (SELECT 1 FROM pg_locks WHERE locktype = 'advisory' AND "
+    "pid = pg_backend_pid() AND granted AND objsubid = 2 AND classid = 1768977252::oid AND "
+    "objid = hashtext(current_schema() || ' ' || ?1)::oid) THEN 1 "
+    "WHEN pg_try_advisory_lock(1768977252, hashtext(current_schema() || ' ' || ?1)) THEN 2 "
+    "ELSE 0 END";

@@ -24,7 +24,8 @@ extern const char *const stg_sql_pg[STG_N];
 extern const char *const stg_pg_notify;
 extern const char *const stg_pg_listen;
 /* storage_lock_name: a connection-held advisory lock of ?1 (a text) in the current schema, in the key
- * space of ipsd's write lock */
+ * space of ipsd's write lock: 1 when this connection holds it already, 2 when it has just taken
+ * it, 0 when another connection holds it */
 extern const char *const stg_pg_lock_name;
 
 #endif

@@ -3,14 +3,18 @@
 own (tests/pg_server.sh in its temporary directory: the test restarts it, which the suite's
 shared server must not see while other tests use it).
 
-Two benches (each its own simulated bench, --bench-name bench-a and bench-b) and a fit worker
+Four benches (each its own simulated bench, --bench-name bench-a .. bench-d) and a fit worker
 without an instrument (--bench none) share a fresh schema. Each bench scans; a bench is killed
-(SIGKILL, the `crash` failpoint) in the middle of a scan and started again; the other bench is
+(SIGKILL, the `crash` failpoint) in the middle of a scan and started again; another bench is
 killed during a fit, and the fit worker takes that fit over once its lease (--lease 2) has run
-out. psql, reading the database independently, then checks that nothing was lost and nothing
-written twice: every scan has each of its points once, every single-pixel fit job one fit, every
-pixel one current calibration, and each scan job was claimed only by its own bench. A calibration
-stored through one ipsd reaches another's reply cache (LISTEN/NOTIFY)."""
+out; all four scan at once while the fit worker and the benches fit, one of them killed mid-scan
+and started again. A calibration stored through one ipsd reaches another's reply cache
+(LISTEN/NOTIFY). The database server restarts under a held scan; every ipsd carries on and takes
+its bench name's lock again, and a bench whose lock another ipsd of its name took meanwhile
+claims nothing until that one stops. psql, reading the database independently, then checks that
+nothing was lost and nothing written twice: every scan has each of its points once, every
+single-pixel fit job one fit, every pixel one current calibration, and each scan job was claimed
+only by its own bench."""
 import json
 import os
 import subprocess
@@ -173,6 +177,32 @@ def shared_database(c, t, argv, daemons, pg_dir, start):
     every_fit = [int(x[0]) for x in db.all("SELECT id FROM jobs WHERE kind = 'fit'")]
     c.ok(all(w.wait_job(j, "done") for j in every_fit), "every fit job is done")
 
+    # ---- four benches scan at once, their fits run anywhere; bench-c is killed mid-scan ----
+    cc = daemon(argv[1], t, "c", uri, daemons)
+    dd = daemon(argv[1], t, "d", uri, daemons)
+    cc.start("--bench-name", "bench-c", "--lease", "2", failpoints="scan.point=crash@5")
+    dd.start("--bench-name", "bench-d", "--lease", "2")
+
+    def scan_at(d, col, row):
+        r = d.post("/api/scans", {"sensor_id": sensor, "poi": {"col": col, "row": row},
+                                  "raster": RASTER, "seed": col + row})
+        c.status(r, 202, "a scan submitted to %s" % d.tmp)
+        return r.json()["scan"]["id"], r.json()["job"]["id"]
+    at_once = [scan_at(d, col, 40) for d, col in ((a, 10), (b, 30), (cc, 50), (dd, 70))]
+    c.eq(cc.wait_exit(), -9, "bench-c crashed (SIGKILL) after 5 points, the others scanning")
+    cc.start("--bench-name", "bench-c", "--lease", "2")
+    c.ok(all(d.wait_job(j, "done") for d, (_, j) in zip((a, b, cc, dd), at_once)),
+         "all four scans are done, bench-c's resumed after its restart")
+    c.eq(db.all("SELECT bench, claimed_by FROM jobs WHERE id IN (%s) ORDER BY bench" %
+                ", ".join(str(j) for _, j in at_once)),
+         [("bench-%s" % x, "bench-%s" % x) for x in "abcd"],
+         "each of the four scan jobs ran on its own bench")
+    every_fit = [int(x[0]) for x in db.all("SELECT id FROM jobs WHERE kind = 'fit'")]
+    c.ok(all(w.wait_job(j, "done") for j in every_fit), "every fit job is done")
+    fitters = {x[0] for x in db.all("SELECT DISTINCT claimed_by FROM jobs WHERE kind = 'fit'")}
+    c.ok("fitter" in fitters and len(fitters) >= 2,
+         "fits were taken by the fit worker and by benches: %s" % sorted(fitters))
+
     # ---- a calibration stored through one ipsd reaches the others' reply caches ----
     pix = "/api/sensors/%d/pixels/10/20/calibration" % sensor
 
@@ -220,26 +250,57 @@ def shared_database(c, t, argv, daemons, pg_dir, start):
     c.ok(wait_for(lambda: a.get(pix).json().get("id") == current()),
          "bench-a hears of it: its listener is back on the restarted server")
 
+    # ---- the bench names' locks ended with the old connections: each ipsd takes its own again ----
+    c.ok(wait_for(lambda: "bench bench-a: its lock on the database taken again" in a.log_text()),
+         "bench-a took its bench name's lock again on a new connection")
+    c.eq(a.get("/api/health").json().get("bench_lock"), "held", "its health says so")
+    second = subprocess.run([argv[1], "--listen", "127.0.0.1:0", "--db", uri, "--bench-name",
+                             "bench-a"], capture_output=True, text=True, timeout=60)
+    c.ok(second.returncode != 0 and "bench bench-a is in use by another ipsd" in second.stderr,
+         "a second bench-a is refused again: %d %s" % (second.returncode, second.stderr.strip()))
+
+    # ---- a second ipsd of bench-c's name takes the lock while bench-c's connection is cut ----
+    cc.stop_term()
+    cc.start("--bench-name", "bench-c", "--lease", "2", failpoints="bench.lock=hold@2")
+    c.ok(cc.wait_held("bench.lock", 0), "bench-c's scan worker held before its second look")
+    key = ("locktype = 'advisory' AND objsubid = 2 AND classid = 1768977252 AND "
+           "objid = hashtext(current_schema() || ' bench bench-c')::oid")
+    c.eq(db.all("SELECT pg_terminate_backend(pid) FROM pg_locks WHERE " + key), [("t",)],
+         "the connection holding bench-c's lock cut (pg_terminate_backend)")
+    c2 = daemon(argv[1], t, "c2", uri, daemons)
+    c2.start("--bench-name", "bench-c", "--lease", "2")
+    c.eq(c2.get("/api/health").json().get("bench_lock"), "held",
+         "another ipsd named bench-c starts and holds the name")
+    cc.release("bench.lock", 0)
+    c.ok(wait_for(lambda: cc.get("/api/health").json().get("bench_lock") == "lost"),
+         "the first bench-c finds its lock taken")
+    c.ok("another ipsd of that name took its lock" in cc.log_text(), "and logs it")
+    c.eq(c2.stop_term(), 0, "the second bench-c stops")
+    c.ok(wait_for(lambda: cc.get("/api/health").json().get("bench_lock") == "held"),
+         "the first bench-c holds its name again")
+    c.eq(db.val("SELECT count(*) FROM pg_locks WHERE granted AND " + key), "1",
+         "one connection holds it (read by psql)")
+
     # ---- nothing lost, nothing twice (read by psql), once every fit has ended ----
     every_fit = [int(x[0]) for x in db.all("SELECT id FROM jobs WHERE kind = 'fit'")]
     c.ok(all(a.wait_job(j, "done") for j in every_fit), "every fit job is done")
     c.eq(db.all("SELECT id FROM scans WHERE state <> 'done' OR points_done <> points_total OR "
                 "points_total <> (SELECT count(*) FROM frames f WHERE f.scan_id = scans.id)"),
          [], "every scan is done with each of its points stored once")
-    c.eq(db.val("SELECT count(*) FROM scans"), "5", "five scans")
+    c.eq(db.val("SELECT count(*) FROM scans"), "9", "nine scans")
     c.eq(db.all("SELECT j.id FROM jobs j WHERE j.kind = 'fit' AND "
                 "(SELECT count(*) FROM fits f WHERE f.job_id = j.id) <> 1"), [],
          "every fit job stored exactly one fit")
     c.eq(db.all("SELECT sensor_id, pixel_col, pixel_row FROM calibrations WHERE superseded_by IS "
                 "NULL GROUP BY 1, 2, 3 HAVING count(*) > 1"), [],
          "every pixel has one current calibration")
-    c.eq(db.val("SELECT count(*) FROM calibrations WHERE superseded_by IS NULL"), "5",
-         "five pixels calibrated, one per scan")
+    c.eq(db.val("SELECT count(*) FROM calibrations WHERE superseded_by IS NULL"), "9",
+         "nine pixels calibrated, one per scan")
     c.eq(db.val("SELECT count(*) FROM calibrations WHERE pixel_col = 10 AND pixel_row = 20"), "3",
          "the re-fitted pixel keeps its history: three calibrations, one current")
     c.eq(db.all("SELECT id FROM jobs WHERE kind = 'scan' AND claimed_by <> bench"), [],
          "no scan job was ever run by another bench")
-    for d in (a, b, w):
+    for d in (a, b, cc, dd, w):
         c.eq(d.stop_term(), 0, "SIGTERM: exit status 0")
 
 

@@ -1695,6 +1695,42 @@ static void test_claimants(void)
     storage_close(f);
 }
 
+/* A bench name's lock: held by one connection at a time (PostgreSQL's advisory lock), confirmed
+ * by its holder without taking it twice, taken again when the holder's connection was cut (the
+ * handle opens a new one), free when the holder closes; SQLite has none (-ENOTSUP). */
+static void test_lock_name(void)
+{
+    storage_t *a = open_db("lockname.db"), *b = open_db("lockname.db");
+    err_t err = {{0}};
+    if (!pg_uri) {
+        CHECK(storage_lock_name(a, "bench x", &err) == -ENOTSUP);
+        storage_close(a);
+        storage_close(b);
+        return;
+    }
+    const char *held = "SELECT count(*) FROM pg_locks WHERE locktype = 'advisory' AND granted "
+                       "AND objsubid = 2 AND classid = 1768977252 AND objid = "
+                       "hashtext(current_schema() || ' bench x')::oid";
+    CHECK(storage_lock_name(a, "bench x", &err) == 1); /* taken */
+    CHECK(storage_lock_name(a, "bench x", &err) == 0); /* confirmed */
+    CHECK(raw_int("lockname.db", held) == 1);
+    CHECK(storage_lock_name(b, "bench x", &err) == -EBUSY);
+    CHECK(strstr(err.msg, "bench x is held by another connection") != NULL);
+    CHECK(storage_lock_name(b, "bench y", &err) == 1); /* another name is another lock */
+    /* the holder's connection cut: its next look opens a new one and takes the lock again */
+    CHECK(raw_exec("lockname.db", "SELECT pg_terminate_backend(pid) FROM pg_locks WHERE "
+                                  "locktype = 'advisory' AND objsubid = 2 AND classid = "
+                                  "1768977252 AND objid = hashtext(current_schema() || "
+                                  "' bench x')::oid") == SQLITE_OK);
+    CHECK(raw_int("lockname.db", held) == 0);
+    CHECK(storage_lock_name(a, "bench x", &err) == 1);
+    CHECK(raw_int("lockname.db", held) == 1);
+    CHECK(storage_lock_name(b, "bench x", &err) == -EBUSY);
+    storage_close(a);
+    CHECK(storage_lock_name(b, "bench x", &err) == 1); /* free once its holder closed */
+    storage_close(b);
+}
+
 /* PostgreSQL: the version table, a reopen that changes nothing, a newer schema refused with
  * nothing written, a URI that is not one, a wrong password (not in the message), and a writer
  * that waits past the busy timeout for another instance's write transaction. */
@@ -1794,6 +1830,7 @@ int main(int argc, char **argv)
         test_claim_concurrent();
         test_requeue();
         test_claimants();
+        test_lock_name();
         test_cancel();
         test_gate();
         test_fits();
@@ -1821,6 +1858,7 @@ int main(int argc, char **argv)
     test_claim_concurrent();
     test_requeue();
     test_claimants();
+    test_lock_name();
     test_cancel();
     test_busy();
     test_gate();
