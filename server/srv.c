@@ -60,7 +60,10 @@ static void keep_bench_lock(srv_worker_t *w)
               : ret == -EBUSY      ? SRV_BENCH_LOCK_LOST
                                    : SRV_BENCH_LOCK_UNKNOWN;
     int before = atomic_exchange(&srv->bench_lock, now);
-    if (ret == 1)
+    if (ret == 1 && before == SRV_BENCH_LOCK_LOST)
+        fprintf(stderr, "ipsd: bench %s: its lock is free again and held by this ipsd: it claims "
+                        "scan jobs again\n", srv->cfg.bench_name);
+    else if (ret == 1)
         fprintf(stderr, "ipsd: bench %s: its lock on the database taken again (the connection that "
                         "held it was lost)\n", srv->cfg.bench_name);
     else if (now == SRV_BENCH_LOCK_LOST && before != now)

@@ -55,7 +55,9 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
     # (tests/ipsd_http.py); the same timeouts as their SQLite runs
     if(TEST pg_server_start)
         foreach(t flow:130 restart:380 input:80 promote:120 region:120 calib_cache:90 crash:150
-                fitstop:300 allpixels:200 points:120 scanend:120 ptc:300 security:60)
+                fitstop:300 allpixels:200 points:120 scanend:120 ptc:300 security:60
+                hostile:60 flood:200 log:60 static:60 sched:60 stage:300 zaber:300 scanfile:900
+                export:240)
             string(REPLACE ":" ";" t ${t})
             list(GET t 0 name)
             list(GET t 1 timeout)
@@ -69,8 +71,9 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
                 ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};IPSD_TEST_PG_URI_FILE=${IPSD_PG_DIR}/uri;PGPASSFILE=${IPSD_PG_DIR}/pgpass")
         endforeach()
     endif()
-    # several ipsd on one PostgreSQL database: two benches and a fit worker, a bench killed
-    # mid-scan and another mid-fit, the database server restarted (about 30 s optimised)
+    # several ipsd on one PostgreSQL database: four benches and a fit worker, benches killed
+    # mid-scan and mid-fit, the database server restarted, a bench name's lock taken over and
+    # back (about 40 s optimised)
     if(TEST pg_server_start)
         # its own server (it restarts it, which the other tests of the fixture must not see)
         add_test(NAME test_server_shared

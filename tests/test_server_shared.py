@@ -267,6 +267,8 @@ def shared_database(c, t, argv, daemons, pg_dir, start):
            "objid = hashtext(current_schema() || ' bench bench-c')::oid")
     c.eq(db.all("SELECT pg_terminate_backend(pid) FROM pg_locks WHERE " + key), [("t",)],
          "the connection holding bench-c's lock cut (pg_terminate_backend)")
+    c.ok(wait_for(lambda: db.val("SELECT count(*) FROM pg_locks WHERE " + key) == "0"),
+         "its backend has ended and let the lock go")
     c2 = daemon(argv[1], t, "c2", uri, daemons)
     c2.start("--bench-name", "bench-c", "--lease", "2")
     c.eq(c2.get("/api/health").json().get("bench_lock"), "held",
@@ -278,6 +280,7 @@ def shared_database(c, t, argv, daemons, pg_dir, start):
     c.eq(c2.stop_term(), 0, "the second bench-c stops")
     c.ok(wait_for(lambda: cc.get("/api/health").json().get("bench_lock") == "held"),
          "the first bench-c holds its name again")
+    c.ok("its lock is free again and held by this ipsd" in cc.log_text(), "and logs it")
     c.eq(db.val("SELECT count(*) FROM pg_locks WHERE granted AND " + key), "1",
          "one connection holds it (read by psql)")
 
