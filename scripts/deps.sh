@@ -14,6 +14,7 @@ IPSD_PACKAGES=(
     libsqlite3-dev sqlite3                  # storage/ (and the sqlite3 shell, tests/docs use it)
     postgresql libpq-dev                    # storage/'s PostgreSQL backend (libpq), and the
                                             # server its tests start (tests/pg_server.sh)
+    openssl                                 # that server's TLS certificate (tests/pg_server.sh)
     libmicrohttpd-dev                       # api/
     nettle-dev                              # server/: SHA-256 of the bearer tokens
     libcamera-dev                           # instrument/ libcamera backend (optional at build)

@@ -697,10 +697,14 @@ int sqldb_pg_open(const char *uri, sqldb_t **out, err_t *err)
     p->c = PQconnectdb(uri);
     if (!p->c || PQstatus(p->c) != CONNECTION_OK) {
         set_err(p, p->c ? PQerrorMessage(p->c) : "out of memory");
-        /* refused credentials are the caller's to fix (-EACCES), not a fault of the server */
+        /* refused credentials are the caller's to fix (-EACCES), not a fault of the server: a
+         * password the server refused, or a server certificate TLS refused (sslmode=verify-ca
+         * or verify-full: "certificate verify failed", "server certificate for ... does not
+         * match host name", a missing root certificate file) */
         int denied = p->c && (PQconnectionNeedsPassword(p->c) ||
                               strstr(p->err, "password authentication failed") ||
-                              strstr(p->err, "no password supplied"));
+                              strstr(p->err, "no password supplied") ||
+                              strstr(p->err, "certificate"));
         int ret = err_set(err, denied ? -EACCES : -EIO, "cannot open database %s: %s", p->name,
                           p->err);
         pg_close(&p->base);

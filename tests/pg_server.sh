@@ -7,6 +7,10 @@
 #                                  DIR/uri (postgresql://ipsd_writer@127.0.0.1:PORT/ipsd, no
 #                                  password) and DIR/pgpass (PGPASSFILE=DIR/pgpass), prints the
 #                                  URI. A DIR whose server runs: prints its URI and does nothing.
+#                                  With openssl, the server also speaks TLS: its self-signed
+#                                  certificate for 127.0.0.1 is DIR/root.crt (a client's
+#                                  sslrootcert for sslmode=verify-full), and DIR/other-root.crt
+#                                  is a certificate the server's does not chain to.
 #   tests/pg_server.sh stop DIR    stops the server (fast: open connections are closed) and removes DIR
 #   tests/pg_server.sh restart DIR stops it (its clients cut off) and starts it again on the same port
 #
@@ -218,6 +222,26 @@ fsync = off
 synchronous_commit = off
 full_page_writes = off
 EOF
+
+# TLS with a self-signed certificate for 127.0.0.1 (an EC key: made in milliseconds), when
+# openssl is there; a second one the server does not use, for a client that must refuse it
+if command -v openssl >/dev/null; then
+    for name in server other; do
+        openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 30 \
+            -subj "/CN=127.0.0.1" -addext "subjectAltName=IP:127.0.0.1" \
+            -keyout "$RT/$name.key" -out "$RT/$name.crt" >/dev/null 2>&1 ||
+            die "openssl could not make the test server's certificate"
+    done
+    cp "$RT/server.crt" "$DIR/root.crt"
+    cp "$RT/other.crt" "$DIR/other-root.crt"
+    chmod 644 "$DIR/root.crt" "$DIR/other-root.crt"
+    if [[ $(id -u) -eq 0 ]]; then chown "$PG_USER:" "$RT/server.key" "$RT/server.crt"; fi
+    "${RUN[@]}" tee -a "$DATA/postgresql.conf" >/dev/null <<EOF
+ssl = on
+ssl_cert_file = '$sq_dir/server.crt'
+ssl_key_file = '$sq_dir/server.key'
+EOF
+fi
 
 # a port the kernel says is free now (without python3: a random one; a taken one is retried)
 free_port() {

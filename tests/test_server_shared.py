@@ -95,11 +95,15 @@ def shared_database(c, t, argv, daemons, pg_dir, start):
     with open(os.environ["PGPASSFILE"]) as f, open(wrong_pass, "w") as g:
         g.write("".join(line.rsplit(":", 1)[0] + ":not-the-password\n" for line in f))
     os.chmod(wrong_pass, 0o600)
-    for db_arg, env, what in (
+    root_crt = os.path.join(pg_dir, "root.crt")
+    tls = os.path.exists(root_crt)  # pg_server.sh makes it where openssl is
+    bad = [(uri + "&sslmode=verify-full&sslrootcert=" + os.path.join(pg_dir, "other-root.crt"),
+            {}, "a server certificate the client does not trust")] if tls else []
+    for db_arg, env, what in bad + [
             (base + "?no_such_parameter=1", {}, "a malformed URI"),
             (newer, {}, "a database of a newer schema"),
             (uri, {"PGPASSFILE": wrong_pass}, "a wrong password"),
-            ("postgresql://ipsd_writer:secret@127.0.0.1/ipsd", {}, "a password in the URI")):
+            ("postgresql://ipsd_writer:secret@127.0.0.1/ipsd", {}, "a password in the URI")]:
         r = subprocess.run([argv[1], "--listen", "127.0.0.1:0", "--db", db_arg],
                            capture_output=True, text=True, timeout=60,
                            env={**os.environ, **env})
@@ -115,10 +119,19 @@ def shared_database(c, t, argv, daemons, pg_dir, start):
                 "'t_shared'"), "0", "nor in the schema the wrong password was refused on")
     a = daemon(argv[1], t, "a", uri, daemons)
     b = daemon(argv[1], t, "b", uri, daemons)
-    w = daemon(argv[1], t, "w", uri, daemons)
+    # the fit worker over TLS, verifying the server's certificate (when the server has one)
+    w = daemon(argv[1], t, "w", uri + ("&sslmode=verify-full&sslrootcert=%s&application_name="
+                                       "ipsd_fitter" % root_crt if tls else ""), daemons)
     a.start("--bench-name", "bench-a", "--lease", "2")
     b.start("--bench-name", "bench-b", "--lease", "2")
     w.start("--bench", "none", "--bench-name", "fitter", "--lease", "2")
+
+    if tls:
+        c.eq(db.all("SELECT count(*) > 0, bool_and(s.ssl) FROM pg_stat_ssl s JOIN "
+                    "pg_stat_activity a USING (pid) WHERE a.application_name = 'ipsd_fitter'"),
+             [("t", "t")], "the fit worker's connections are encrypted (pg_stat_ssl, by psql)")
+    else:
+        print("the test server has no TLS certificate: TLS not checked")
 
     # ---- three ipsd on one database, each saying what it is ----
     for d, name, bench in ((a, "bench-a", "sim"), (b, "bench-b", "sim"), (w, "fitter", "none")):

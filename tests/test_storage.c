@@ -1744,6 +1744,49 @@ static void test_lock_name(void)
     storage_close(b);
 }
 
+/* PostgreSQL over TLS (tests/pg_server.sh's certificate, in the directory of the URI file):
+ * sslmode=verify-full against the server's own certificate connects, and the server (read by
+ * another connection, pg_stat_ssl) says every connection of the handle is encrypted; against a
+ * certificate the server's does not chain to, the open is refused (-EACCES), naming the
+ * certificate. */
+static void test_pg_tls(const char *uri_file)
+{
+    char dir[512], root[600], other[600], uri[1800];
+    snprintf(dir, sizeof dir, "%s", uri_file);
+    char *slash = strrchr(dir, '/');
+    if (slash) *slash = '\0'; else snprintf(dir, sizeof dir, ".");
+    snprintf(root, sizeof root, "%s/root.crt", dir);
+    snprintf(other, sizeof other, "%s/other-root.crt", dir);
+    if (access(root, R_OK) != 0 || access(other, R_OK) != 0) {
+        printf("the test server has no TLS certificate (%s): TLS not checked\n", root);
+        return;
+    }
+    const char *base = db_path("pgtls");
+    snprintf(uri, sizeof uri, "%s&sslmode=verify-full&sslrootcert=%s&application_name=ipsd_tls",
+             base, root);
+    storage_t *st = NULL;
+    err_t err = {{0}};
+    CHECK(storage_open(uri, &st, &err) == 0 && st);
+    if (st) {
+        CHECK(make_sensor(st, "IMX-TLS", "0001") > 0);
+        const char *by_app = "FROM pg_stat_ssl s JOIN pg_stat_activity a USING (pid) WHERE "
+                             "a.application_name = 'ipsd_tls'";
+        char sql[256];
+        snprintf(sql, sizeof sql, "SELECT count(*) %s AND s.ssl AND s.version LIKE 'TLS%%'",
+                 by_app);
+        CHECK(raw_int("pgtls", sql) >= 1);
+        snprintf(sql, sizeof sql, "SELECT count(*) %s AND NOT s.ssl", by_app);
+        CHECK(raw_int("pgtls", sql) == 0);
+        storage_close(st);
+    }
+    CHECK(raw_int("pgtls", "SELECT count(*) FROM sensors WHERE model = 'IMX-TLS'") == 1);
+    snprintf(uri, sizeof uri, "%s&sslmode=verify-full&sslrootcert=%s", base, other);
+    st = NULL;
+    CHECK(storage_open(uri, &st, &err) == -EACCES && st == NULL);
+    CHECK(strstr(err.msg, "certificate") != NULL);
+    printf("an untrusted server certificate: %s\n", err.msg);
+}
+
 /* PostgreSQL: the version table, a reopen that changes nothing, a newer schema refused with
  * nothing written, a URI that is not one, a wrong password (not in the message), and a writer
  * that waits past the busy timeout for another instance's write transaction. */
@@ -1836,6 +1879,7 @@ int main(int argc, char **argv)
         uri[strcspn(uri, "\r\n")] = '\0';
         pg_uri = uri;
         test_pg_open();
+        test_pg_tls(argv[2]);
         test_sensor_scan_roundtrip();
         test_frame_roundtrip();
         test_frames_unique();
