@@ -387,8 +387,8 @@ static json_t *dry_run(sim_t *sim, const struct sim_args *a)
     const scan_config_t *c = &a->scan;
     double R = sim_spot_radius0(sim), lambda = a->sim.wavelength_um;
     double na = a->have_radius ? fit_spot_na(lambda, R) : a->sim.na;
-    json_t *grid = a->grid ? json_integer(a->grid) : json_null();
-    return json_pack("{s:s, s:s, s:I, s:o, s:[ii], s:{s:f, s:f, s:f}, s:{s:i, s:f, s:i, s:i, s:i}}",
+    json_t *grid = a->grid ? json_integer(a->grid) : json_null(), *root;
+    root = json_pack("{s:s, s:s, s:I, s:o, s:[ii], s:{s:f, s:f, s:f}, s:{s:i, s:f, s:i, s:i, s:i}}",
                      "scene", scene_name(sim_scene(sim)), "mode",
                      a->adaptive ? "adaptive" : a->grid ? "grid" : "procedure",
                      "seed", (json_int_t)a->sim.seed, "grid", grid, "poi", c->poi_col, c->poi_row,
@@ -396,6 +396,12 @@ static json_t *dry_run(sim_t *sim, const struct sim_args *a)
                      "raster", "area_px", c->area_px, "step_um", c->step_um, "sub_px",
                      c->subframe_px, "frames", c->frames, "points_per_axis",
                      a->grid ? a->grid : scan_axis_points(sn->pitch_um, c->area_px, c->step_um));
+    if (root && a->adaptive) /* the planner's options (sim_adaptive.h) */
+        json_object_set_new(root, "adaptive",
+                            json_pack("{s:i, s:i, s:f, s:I}", "start_grid", a->ad.start_grid,
+                                      "batch", a->ad.batch, "target_err", a->ad.target_err,
+                                      "max_points", (json_int_t)a->ad.max_points));
+    return root;
 }
 
 /* The truth file: the scene's sub-pixel means for r = 1..TRUTH_R_MAX, raw and mean-1. */

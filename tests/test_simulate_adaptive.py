@@ -8,7 +8,7 @@ error measured against the truth; the scan file holds the points the summary cou
 the pixel, in batches of at most --batch after the starting raster; the summary's own error
 against the truth is the one `ips fit`'s map has (the same map); the same seed writes the same
 file; a target stops the scan at the first batch whose expected error reaches it, a budget at
-exactly --max-points; bad input exits 2 with one line naming the option."""
+exactly --max-points; --dry-run prints the options; bad input exits 2 with one line naming the option."""
 import json
 import math
 import os
@@ -100,6 +100,13 @@ with tempfile.TemporaryDirectory() as tmp:
           [b["added"] for b in s["batches"]] == [9, 4, 4, 1],
           "budget 18 from a 3 x 3 start in batches of 4: %s"
           % [b["added"] for b in s["batches"]])
+
+    # --dry-run says what it would do
+    d = json.loads(run("simulate", "--adaptive", "--batch", "7", "--target-err", "0.02",
+                       "--dry-run"))
+    check(d["mode"] == "adaptive" and d["adaptive"] == {"start_grid": 5, "batch": 7,
+                                                        "target_err": 0.02, "max_points": 300},
+          "--dry-run: %s" % d.get("adaptive"))
 
     # bad input
     for args, word in ((["--target-err", "0"], "--target-err"),
