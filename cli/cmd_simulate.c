@@ -4,8 +4,10 @@
  * and the response of the pixel of interest at the positions inside it is written; --grid N
  * instead rasters N x N points directly inside the POI from its true centre (the paper's 9 x 9
  * of fig. 9); --write-subframe writes every raster point with the whole sub-frame read at each
- * (the scan file's `subframe`, for `ips fit --pixels all`). Prints a JSON summary (setup errors
- * against the truth, work, timing). The scan's
+ * (the scan file's `subframe`, for `ips fit --pixels all`); --adaptive scans the POI from its
+ * true centre as --grid does, batch by batch where the kriged map is least sure (sim_adaptive.h,
+ * fit/adapt_plan.h). Prints a JSON summary (setup errors against the truth, work, timing; an
+ * adaptive scan's batches and errors). The scan's
  * options take their defaults and ranges from instrument/scan_limits.h, as the HTTP API does;
  * --dry-run checks them against the simulated bench and prints the configuration, simulating
  * nothing. */
@@ -30,6 +32,7 @@
 #include "instrument/scanfile.h"
 #include "instrument/sim.h"
 #include "json/fitjson.h"
+#include "sim_adaptive.h"
 
 #define TRUTH_R_MAX 10
 
@@ -81,6 +84,14 @@ static void print_usage(void)
         "                      each (the scan file's subframe; positions relative to the POI's\n"
         "                      corner), for ips fit --pixels all; implies --all-points\n"
         "  --leave-out TOL     simulator leave-out tolerance, fraction of the spot's flux (1e-4)\n"
+        "  --adaptive          scan the POI from its true centre (as --grid) adaptively: a\n"
+        "                      coarse raster, then batches where the kriged map's posterior\n"
+        "                      variance falls most, until its expected rms error reaches\n"
+        "                      --target-err or --max-points are taken\n"
+        "  --target-err E      stop at this expected rms error of the mean-1 map (> 0; 0.01)\n"
+        "  --max-points N      at most N points (at least the starting raster's; 300)\n"
+        "  --batch B           positions a batch (>= 1; 9)\n"
+        "  --start-grid N      the starting raster, N x N cell centres (2..51; 5)\n"
         "  --truth FILE        write the scene's true sub-pixel means for r = 1..10\n"
         "  --dry-run           check the options against the bench, print the configuration\n"
         "                      as JSON and simulate nothing (no -o needed)\n"
@@ -97,6 +108,9 @@ struct sim_args {
     int write_subframe; /* --write-subframe: and every pixel of the sub-frame at each point */
     double offset_x, offset_y;
     double written_radius; /* --written-radius, 0: the bench's true radius */
+    int adaptive;          /* --adaptive */
+    int adaptive_opt;      /* the first of --target-err, --max-points, --batch, --start-grid */
+    cli_adaptive_t ad;
 };
 
 enum {
@@ -120,6 +134,11 @@ enum {
     OPT_ALL_POINTS,
     OPT_WRITTEN_RADIUS,
     OPT_WRITE_SUBFRAME,
+    OPT_ADAPTIVE,
+    OPT_TARGET_ERR,
+    OPT_MAX_POINTS,
+    OPT_BATCH,
+    OPT_START_GRID,
     OPT_HELP
 };
 
@@ -144,6 +163,11 @@ static const struct option long_opts[] = {
     {"all-points", no_argument, NULL, OPT_ALL_POINTS},
     {"written-radius", required_argument, NULL, OPT_WRITTEN_RADIUS},
     {"write-subframe", no_argument, NULL, OPT_WRITE_SUBFRAME},
+    {"adaptive", no_argument, NULL, OPT_ADAPTIVE},
+    {"target-err", required_argument, NULL, OPT_TARGET_ERR},
+    {"max-points", required_argument, NULL, OPT_MAX_POINTS},
+    {"batch", required_argument, NULL, OPT_BATCH},
+    {"start-grid", required_argument, NULL, OPT_START_GRID},
     {"output", required_argument, NULL, 'o'},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
@@ -183,7 +207,7 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
 {
     struct sim_args *a = user;
     double v = 0, w;
-    int rc = 0;
+    int rc = 0, iv = 0;
     switch (c) {
     case OPT_SCENE:
         a->sim.scene = arg;
@@ -250,6 +274,26 @@ static int parse_opt(int c, const char *arg, void *user, err_t *err)
     case OPT_DRY_RUN:
         a->dry_run = 1;
         break;
+    case OPT_ADAPTIVE: a->adaptive = 1; return 0;
+    case OPT_TARGET_ERR:
+        rc = opts_num("target-err", arg, -INFINITY, INFINITY, &a->ad.target_err, err);
+        if (rc == 0 && !(a->ad.target_err > 0))
+            rc = err_set(err, -EINVAL, "--target-err must be above 0 (got %s)", arg);
+        if (!a->adaptive_opt) a->adaptive_opt = c;
+        break;
+    case OPT_MAX_POINTS:
+        if ((rc = opts_int32("max-points", arg, 1, SCAN_MAX_POINTS, &iv, err)) == 0)
+            a->ad.max_points = (size_t)iv;
+        if (!a->adaptive_opt) a->adaptive_opt = c;
+        break;
+    case OPT_BATCH:
+        rc = opts_int32("batch", arg, 1, SCAN_MAX_POINTS, &a->ad.batch, err);
+        if (!a->adaptive_opt) a->adaptive_opt = c;
+        break;
+    case OPT_START_GRID:
+        rc = opts_int32("start-grid", arg, 2, 51, &a->ad.start_grid, err);
+        if (!a->adaptive_opt) a->adaptive_opt = c;
+        break;
     case 'o':
         a->out = arg;
         break;
@@ -266,6 +310,7 @@ static int parse_args(int argc, char **argv, struct sim_args *a)
     a->sim.na = scan_fields[SCAN_F_NA].def;
     a->sim.seed = (unsigned long)scan_fields[SCAN_F_SEED].def;
     a->scan = scan_config_default();
+    a->ad = cli_adaptive_default();
     err_t err;
     int first, rc = opts_parse(argc, argv, "o:", long_opts, OPT_HELP, "ips simulate --help",
                                parse_opt, a, &first, &err);
@@ -293,6 +338,18 @@ static int parse_args(int argc, char **argv, struct sim_args *a)
         return cli_fail(CLI_EXIT_USAGE, "simulate",
                         "--all-points needs the full procedure, not --grid (its points are all "
                         "inside the pixel)");
+    if (a->adaptive_opt && !a->adaptive)
+        return cli_fail(CLI_EXIT_USAGE, "simulate", "--%s needs --adaptive",
+                        opts_name(long_opts, a->adaptive_opt));
+    if (a->adaptive && (a->grid || a->all_points || a->dcol || a->drow))
+        return cli_fail(CLI_EXIT_USAGE, "simulate",
+                        "--adaptive chooses its own points inside the POI: not with --grid, "
+                        "--all-points, --write-subframe or --pixel");
+    if (a->adaptive && a->ad.max_points < (size_t)a->ad.start_grid * a->ad.start_grid)
+        return cli_fail(CLI_EXIT_USAGE, "simulate",
+                        "--max-points %zu is below the starting raster's %d points (--start-grid "
+                        "%d)",
+                        a->ad.max_points, a->ad.start_grid * a->ad.start_grid, a->ad.start_grid);
     int h = a->scan.subframe_px / 2;
     if (abs(a->dcol) > h || abs(a->drow) > h)
         return cli_fail(CLI_EXIT_USAGE, "simulate", "--pixel %d,%d is outside the %dx%d sub-frame",
@@ -330,14 +387,21 @@ static json_t *dry_run(sim_t *sim, const struct sim_args *a)
     const scan_config_t *c = &a->scan;
     double R = sim_spot_radius0(sim), lambda = a->sim.wavelength_um;
     double na = a->have_radius ? fit_spot_na(lambda, R) : a->sim.na;
-    json_t *grid = a->grid ? json_integer(a->grid) : json_null();
-    return json_pack("{s:s, s:s, s:I, s:o, s:[ii], s:{s:f, s:f, s:f}, s:{s:i, s:f, s:i, s:i, s:i}}",
-                     "scene", scene_name(sim_scene(sim)), "mode", a->grid ? "grid" : "procedure",
+    json_t *grid = a->grid ? json_integer(a->grid) : json_null(), *root;
+    root = json_pack("{s:s, s:s, s:I, s:o, s:[ii], s:{s:f, s:f, s:f}, s:{s:i, s:f, s:i, s:i, s:i}}",
+                     "scene", scene_name(sim_scene(sim)), "mode",
+                     a->adaptive ? "adaptive" : a->grid ? "grid" : "procedure",
                      "seed", (json_int_t)a->sim.seed, "grid", grid, "poi", c->poi_col, c->poi_row,
                      "optics", "wavelength_nm", lambda * 1e3, "na", na, "spot_radius_um", R,
                      "raster", "area_px", c->area_px, "step_um", c->step_um, "sub_px",
                      c->subframe_px, "frames", c->frames, "points_per_axis",
                      a->grid ? a->grid : scan_axis_points(sn->pitch_um, c->area_px, c->step_um));
+    if (root && a->adaptive) /* the planner's options (sim_adaptive.h) */
+        json_object_set_new(root, "adaptive",
+                            json_pack("{s:i, s:i, s:f, s:I}", "start_grid", a->ad.start_grid,
+                                      "batch", a->ad.batch, "target_err", a->ad.target_err,
+                                      "max_points", (json_int_t)a->ad.max_points));
+    return root;
 }
 
 /* The truth file: the scene's sub-pixel means for r = 1..TRUTH_R_MAX, raw and mean-1. */
@@ -386,6 +450,7 @@ static int write_truth(const sim_t *sim, const char *path, err_t *err)
 
 struct outcome {
     scanfile_t sf;
+    json_t *adaptive; /* --adaptive: its report (sim_adaptive.h) */
     double *sub_dn; /* --write-subframe: sf.scan.n * m*m means, point after point */
     scan_setup_t su;
     stage_pos_t found; /* centre the setup found, before --offset */
@@ -407,6 +472,23 @@ static int run_grid(sim_t *sim, const struct sim_args *a, struct outcome *o, err
     if (rc == 0)
         rc = scan_grid_pixel(sim_camera(sim), sim_stage(sim), &c, &o->su, a->grid, NULL, &o->sf,
                              err);
+    o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
+    return rc;
+}
+
+/* --adaptive: no setup, as --grid; then the planner's batches (sim_adaptive.h). */
+static int run_adaptive(sim_t *sim, const struct sim_args *a, struct outcome *o, err_t *err)
+{
+    scan_config_t c = a->scan;
+    c.do_centre = c.do_focus = c.do_exposure = 0;
+    c.start = sim_pixel_centre(sim, c.poi_col, c.poi_row);
+    double t0 = clock_mono_ms();
+    int rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &o->su, err);
+    o->found = o->su.centre;
+    o->su.centre.x_um += a->offset_x;
+    o->su.centre.y_um += a->offset_y;
+    o->setup_ms = clock_mono_ms() - t0;
+    if (rc == 0) rc = cli_adaptive_run(sim, &c, &o->su, &a->ad, &o->sf, &o->adaptive, err);
     o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
     return rc;
 }
@@ -463,7 +545,9 @@ static json_t *summary(sim_t *sim, const struct sim_args *a, const struct outcom
            *timing = json_object(), *cerr = json_array();
     json_object_set_new(root, "output", json_string(a->out));
     json_object_set_new(root, "scene", json_string(scene_name(sim_scene(sim))));
-    json_object_set_new(root, "mode", json_string(a->grid ? "grid" : "procedure"));
+    json_object_set_new(root, "mode", json_string(a->adaptive ? "adaptive"
+                                                  : a->grid   ? "grid"
+                                                              : "procedure"));
     json_object_set_new(root, "points", json_integer((json_int_t)o->sf.scan.n));
     json_object_set_new(root, "spot_radius_um", json_real(sim_spot_radius0(sim)));
     json_object_set_new(root, "written_spot_radius_um", json_real(o->sf.scan.spot_radius_um));
@@ -491,7 +575,21 @@ static json_t *summary(sim_t *sim, const struct sim_args *a, const struct outcom
     json_object_set_new(timing, "setup", json_real(o->setup_ms));
     json_object_set_new(timing, "raster", json_real(o->raster_ms));
     json_object_set_new(root, "timing_ms", timing);
+    if (o->adaptive) json_object_set(root, "adaptive", o->adaptive);
     return root;
+}
+
+/* The scan file's `adaptive` (an addition to the scan-file contract): the starting raster and the
+ * points each batch added, in the file's order. 0 or -1 when out of memory. */
+static int adaptive_note(json_t *report, json_t *extra)
+{
+    json_t *added = json_array(), *b;
+    size_t i;
+    json_array_foreach(json_object_get(report, "batches"), i, b)
+        json_array_append(added, json_object_get(b, "added"));
+    return json_object_set_new(extra, "adaptive",
+                               json_pack("{s:O, s:o}", "start_grid",
+                                         json_object_get(report, "start_grid"), "batches", added));
 }
 
 int cmd_simulate(int argc, char **argv)
@@ -520,7 +618,9 @@ int cmd_simulate(int argc, char **argv)
         sim_close(sim);
         return code;
     }
-    rc = a.grid ? run_grid(sim, &a, &o, &err) : run_procedure(sim, &a, &o, &err);
+    rc = a.adaptive ? run_adaptive(sim, &a, &o, &err)
+         : a.grid   ? run_grid(sim, &a, &o, &err)
+                    : run_procedure(sim, &a, &o, &err);
     json_t *extra = NULL;
     if (rc == 0) {
         extra = json_pack(
@@ -531,6 +631,8 @@ int cmd_simulate(int argc, char **argv)
                                 scanfile_subframe_json(a.scan.subframe_px, a.scan.step_um,
                                                        o.sub_dn, o.sf.scan.n)))
             rc = err_set(&err, -ENOMEM, "out of memory writing the sub-frame");
+        if (rc == 0 && extra && o.adaptive && adaptive_note(o.adaptive, extra))
+            rc = err_set(&err, -ENOMEM, "out of memory writing the adaptive scan's batches");
         if (rc == 0) rc = scanfile_write(a.out, &o.sf.scan, extra, &err);
     }
     if (rc == 0 && a.truth) rc = write_truth(sim, a.truth, &err);
@@ -544,6 +646,7 @@ int cmd_simulate(int argc, char **argv)
         json_decref(root);
     }
     json_decref(extra);
+    json_decref(o.adaptive);
     free(o.sub_dn);
     scanfile_free(&o.sf);
     sim_close(sim);

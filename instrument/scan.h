@@ -34,7 +34,8 @@
  *
  * Files: scan_config.c (defaults and checks, from scan_limits.h: a scan's defaults and limits are
  * defined there once), scan_setup.c (exposure, centring, focus), scan_raster.c (the raster and
- * scan_raster_t), scan_extract.c (scan files: a pixel of a raster, the direct grid), and
+ * scan_raster_t), scan_extract.c (scan files: a pixel of a raster, the direct grid),
+ * scan_points.c (the POI at given positions, batch after batch: an adaptive scan), and
  * scan_capture.c (frames at a position, hooks; scan_int.h). */
 #ifndef IPSD_INSTRUMENT_SCAN_H
 #define IPSD_INSTRUMENT_SCAN_H
@@ -210,5 +211,15 @@ int scan_pixel_coords(const scan_setup_t *setup, int dcol, int drow, double sx, 
  * at each, with the setup's exposure; no raster of the neighbours. *out as above. */
 int scan_grid_pixel(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const scan_setup_t *setup,
                     int n, const scan_hooks_t *hooks, struct scanfile *out, err_t *err);
+
+/* The POI read at n positions (x[k], y[k]) relative to its corner, as scan_grid_pixel reads its
+ * grid (k frames of the POI alone at each, the setup's exposure), the points appended to *out (a
+ * scan file from scan_file_new or an earlier call: its arrays grow, out->scan follows them), in
+ * the order given: the batches of an adaptive scan (fit/adapt_plan.h). Returns 0, -ECANCELED
+ * (stopped: the points before stay in *out), -ENOMEM, or the camera's / stage's error (-ERANGE
+ * outside the stage's travel). */
+int scan_pixel_points(cam_t *cam, stage_t *stage, const scan_config_t *cfg,
+                      const scan_setup_t *setup, size_t n, const double *x, const double *y,
+                      const scan_hooks_t *hooks, struct scanfile *out, err_t *err);
 
 #endif

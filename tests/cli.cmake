@@ -41,6 +41,8 @@ ips_python_test(test_fit_pixels 1200)
 ips_python_test(test_fit_shrunk 0)
 # `ips fit --krige`: the kriged map against the simulator's truth and the recommended map (~5 s)
 ips_python_test(test_fit_kriged 300)
+# `ips simulate --adaptive` against the simulator's truth and a raster of as many points (~10 s)
+ips_python_test(test_simulate_adaptive 240)
 # output files never replace a link, a FIFO or a device (base/outfile.h; a few s)
 ips_python_test(test_cli_outfile 120)
 

@@ -22,5 +22,9 @@ set_tests_properties(test_fit_threads PROPERTIES TIMEOUT 240)
 # likelihood in the points' and the cells' space against each other and central differences
 # the adaptive scan's greedy batch against closed forms and the information-form posterior
 ipsd_add_test(test_adapt ipsfit)
+# the adaptive scan's planner: travel order against every permutation, the lattice by hand, a
+# half-seen tilted pixel of box integrals (a few kriged maps)
+ipsd_add_test(test_adapt_plan ipsfit)
+set_tests_properties(test_adapt_plan PROPERTIES TIMEOUT 120)
 ipsd_add_test(test_krige_lik ipsfit)
 target_include_directories(test_krige_lik PRIVATE ${PROJECT_SOURCE_DIR}/fit)
