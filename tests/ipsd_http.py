@@ -484,7 +484,8 @@ class Db:
     with psql instead (_PsqlConn)."""
 
     def __init__(self, path):
-        if path.startswith(("postgresql://", "postgres://")):
+        self.postgres = path.startswith(("postgresql://", "postgres://"))
+        if self.postgres:
             self.conn = _PsqlConn(path)
         else:
             self.conn = sqlite3.connect(path, timeout=DEADLINE_S, isolation_level=None)

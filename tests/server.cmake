@@ -57,7 +57,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
         foreach(t flow:130 restart:380 input:80 promote:120 region:120 calib_cache:90 crash:150
                 fitstop:300 allpixels:200 points:120 scanend:120 ptc:300 security:60
                 hostile:60 flood:200 log:60 static:60 sched:60 stage:300 zaber:300 scanfile:900
-                export:240)
+                export:240 camfault:120)
             string(REPLACE ":" ";" t ${t})
             list(GET t 0 name)
             list(GET t 1 timeout)
@@ -106,6 +106,15 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
     set_tests_properties(test_server_quiesce PROPERTIES TIMEOUT 120
         ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"
         FIXTURES_SETUP api_records)
+    if(TEST pg_server_start)
+        add_test(NAME test_server_quiesce_pg
+                 COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_server_quiesce.py
+                         $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> $<TARGET_FILE:shim_epoll_slowdel>
+                 WORKING_DIRECTORY ${IPSD_TEST_DATA})
+        set_tests_properties(test_server_quiesce_pg PROPERTIES TIMEOUT 120 SKIP_RETURN_CODE 77
+            FIXTURES_REQUIRED pg
+            ENVIRONMENT "IPSD_TEST_PG_URI_FILE=${IPSD_PG_DIR}/uri;PGPASSFILE=${IPSD_PG_DIR}/pgpass")
+    endif()
 elseif(TARGET ipsapi)
     message(STATUS "server HTTP tests: python3 or the ips target missing, not registered")
 endif()

@@ -81,7 +81,8 @@ def test(c, t, argv, daemons):
     c.eq([r[0] for r in db.all("SELECT hex(mean) FROM frames WHERE scan_id = ? AND "
                                "point_index < ? ORDER BY point_index", s1, len(kept))], kept,
          "the points stored before the camera hung are kept")
-    c.eq(db.val("PRAGMA integrity_check"), "ok", "integrity_check")
+    if not db.postgres:  # SQLite's own check of its file (PostgreSQL's pages are the server's)
+        c.eq(db.val("PRAGMA integrity_check"), "ok", "integrity_check")
     c.eq(d.stop_term(), 0, "SIGTERM: exit 0")
     db.close()
 
