@@ -54,6 +54,8 @@ static void put_event(struct sse *s, const srv_event_t *ev)
         json_object_set_new(o, "pixel",
                             json_pack("{s:i, s:i, s:i, s:i}", "dcol", ev->dcol, "drow", ev->drow,
                                       "col", ev->col, "row", ev->row));
+    if (o && ev->has_expected) /* an adaptive scan: the map's expected rms error so far */
+        json_object_set_new(o, "expected_err", api_num(ev->expected_err));
     char *data = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(10)) : NULL;
     json_decref(o);
     if (!data) return;
