@@ -21,8 +21,25 @@ static int stored(storage_t *st, const storage_scan_t *sc, scanfile_t *sf, err_t
                           : rc;
 }
 
+/* Points first.. of the given positions: on the simulated bench one at a time, each after the
+ * noise is reseeded from the scan's seed and the point's index. */
+static int take(cam_t *cam, stage_t *stage, sim_t *sim, unsigned long seed,
+                const scan_config_t *cfg, const scan_setup_t *su, size_t first, size_t count,
+                size_t n, const double *x, const double *y, const scan_hooks_t *hooks, err_t *err)
+{
+    if (!sim) return scan_subframe_points(cam, stage, cfg, su, first, count, n, x, y, hooks, err);
+    int rc = 0;
+    for (size_t i = 0; rc == 0 && i < n; i++) {
+        /* a point's own seed: the scan's and its index mixed by the golden ratio's bits */
+        sim_reseed(sim, (seed ^ (0x9e3779b9UL * (first + i + 1))) & 0xffffffffUL);
+        rc = scan_subframe_points(cam, stage, cfg, su, first + i, count, 1, x + i, y + i, hooks,
+                                  err);
+    }
+    return rc;
+}
+
 int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, stage_t *stage,
-                         const scan_config_t *cfg, const scan_setup_t *su,
+                         sim_t *sim, unsigned long seed, const scan_config_t *cfg, const scan_setup_t *su,
                          const srv_strategy_t *s, const scan_hooks_t *hooks,
                          srv_adaptive_planned_fn planned, void *user,
                          srv_adaptive_outcome_t *out, err_t *err)
@@ -45,8 +62,8 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
     if (rc == 0) rc = stored(st, sc, &sf, err);
     /* the starting raster, or what of it is not stored yet */
     if (rc == 0 && sf.scan.n < (size_t)ns)
-        rc = scan_subframe_points(cam, stage, cfg, su, sf.scan.n, count, (size_t)ns - sf.scan.n,
-                                  x + sf.scan.n, y + sf.scan.n, hooks, err);
+        rc = take(cam, stage, sim, seed, cfg, su, sf.scan.n, count, (size_t)ns - sf.scan.n,
+                  x + sf.scan.n, y + sf.scan.n, hooks, err);
     size_t k = (size_t)ns; /* the points the next plan sees: a batch boundary */
     while (rc == 0) {
         if ((rc = stored(st, sc, &sf, err))) break;
@@ -72,8 +89,8 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
             if (end > have) { /* a batch to take, or the rest of one interrupted */
                 size_t skip = have - k;
                 if (planned) planned(have, step.expected_err, user);
-                rc = scan_subframe_points(cam, stage, cfg, su, have, count, end - have,
-                                          step.x_um + skip, step.y_um + skip, hooks, err);
+                rc = take(cam, stage, sim, seed, cfg, su, have, count, end - have,
+                          step.x_um + skip, step.y_um + skip, hooks, err);
             }
             k = end;
         } else if (rc == 0 && planned) {

@@ -10,6 +10,7 @@
 #include "base/err.h"
 #include "fit/adapt_plan.h"
 #include "instrument/scan.h"
+#include "instrument/sim.h"
 #include "server/srv_params.h"
 #include "storage/storage.h"
 
@@ -32,10 +33,12 @@ typedef void (*srv_adaptive_planned_fn)(size_t points, double expected_err, void
  * stores it as a raster point, index = the order taken). A resumed scan replays the plans from
  * the prefixes of its stored points (the planner is deterministic), so a batch interrupted half
  * way is finished with the positions it had, and the scan ends with the positions an
- * uninterrupted run takes. planned (may be NULL) with user sees each batch's plan. Returns 0
+ * uninterrupted run takes when the points read the same values: on the simulated bench (sim, NULL
+ * for a real camera) each point's noise is drawn from its own seed, from the scan's seed and the
+ * point's index (sim_reseed), so a resumed scan reads what an uninterrupted one read. planned (may be NULL) with user sees each batch's plan. Returns 0
  * with *out, -ECANCELED (stopped), or the planner's, camera's, stage's or storage's error. */
 int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, stage_t *stage,
-                         const scan_config_t *cfg, const scan_setup_t *su,
+                         sim_t *sim, unsigned long seed, const scan_config_t *cfg, const scan_setup_t *su,
                          const srv_strategy_t *s, const scan_hooks_t *hooks,
                          srv_adaptive_planned_fn planned, void *user,
                          srv_adaptive_outcome_t *out, err_t *err);

@@ -291,8 +291,8 @@ static int capture(struct scan_run *r)
         srv_adaptive_outcome_t o;
         r->expected_err = NAN;
         publish(r, "adaptive", r->first, NAN);
-        ret = srv_adaptive_capture(r->st, &r->scan, r->bench.cam, r->bench.stage, &r->cfg,
-                                   &r->setup, &r->params.strategy, &hooks, on_planned, r, &o,
+        ret = srv_adaptive_capture(r->st, &r->scan, r->bench.cam, r->bench.stage, r->bench.sim,
+                                   r->params.seed, &r->cfg, &r->setup, &r->params.strategy, &hooks, on_planned, r, &o,
                                    &r->err);
         if (r->store_rc) {
             r->err = r->store_err;
