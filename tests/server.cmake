@@ -36,6 +36,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             ptc:300
             zaber:300
             points:120
+            adaptive:240
             )
         string(REPLACE ":" ";" t ${t})
         list(GET t 0 name)
