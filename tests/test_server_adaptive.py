@@ -17,6 +17,7 @@
   reads its sub-frame, so their noise and then their positions differ) and a 7 x 7 raster of
   the same 49 points: the adaptive scan's rms error against the truth is within 1.5x of each.
 - Progress events of the scan carry phase "adaptive" and the expected error.
+- A cancel (the scan held after 10 points) ends the scan and keeps its points.
 """
 import json
 import math
@@ -217,6 +218,22 @@ def test(c, t, argv, daemons):
           "%.4f; ipsd's expected error %.4f" % (e_ipsd, e_cli, e_raster, a["expected_err"]))
     c.ok(e_ipsd <= FACTOR * e_cli, "within %.1fx of the CLI's adaptive scan" % FACTOR)
     c.ok(e_ipsd <= FACTOR * e_raster, "within %.1fx of the 7 x 7 raster" % FACTOR)
+    c.eq(d.stop_term(), 0, "ipsd stops cleanly")
+
+    # ---- a cancel mid-scan keeps what is stored ----
+    d.start(failpoints="scan.point=hold@10")
+    r = d.post("/api/scans", dict(scan_request(sensor), poi={"col": 100, "row": 100}))
+    s3, j3 = r.json()["scan"]["id"], r.json()["job"]["id"]
+    c.ok(d.wait_held("scan.point", j3), "the third scan held after 10 points")
+    kept = points(db, s3)[0]
+    r = d.post("/api/scans/%d/cancel" % s3)
+    c.status(r, 200, "cancelled")
+    c.ok(d.wait_job(j3, "cancelled"), "its job cancelled")
+    c.ok(d.wait_hold_ended("scan.point", j3), "the hold ended by the cancel")
+    c.eq(db.one("SELECT state, points_done FROM scans WHERE id = ?", s3), ("cancelled", 10),
+         "the scan cancelled with its 10 points")
+    c.eq(points(db, s3)[0], kept, "the points stored before the cancel are kept")
+    c.eq(d.get("/api/scans/%d" % s3).json()["strategy"], STRATEGY, "and its strategy")
     db.close()
     c.eq(d.stop_term(), 0, "ipsd stops cleanly")
 
