@@ -283,9 +283,12 @@ int storage_scan_set_points_total(storage_t *st, int64_t id, int total, err_t *e
         return stg_error(st, rc, err, "storing a scan's points_total");
     }
     ret = stg_run(st, q, err, "storing a scan's points_total");
-    if (ret == 0 && sqldb_changes(st->db) == 0)
-        ret = err_set(err, -EINVAL, "scan %lld: unknown, or more than %d points stored",
-                      (long long)id, total);
+    if (ret || sqldb_changes(st->db) > 0) return ret;
+    storage_scan_t sc; /* nothing changed: an unknown scan, or more points stored */
+    if ((ret = storage_scan_get(st, id, &sc, err))) return ret;
+    ret = err_set(err, -EINVAL, "scan %lld points_total: %d, below its %d points stored",
+                  (long long)id, total, sc.points_done);
+    storage_scan_free(&sc);
     return ret;
 }
 
