@@ -16,9 +16,9 @@ static int stored(storage_t *st, const storage_scan_t *sc, scanfile_t *sf, err_t
     scanfile_free(sf);
     memset(sf, 0, sizeof *sf);
     int rc = srv_pixel_scan(st, sc, 0, 0, 1, sf, err);
-    return rc == -ENODATA ? err_set(err, -EIO, "adaptive scan %lld: no setup stored",
-                                    (long long)sc->id)
-                          : rc;
+    return rc == -ENODATA
+               ? err_set(err, -EIO, "adaptive scan %lld: no setup stored", (long long)sc->id)
+               : rc;
 }
 
 /* Points first.. of the given positions: on the simulated bench one at a time, each after the
@@ -39,10 +39,10 @@ static int take(cam_t *cam, stage_t *stage, sim_t *sim, unsigned long seed,
 }
 
 int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, stage_t *stage,
-                         sim_t *sim, unsigned long seed, const scan_config_t *cfg, const scan_setup_t *su,
-                         const srv_strategy_t *s, const scan_hooks_t *hooks,
-                         srv_adaptive_planned_fn planned, void *user,
-                         srv_adaptive_outcome_t *out, err_t *err)
+                         sim_t *sim, unsigned long seed, const scan_config_t *cfg,
+                         const scan_setup_t *su, const srv_strategy_t *s, const scan_hooks_t *hooks,
+                         srv_adaptive_planned_fn planned, void *user, srv_adaptive_outcome_t *out,
+                         err_t *err)
 {
     memset(out, 0, sizeof *out);
     fit_adapt_opts_t o = fit_adapt_opts_default();
@@ -53,12 +53,14 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
     scanfile_t sf;
     memset(&sf, 0, sizeof sf);
     double *x = malloc(sizeof(double) * n0), *y = malloc(sizeof(double) * n0);
-    int rc = x && y ? scan_pixel_box(stage, su, o.box_um, err)
-                    : err_set(err, -ENOMEM, "out of memory");
+    int rc =
+        x && y ? scan_pixel_box(stage, su, o.box_um, err) : err_set(err, -ENOMEM, "out of memory");
     int ns = rc ? 0 : fit_adapt_start(su->pitch_um, s->start_grid, o.box_um, x, y);
     if (rc == 0 && ns < 1)
-        rc = err_set(err, -EINVAL, "strategy.start_grid: no position of the %dx%d raster is "
-                     "within the stage's travel", s->start_grid, s->start_grid);
+        rc = err_set(err, -EINVAL,
+                     "strategy.start_grid: no position of the %dx%d raster is "
+                     "within the stage's travel",
+                     s->start_grid, s->start_grid);
     if (rc == 0) rc = stored(st, sc, &sf, err);
     /* the starting raster, or what of it is not stored yet */
     if (rc == 0 && sf.scan.n < (size_t)ns)
@@ -89,8 +91,8 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
             if (end > have) { /* a batch to take, or the rest of one interrupted */
                 size_t skip = have - k;
                 if (planned) planned(have, step.expected_err, user);
-                rc = take(cam, stage, sim, seed, cfg, su, have, count, end - have,
-                          step.x_um + skip, step.y_um + skip, hooks, err);
+                rc = take(cam, stage, sim, seed, cfg, su, have, count, end - have, step.x_um + skip,
+                          step.y_um + skip, hooks, err);
             }
             k = end;
         } else if (rc == 0 && planned) {

@@ -35,12 +35,13 @@ typedef void (*srv_adaptive_planned_fn)(size_t points, double expected_err, void
  * way is finished with the positions it had, and the scan ends with the positions an
  * uninterrupted run takes when the points read the same values: on the simulated bench (sim, NULL
  * for a real camera) each point's noise is drawn from its own seed, from the scan's seed and the
- * point's index (sim_reseed), so a resumed scan reads what an uninterrupted one read. planned (may be NULL) with user sees each batch's plan. Returns 0
- * with *out, -ECANCELED (stopped), or the planner's, camera's, stage's or storage's error. */
+ * point's index (sim_reseed), so a resumed scan reads what an uninterrupted one read. planned (may
+ * be NULL) with user sees each batch's plan. Returns 0 with *out, -ECANCELED (stopped), or the
+ * planner's, camera's, stage's or storage's error. */
 int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, stage_t *stage,
-                         sim_t *sim, unsigned long seed, const scan_config_t *cfg, const scan_setup_t *su,
-                         const srv_strategy_t *s, const scan_hooks_t *hooks,
-                         srv_adaptive_planned_fn planned, void *user,
-                         srv_adaptive_outcome_t *out, err_t *err);
+                         sim_t *sim, unsigned long seed, const scan_config_t *cfg,
+                         const scan_setup_t *su, const srv_strategy_t *s, const scan_hooks_t *hooks,
+                         srv_adaptive_planned_fn planned, void *user, srv_adaptive_outcome_t *out,
+                         err_t *err);
 
 #endif

@@ -292,8 +292,8 @@ static int capture(struct scan_run *r)
         r->expected_err = NAN;
         publish(r, "adaptive", r->first, NAN);
         ret = srv_adaptive_capture(r->st, &r->scan, r->bench.cam, r->bench.stage, r->bench.sim,
-                                   r->params.seed, &r->cfg, &r->setup, &r->params.strategy, &hooks, on_planned, r, &o,
-                                   &r->err);
+                                   r->params.seed, &r->cfg, &r->setup, &r->params.strategy,
+                                   &hooks, on_planned, r, &o, &r->err);
         if (r->store_rc) {
             r->err = r->store_err;
             return r->store_rc;
