@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "api_int.h"
+#include "fit/adapt_plan.h"
 #include "fit/airy.h"
 #include "instrument/scan_limits.h"
 
@@ -95,10 +96,54 @@ static int read_raster(api_req_t *q, json_t *body, storage_scan_t *sc)
     return 0;
 }
 
+/* Reads strategy {"kind": "raster"} or {"kind": "adaptive", "target_err", "max_points", "batch",
+ * "start_grid"} into *s (absent: the raster); -1 after replying. */
+static int read_strategy(api_req_t *q, json_t *body, srv_strategy_t *s)
+{
+    static const char *const raster_keys[] = {"kind", NULL};
+    static const char *const adaptive_keys[] = {"kind",  "target_err", "max_points",
+                                                "batch", "start_grid", NULL};
+    json_t *o;
+    const char *kind = NULL;
+    long long max_points = FIT_ADAPT_MAX_POINTS, batch = FIT_ADAPT_BATCH,
+              grid = FIT_ADAPT_START_GRID;
+    *s = srv_strategy_default();
+    if (api_get_obj(q, body, "strategy", "strategy", &o)) return -1;
+    if (!o) return 0;
+    if (api_get_str(q, o, "kind", "strategy.kind", 1, 31, &kind)) return -1;
+    if (strcmp(kind, "raster") == 0) return api_no_unknown(q, o, "strategy.", raster_keys);
+    if (strcmp(kind, "adaptive")) {
+        api_error(q, 422, "out_of_range", "strategy.kind",
+                  "strategy.kind must be raster or adaptive (got '%s')", kind);
+        return -1;
+    }
+    if (api_no_unknown(q, o, "strategy.", adaptive_keys) ||
+        api_get_num(q, o, "target_err", "strategy.target_err", 0, 0, 1, 1, &s->target_err) ||
+        api_get_int(q, o, "start_grid", "strategy.start_grid", 0, 2, SRV_ADAPT_START_GRID_MAX,
+                    &grid) ||
+        api_get_int(q, o, "batch", "strategy.batch", 0, 1, SRV_ADAPT_BATCH_MAX, &batch) ||
+        api_get_int(q, o, "max_points", "strategy.max_points", 0, 1, SRV_ADAPT_MAX_POINTS,
+                    &max_points))
+        return -1;
+    if (max_points < grid * grid) {
+        api_error(q, 422, "out_of_range", "strategy.max_points",
+                  "strategy.max_points %lld is below the starting raster's %lld points "
+                  "(strategy.start_grid %lld)",
+                  max_points, grid * grid, grid);
+        return -1;
+    }
+    s->adaptive = 1;
+    s->max_points = (int)max_points;
+    s->batch = (int)batch;
+    s->start_grid = (int)grid;
+    return 0;
+}
+
 /* The POI must be on the sensor with the whole sub-frame, the raster must be whole steps and at
  * most SCAN_MAX_POINTS points (scan_limits.h), and what the scan would store at most
  * --max-scan-bytes. */
-static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storage_scan_t *sc)
+static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storage_scan_t *sc,
+                          const srv_strategy_t *strategy)
 {
     int h = sc->sub_px / 2;
     const char *f = NULL;
@@ -131,6 +176,7 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
         return -1;
     }
     double per_point = storage_frame_bytes(sc->frames, sc->sub_px), points = (double)nx * nx;
+    if (strategy->adaptive) points = strategy->max_points; /* at most its budget */
     double cap = srv_config(q->srv)->max_scan_bytes;
     if (points * per_point > cap) {
         api_error(q, 422, "too_large", "raster",
@@ -147,8 +193,8 @@ static int check_geometry(api_req_t *q, const storage_sensor_t *sn, const storag
 static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
                      srv_scan_params_t *p)
 {
-    static const char *const keys[] = {"sensor_id", "poi",  "optics", "raster", "exposure_us",
-                                       "scene",     "seed", "setup",  NULL};
+    static const char *const keys[] = {"sensor_id", "poi",  "optics", "raster",   "exposure_us",
+                                       "scene",     "seed", "setup",  "strategy", NULL};
     static const char *const poi_keys[] = {"col", "row", NULL};
     long long sensor_id, col, row;
     double seed = scan_fields[SCAN_F_SEED].def;
@@ -170,7 +216,7 @@ static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
         api_get_int(q, poi, "row", "poi.row", 1, 0, 1000000, &row) || read_optics(q, o, sc) ||
         read_raster(q, o, sc) || get_field(q, o, SCAN_F_EXPOSURE_US, &sc->exposure_us) ||
         api_get_str(q, o, "scene", "scene", 0, 31, &scene) || get_field(q, o, SCAN_F_SEED, &seed) ||
-        api_get_str(q, o, "setup", "setup", 0, 31, &setup))
+        api_get_str(q, o, "setup", "setup", 0, 31, &setup) || read_strategy(q, o, &p->strategy))
         return -1;
     if (setup && strcmp(setup, "paper") && strcmp(setup, "none")) {
         api_error(q, 422, "out_of_range", "setup", "setup must be paper or none (got '%s')", setup);
@@ -197,7 +243,7 @@ static int read_scan(api_req_t *q, json_t *o, storage_t *st, storage_scan_t *sc,
         api_error_rc(q, ret == -ENOENT ? -EINVAL : ret, "sensor_id", err.msg);
         return -1;
     }
-    ret = check_geometry(q, &sn, sc);
+    ret = check_geometry(q, &sn, sc, &p->strategy);
     storage_sensor_free(&sn);
     return ret;
 }
@@ -211,6 +257,14 @@ static int64_t scan_job_id(storage_t *st, int64_t scan_id)
     if (l.n) id = l.items[0].id;
     storage_job_list_free(&l);
     return id;
+}
+
+/* The scan's strategy (from its job's params: a raster when it has none) into the Scan o. */
+static void add_strategy(json_t *o, const storage_job_t *j)
+{
+    srv_scan_params_t p = srv_scan_params_default();
+    if (o && j && j->params) srv_scan_params_parse(j->params, &p, NULL);
+    if (o) json_object_set_new(o, "strategy", srv_strategy_json(&p.strategy));
 }
 
 /* {"scan": ..., "job": ...} of a scan and a job, read back from the database. */
@@ -230,8 +284,10 @@ static void reply_scan_job(api_req_t *q, storage_t *st, unsigned status, int64_t
         api_error_rc(q, ret, NULL, err.msg);
         return;
     }
+    json_t *scan = api_enc_scan(&sc);
+    add_strategy(scan, job_id ? &j : NULL);
     api_reply_json(q, status,
-                   json_pack("{s:o, s:o}", "scan", api_enc_scan(&sc), "job",
+                   json_pack("{s:o, s:o}", "scan", scan, "job",
                              job_id ? api_enc_job(&j) : json_null()));
     if (job_id) storage_job_free(&j);
     storage_scan_free(&sc);
@@ -300,6 +356,13 @@ void api_h_scan_get(api_req_t *q)
     }
     json_t *o = api_enc_scan(&sc);
     int64_t job = scan_job_id(st, id);
+    storage_job_t j;
+    if (job && storage_job_get(st, job, &j, NULL) == 0) {
+        add_strategy(o, &j);
+        storage_job_free(&j);
+    } else {
+        add_strategy(o, NULL);
+    }
     if (o) {
         json_object_set_new(o, "job_id", job ? json_integer(job) : json_null());
         json_t *su = setup ? json_loads(setup, 0, NULL) : NULL;

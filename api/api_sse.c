@@ -4,8 +4,8 @@
  * the next event, heartbeat or the shutdown. So a waiting stream costs no thread. Events:
  *   event: job / id: SEQ / data: {"id", "kind", "state", "progress", "points_done",
  *   "points_total", "eta_s", "scan_id", "fit_id", "phase", "error"[, "pixel": {"dcol", "drow",
- *   "col", "row"}]} (pixel: a job of every pixel, the pixel being fitted or whose fit fit_id was
- *   just stored)
+ *   "col", "row"}][, "expected_err"]} (pixel: a job of every pixel, the pixel being fitted or
+ *   whose fit fit_id was just stored; expected_err: an adaptive scan's map at its last plan)
  * and a ": heartbeat" comment every --heartbeat seconds. ?job=ID sends that job's events only,
  * starting with its current state. POST /api/events/ticket gives a client that cannot send a
  * header (a browser's EventSource) a short-lived ticket for ?ticket= (server/srv_token.h). */
@@ -54,6 +54,8 @@ static void put_event(struct sse *s, const srv_event_t *ev)
         json_object_set_new(o, "pixel",
                             json_pack("{s:i, s:i, s:i, s:i}", "dcol", ev->dcol, "drow", ev->drow,
                                       "col", ev->col, "row", ev->row));
+    if (o && ev->has_expected) /* an adaptive scan: the map's expected rms error so far */
+        json_object_set_new(o, "expected_err", api_num(ev->expected_err));
     char *data = o ? json_dumps(o, JSON_COMPACT | JSON_REAL_PRECISION(10)) : NULL;
     json_decref(o);
     if (!data) return;

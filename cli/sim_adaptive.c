@@ -35,13 +35,7 @@ static int plan_opts(sim_t *sim, const scan_setup_t *su, const cli_adaptive_t *a
     o->batch = ad->batch;
     o->target_err = ad->target_err;
     o->max_points = ad->max_points;
-    stage_limits_t lim;
-    int rc = stage_get_limits(sim_stage(sim), &lim, err);
-    if (rc) return rc;
-    double cx = su->centre.x_um - su->pitch_um / 2, cy = su->centre.y_um - su->pitch_um / 2;
-    o->box_um[0] = lim.min.x_um - cx, o->box_um[1] = lim.max.x_um - cx;
-    o->box_um[2] = lim.min.y_um - cy, o->box_um[3] = lim.max.y_um - cy;
-    return 0;
+    return scan_pixel_box(sim_stage(sim), su, o->box_um, err);
 }
 
 /* The map after a batch, into that batch's entry. */

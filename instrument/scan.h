@@ -222,4 +222,20 @@ int scan_pixel_points(cam_t *cam, stage_t *stage, const scan_config_t *cfg,
                       const scan_setup_t *setup, size_t n, const double *x, const double *y,
                       const scan_hooks_t *hooks, struct scanfile *out, err_t *err);
 
+/* The stage's travel seen from the POI's corner (pixel coordinates, scandata.h): box_um gets
+ * x_min, x_max, y_min, y_max, the positions an adaptive scan may propose (fit_adapt_opts_t's
+ * box_um). Returns 0 or the stage's error. */
+int scan_pixel_box(stage_t *stage, const scan_setup_t *setup, double box_um[4], err_t *err);
+
+/* The sub-frame read at n positions (x[k], y[k]) relative to the POI's corner, as the raster
+ * reads its points (k frames of the m x m sub-frame around the POI, the setup's exposure, the
+ * raw frames kept when cfg->keep_frames), each point handed to hooks->point with index
+ * first + k of count (ix, iy -1: not a raster point) and progress "adaptive": the batches of an
+ * adaptive scan stored as raster points are (the server's adaptive scan job). Returns 0,
+ * -ECANCELED (stopped, or the handler refused a point: the points before were delivered),
+ * -EINVAL (cfg against the camera), -ENOMEM, or the camera's / stage's error. */
+int scan_subframe_points(cam_t *cam, stage_t *stage, const scan_config_t *cfg,
+                         const scan_setup_t *setup, size_t first, size_t count, size_t n,
+                         const double *x, const double *y, const scan_hooks_t *hooks, err_t *err);
+
 #endif

@@ -127,6 +127,11 @@ void sim_close(sim_t *s)
     free(s);
 }
 
+void sim_reseed(sim_t *s, unsigned long seed)
+{
+    gsl_rng_set(s->rng, seed);
+}
+
 stage_t *sim_stage(sim_t *s)
 {
     return s->stage;

@@ -105,6 +105,11 @@ void sim_close(sim_t *sim);
  * handle is made at the first sim_camera call (cam_sim.c), which returns NULL only when that
  * small allocation fails. */
 cam_t *sim_camera(sim_t *sim);
+
+/* Restarts the frames' noise from seed, as sim_open does with the configured one: what follows
+ * is the same noise whenever the same seed is set before the same captures (an adaptive scan's
+ * points are taken so, each from its own seed, so that a resumed scan reads the same values). */
+void sim_reseed(sim_t *sim, unsigned long seed);
 stage_t *sim_stage(sim_t *sim);
 
 /* The bench behind a "sim" camera (from cam_open("sim", ...) or sim_camera), NULL for any other

@@ -377,6 +377,15 @@ void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int 
     srv_events_publish(srv->events, &ev);
 }
 
+void srv_publish_job_adaptive(srv_t *srv, const storage_job_t *j, const char *phase,
+                              int points_total, double expected_err)
+{
+    srv_event_t ev = job_event(j, phase, points_total, NAN);
+    ev.has_expected = isfinite(expected_err);
+    ev.expected_err = expected_err;
+    srv_events_publish(srv->events, &ev);
+}
+
 void srv_publish_job_pixel(srv_t *srv, const storage_job_t *j, const char *phase,
                            int points_total, double eta_s, int dcol, int drow, int col, int row)
 {
@@ -420,7 +429,8 @@ int srv_scan_submit(srv_t *srv, storage_t *st, const storage_scan_t *sc, const s
     storage_sensor_free(&sn);
     if (ret) return ret;
     storage_scan_t row = *sc;
-    row.points_total = nx * nx;
+    /* an adaptive scan's count is its budget until it stops (then the points taken) */
+    row.points_total = p->strategy.adaptive ? p->strategy.max_points : nx * nx;
     char *params = srv_scan_params_dump(p);
     if (!params) return err_set(err, -ENOMEM, "out of memory");
     ret = storage_scan_submit(st, &row, params, scan_id, job_id, err);

@@ -60,7 +60,8 @@ int64_t srv_scan_unrecorded(srv_t *srv, char *msg, size_t size);
 storage_t *srv_db_get(srv_t *srv, err_t *err);
 void srv_db_put(srv_t *srv, storage_t *st);
 
-/* Queues a scan: the scan row (points_total is computed here from the sensor's pitch) and its
+/* Queues a scan: the scan row (points_total is computed here from the sensor's pitch; an adaptive
+ * scan's is its max_points until it stops) and its
  * scan job in one transaction (storage_scan_submit), then wakes the scan worker and publishes
  * the queued job. -EINVAL (e.g. the raster rules of instrument/scan_limits.h: step not dividing
  * the area), -ENOENT (sensor), -ESHUTDOWN when stopping. */

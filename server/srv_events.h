@@ -32,6 +32,9 @@ typedef struct srv_event {
     int has_pixel;   /* a job of every pixel: the pixel the event is about (fitting it, or its fit
                         fit_id just stored), as offsets from the POI and on the sensor */
     int dcol, drow, col, row;
+    double expected_err; /* an adaptive scan: the expected rms error of the map of the points
+                            taken so far (fit/adapt_plan.h); NaN (or 0, unset) otherwise */
+    int has_expected;    /* expected_err is set */
 } srv_event_t;
 
 typedef struct srv_events srv_events_t;

@@ -74,6 +74,10 @@ void srv_wait_work(srv_t *srv, int ms);
 /* Publishes the state of job j (as stored) with the extra fields the stored row lacks. */
 void srv_publish_job(srv_t *srv, const storage_job_t *j, const char *phase, int points_total,
                      double eta_s);
+/* srv_publish_job of an adaptive scan's progress, with the expected rms error of the map of the
+ * points so far (NaN: not planned yet in this run). */
+void srv_publish_job_adaptive(srv_t *srv, const storage_job_t *j, const char *phase,
+                              int points_total, double expected_err);
 /* srv_publish_job with the pixel the event is about (a job of every pixel, srv_fitall.c). */
 void srv_publish_job_pixel(srv_t *srv, const storage_job_t *j, const char *phase,
                            int points_total, double eta_s, int dcol, int drow, int col, int row);

@@ -8,12 +8,46 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fit/adapt_plan.h"
 #include "instrument/scan_limits.h"
 #include "instrument/scanfile.h"
 
+srv_strategy_t srv_strategy_default(void)
+{
+    return (srv_strategy_t){.target_err = FIT_ADAPT_TARGET_ERR,
+                            .max_points = FIT_ADAPT_MAX_POINTS,
+                            .batch = FIT_ADAPT_BATCH,
+                            .start_grid = FIT_ADAPT_START_GRID};
+}
+
+json_t *srv_strategy_json(const srv_strategy_t *s)
+{
+    if (!s->adaptive) return json_pack("{s:s}", "kind", "raster");
+    return json_pack("{s:s, s:f, s:i, s:i, s:i}", "kind", "adaptive", "target_err", s->target_err,
+                     "max_points", s->max_points, "batch", s->batch, "start_grid",
+                     s->start_grid);
+}
+
+/* The "strategy" member of the params into *s (a raster when absent or not adaptive). */
+static void strategy_parse(json_t *o, srv_strategy_t *s)
+{
+    *s = srv_strategy_default();
+    json_t *kind = json_object_get(o, "kind"), *v;
+    if (!json_is_string(kind) || strcmp(json_string_value(kind), "adaptive")) return;
+    s->adaptive = 1;
+    if ((v = json_object_get(o, "target_err")) && json_is_number(v))
+        s->target_err = json_number_value(v);
+    if ((v = json_object_get(o, "max_points")) && json_is_integer(v))
+        s->max_points = (int)json_integer_value(v);
+    if ((v = json_object_get(o, "batch")) && json_is_integer(v))
+        s->batch = (int)json_integer_value(v);
+    if ((v = json_object_get(o, "start_grid")) && json_is_integer(v))
+        s->start_grid = (int)json_integer_value(v);
+}
+
 srv_scan_params_t srv_scan_params_default(void)
 {
-    srv_scan_params_t p = {.seed = SCAN_DEFAULT_SEED};
+    srv_scan_params_t p = {.seed = SCAN_DEFAULT_SEED, .strategy = srv_strategy_default()};
     snprintf(p.scene, sizeof p.scene, "paperlike");
     return p;
 }
@@ -22,6 +56,8 @@ char *srv_scan_params_dump(const srv_scan_params_t *p)
 {
     json_t *o = json_pack("{s:s, s:I, s:s}", "scene", p->scene, "seed", (json_int_t)p->seed,
                           "setup", p->setup_none ? "none" : "paper");
+    if (o && p->strategy.adaptive)
+        json_object_set_new(o, "strategy", srv_strategy_json(&p->strategy));
     char *text = o ? json_dumps(o, JSON_COMPACT) : NULL;
     json_decref(o);
     return text;
@@ -41,6 +77,7 @@ int srv_scan_params_parse(const char *text, srv_scan_params_t *p, err_t *err)
         p->seed = (unsigned long)json_integer_value(seed);
     if ((setup = json_object_get(o, "setup")) && json_is_string(setup))
         p->setup_none = strcmp(json_string_value(setup), "none") == 0;
+    strategy_parse(json_object_get(o, "strategy"), &p->strategy);
     json_decref(o);
     return 0;
 }

@@ -16,11 +16,36 @@
 /* Scenes the simulated bench offers to scans. */
 #define SRV_SCENES "uniform, paperlike"
 
+/* How a scan chooses its points ("strategy"): the raster of the scan's raster parameters (the
+ * default), or an adaptive scan of the POI (fit/adapt_plan.h: the starting start_grid^2 raster,
+ * then batches where the kriged map is least sure until the expected error reaches target_err or
+ * the scan holds max_points points). Defaults: fit/adapt_plan.h's. */
+typedef struct srv_strategy {
+    int adaptive;       /* 0: raster */
+    double target_err;  /* > 0 */
+    int max_points;     /* >= start_grid^2 */
+    int batch;          /* 1..SRV_ADAPT_BATCH_MAX */
+    int start_grid;     /* 2..SRV_ADAPT_START_GRID_MAX */
+} srv_strategy_t;
+
+#define SRV_ADAPT_BATCH_MAX 1000
+/* an adaptive scan's budget at most: every plan fits the points so far and krige solves a dense
+ * system of them, so its cost grows as the cube of the points */
+#define SRV_ADAPT_MAX_POINTS 10000
+#define SRV_ADAPT_START_GRID_MAX 51
+
+/* The adaptive defaults (adaptive 0: a raster until the caller says otherwise). */
+srv_strategy_t srv_strategy_default(void);
+/* The strategy as its JSON object ({"kind": "raster"} or {"kind": "adaptive", "target_err",
+ * "max_points", "batch", "start_grid"}), new reference; NULL when out of memory. */
+json_t *srv_strategy_json(const srv_strategy_t *s);
+
 typedef struct srv_scan_params {
     char scene[32];     /* "paperlike" (default) or "uniform" */
     unsigned long seed; /* noise of the simulated frames (1) */
     int setup_none;     /* "setup": "none": no exposure, centring or focus search: the POI's
                            centre and exposure_us as given (0: the paper's procedure) */
+    srv_strategy_t strategy; /* "strategy" (absent from the params of a raster scan) */
 } srv_scan_params_t;
 
 srv_scan_params_t srv_scan_params_default(void);

@@ -7,6 +7,9 @@
  * Cancel (the worker's stop flag, or the database refusing the next point) stops between points;
  * a graceful shutdown gives the job back to the queue. Photon-transfer measurements need the
  * instrument too: this worker takes them in queue order with the scans (srv_ptc.c runs them).
+ * An adaptive scan (its strategy, srv_params.h) takes its points batch by batch where the map is
+ * least sure instead of the raster (srv_adaptive.c), stored as raster points in the order taken;
+ * when it stops, its points_total becomes the points taken and its setup records why it stopped.
  *
  * Storage faults (disk full, read-only, I/O errors): the point that cannot be stored
  * fails the scan and its job with the database's error, the instrument is released, and the
@@ -14,6 +17,7 @@
  * kept in memory (srv_scan_unrecorded, shown by GET /api/health) and the worker retries writing
  * it with a growing pause until it succeeds or ipsd stops; the job is then never left running. */
 #include <errno.h>
+#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -22,6 +26,7 @@
 #include "base/clock.h"
 #include "instrument/scan.h"
 #include "server/srv_setup.h"
+#include "srv_adaptive.h"
 #include "srv_bench.h"
 #include "srv_failpoint.h"
 #include "srv_int.h"
@@ -44,6 +49,7 @@ struct scan_run {
     scan_setup_t setup;
     int first;            /* first raster point captured by this run */
     double t0, last_beat; /* when this run's raster started, last heartbeat (srv_now_s) */
+    double expected_err;  /* an adaptive scan: the map's expected error at the last plan */
     int store_rc;         /* why store_point stopped the raster, 0 if it did not */
     err_t store_err;      /* and its error (the raster's own "stopped by the handler" is not) */
     err_t err;
@@ -57,7 +63,10 @@ static void publish(struct scan_run *r, const char *phase, int done, double eta_
     j.points_done = done;
     j.progress = r->scan.points_total ? (double)done / r->scan.points_total : 0;
     j.error = NULL;
-    srv_publish_job(r->srv, &j, phase, r->scan.points_total, eta_s);
+    if (r->params.strategy.adaptive) /* no ETA: the scan's length is the planner's to say */
+        srv_publish_job_adaptive(r->srv, &j, phase, r->scan.points_total, r->expected_err);
+    else
+        srv_publish_job(r->srv, &j, phase, r->scan.points_total, eta_s);
 }
 
 static void on_progress(const char *phase, size_t done, size_t total, void *user)
@@ -65,7 +74,8 @@ static void on_progress(const char *phase, size_t done, size_t total, void *user
     (void)done;
     (void)total;
     struct scan_run *r = user;
-    if (strcmp(phase, "raster") != 0) publish(r, phase, r->first, NAN);
+    if (strcmp(phase, "raster") != 0 && strcmp(phase, "adaptive") != 0)
+        publish(r, phase, r->first, NAN);
 }
 
 /* hooks->point: stores one captured point, beats the heart, publishes the progress. A non-zero
@@ -109,7 +119,7 @@ static int store_point(const scan_point_t *pt, void *user)
     }
     int run_done = done - r->first;
     double eta = run_done > 0 ? (now - r->t0) / run_done * (total - done) : NAN;
-    publish(r, "raster", done, eta);
+    publish(r, r->params.strategy.adaptive ? "adaptive" : "raster", done, eta);
     if ((r->store_rc = srv_failpoint(r->w, "scan.point", &r->store_err))) return 1; /* test hook */
     return 0;
 }
@@ -190,6 +200,7 @@ static int finish_done(struct scan_run *r)
     srv_fit_params_t p = srv_fit_params_auto(r->scan.id);
     p.map = (storage_map_t)r->srv->cfg.calibration_map; /* --calibration-map */
     p.krige = p.map == STORAGE_MAP_KRIGED;
+    if (r->params.strategy.adaptive) p.wiener = 0; /* Wiener needs a regular grid of points */
     char *params = srv_fit_params_dump(&p);
     if (!params) return err_set(&r->err, -ENOMEM, "out of memory");
     int64_t fit_job = 0;
@@ -227,6 +238,43 @@ static int begin(struct scan_run *r)
     return storage_scan_set_state(r->st, r->scan.id, STORAGE_RUNNING, NULL, &r->err);
 }
 
+static void on_planned(size_t points, double expected_err, void *user)
+{
+    struct scan_run *r = user;
+    r->expected_err = expected_err;
+    publish(r, "adaptive", (int)points, NAN);
+}
+
+/* An adaptive scan that stopped: its points_total becomes the points taken, and its setup records
+ * why it stopped ("adaptive": {"stop", "points", "expected_err"}). Both are repeated as they
+ * were when a restart finds the scan stopped already. */
+static int adaptive_end(struct scan_run *r, const srv_adaptive_outcome_t *o)
+{
+    char *text = NULL;
+    int ret = storage_scan_set_points_total(r->st, r->scan.id, (int)o->points, &r->err);
+    if (ret == 0) ret = storage_scan_get_setup(r->st, r->scan.id, &text, &r->err);
+    if (ret) return ret;
+    json_t *su = text ? json_loads(text, 0, NULL) : NULL;
+    free(text);
+    text = NULL;
+    if (su)
+        json_object_set_new(su, "adaptive",
+                            json_pack("{s:s, s:I, s:f}", "stop", fit_adapt_stop_name(o->stop),
+                                      "points", (json_int_t)o->points, "expected_err",
+                                      o->expected_err));
+    if (su) text = json_dumps(su, JSON_COMPACT | JSON_REAL_PRECISION(17));
+    json_decref(su);
+    if (!text) return err_set(&r->err, -ENOMEM, "out of memory");
+    ret = storage_scan_set_setup(r->st, r->scan.id, text, &r->err);
+    free(text);
+    r->scan.points_total = (int)o->points;
+    fprintf(stderr, "ipsd: adaptive scan %lld stopped (%s) at %zu points, expected error %.4g; "
+                    "%d plans in %.0f ms\n",
+            (long long)r->scan.id, fit_adapt_stop_name(o->stop), o->points, o->expected_err,
+            o->plans, o->plan_ms);
+    return ret;
+}
+
 /* Setup and raster from the point after the last stored one. */
 static int capture(struct scan_run *r)
 {
@@ -237,8 +285,22 @@ static int capture(struct scan_run *r)
     r->first = last + 1;
     if (ret == 0) ret = setup(r, &hooks);
     if (ret == 0) ret = srv_failpoint(r->w, "scan.setup", &r->err); /* test hook */
-    if (ret || r->first >= r->scan.points_total) return ret;
+    if (ret) return ret;
     r->t0 = r->last_beat = clock_mono_s();
+    if (r->params.strategy.adaptive) {
+        srv_adaptive_outcome_t o;
+        r->expected_err = NAN;
+        publish(r, "adaptive", r->first, NAN);
+        ret = srv_adaptive_capture(r->st, &r->scan, r->bench.cam, r->bench.stage, r->bench.sim,
+                                   r->params.seed, &r->cfg, &r->setup, &r->params.strategy,
+                                   &hooks, on_planned, r, &o, &r->err);
+        if (r->store_rc) {
+            r->err = r->store_err;
+            return r->store_rc;
+        }
+        return ret ? ret : adaptive_end(r, &o);
+    }
+    if (r->first >= r->scan.points_total) return ret;
     publish(r, "raster", r->first, NAN);
     ret = scan_raster_run(r->bench.cam, r->bench.stage, &r->cfg, &r->setup, (size_t)r->first,
                           &hooks, NULL, &r->err);

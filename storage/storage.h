@@ -278,6 +278,11 @@ void storage_scan_list_free(storage_scan_list_t *l);
  * a pixel's response need it. set: -EINVAL when not valid JSON, -ENOENT for an unknown scan.
  * get: *json is a malloc'ed copy owned by the caller (free()), NULL when none is stored yet. */
 int storage_scan_set_setup(storage_t *st, int64_t id, const char *json, err_t *err);
+
+/* The scan's points_total set to total (1..SCAN_MAX_POINTS, at least its points_done): an
+ * adaptive scan knows its count only when it stops. -ENOENT unknown scan, -EINVAL a total out of
+ * range or below the points stored. */
+int storage_scan_set_points_total(storage_t *st, int64_t id, int total, err_t *err);
 int storage_scan_get_setup(storage_t *st, int64_t id, char **json, err_t *err);
 
 /* ---- frames: one row per scan point ------------------------------------------------------- */

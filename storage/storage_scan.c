@@ -268,6 +268,30 @@ int storage_scan_set_setup(storage_t *st, int64_t id, const char *json, err_t *e
     return ret;
 }
 
+int storage_scan_set_points_total(storage_t *st, int64_t id, int total, err_t *err)
+{
+    sqldb_stmt_t *q;
+    int ret, rc = SQLDB_OK;
+    if (!st) return err_set(err, -EINVAL, "scan points_total: NULL argument");
+    if (total <= 0 || total > SCAN_MAX_POINTS)
+        return err_set(err, -EINVAL, "scan points_total: %d, need 1..%d", total, SCAN_MAX_POINTS);
+    if ((ret = stg_stmt(st, STG_SCAN_SET_TOTAL, &q, err))) return ret;
+    stg_bind_int(q, 1, id, &rc);
+    stg_bind_int(q, 2, total, &rc);
+    if (rc != SQLDB_OK) {
+        stg_reset(q);
+        return stg_error(st, rc, err, "storing a scan's points_total");
+    }
+    ret = stg_run(st, q, err, "storing a scan's points_total");
+    if (ret || sqldb_changes(st->db) > 0) return ret;
+    storage_scan_t sc; /* nothing changed: an unknown scan, or more points stored */
+    if ((ret = storage_scan_get(st, id, &sc, err))) return ret;
+    ret = err_set(err, -EINVAL, "scan %lld points_total: %d, below its %d points stored",
+                  (long long)id, total, sc.points_done);
+    storage_scan_free(&sc);
+    return ret;
+}
+
 int storage_scan_get_setup(storage_t *st, int64_t id, char **json, err_t *err)
 {
     sqldb_stmt_t *q;

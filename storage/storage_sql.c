@@ -450,6 +450,8 @@ const char *const stg_sql[STG_N] = {
     [STG_SCAN_ADD_POINT] = "UPDATE scans SET points_done = points_done + 1 WHERE id = ?1",
     [STG_SCAN_SET_SETUP] = "UPDATE scans SET setup = ?2 WHERE id = ?1",
     [STG_SCAN_GET_SETUP] = "SELECT setup FROM scans WHERE id = ?1",
+    /* an adaptive scan's count, once it has stopped (storage_scan_set_points_total) */
+    [STG_SCAN_SET_TOTAL] = "UPDATE scans SET points_total = ?2 WHERE id = ?1 AND points_done <= ?2",
     /* a failed scan and its failed scan job queued again (storage_scan_resume) */
     [STG_SCAN_RESUME] = "UPDATE scans SET state = 'queued', error = NULL, finished_ms = NULL "
                         "WHERE id = ?1 AND state = 'failed'",

@@ -36,6 +36,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             ptc:300
             zaber:300
             points:120
+            adaptive:240
             )
         string(REPLACE ":" ";" t ${t})
         list(GET t 0 name)
@@ -57,7 +58,7 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
         foreach(t flow:130 restart:380 input:80 promote:120 region:120 calib_cache:90 crash:150
                 fitstop:300 allpixels:200 points:120 scanend:120 ptc:300 security:60
                 hostile:60 flood:200 log:60 static:60 sched:60 stage:300 zaber:300 scanfile:900
-                export:240 camfault:120)
+                export:240 camfault:120 adaptive:240)
             string(REPLACE ":" ";" t ${t})
             list(GET t 0 name)
             list(GET t 1 timeout)

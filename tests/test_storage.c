@@ -1591,6 +1591,17 @@ static void test_setup_release_upload(void)
     CHECK(storage_scan_set_setup(st, 999, "{}", &err) == -ENOENT && strstr(err.msg, "999"));
     CHECK(storage_scan_get_setup(st, 999, &json, &err) == -ENOENT);
 
+    /* an adaptive scan's count once it stopped: at least the points stored, then no more */
+    CHECK(put_point(st, scan, 0, NULL) == 0 && put_point(st, scan, 1, NULL) == 0);
+    CHECK(storage_scan_set_points_total(st, scan, 2, NULL) == 0);
+    CHECK(raw_int("v2.db", "SELECT points_total FROM scans WHERE id = 1") == 2);
+    CHECK(put_point(st, scan, 2, &err) == -EINVAL && strstr(err.msg, "point_index"));
+    CHECK(storage_scan_set_points_total(st, scan, 1, &err) == -EINVAL &&
+          strstr(err.msg, "below its 2 points"));
+    CHECK(storage_scan_set_points_total(st, scan, 0, &err) == -EINVAL);
+    CHECK(storage_scan_set_points_total(st, 999, 5, &err) == -ENOENT && strstr(err.msg, "999"));
+    CHECK(raw_int("v2.db", "SELECT points_total FROM scans WHERE id = 1") == 2);
+
     /* release: a claimed job goes back, its claim not counted; only running jobs */
     int64_t job;
     storage_job_t j;

@@ -1,10 +1,11 @@
 // scan_detail.js: the Scan view (#/scans/ID): the scan's state and setup, the scan geometry
-// (spot positions over the sub-frame), the response raster of any pixel of the sub-frame
-// (filling in while the scan runs; linear or log colour, the whole raster or the pixel, CSV and
-// JSON download), a point's raw frames (scan_frames.js), the sub-frame overview of the pixels'
-// maps from this scan (scan_overview.js), the fit jobs of the scan with their results, and the
-// form to fit another pixel (fit_form.js). Plotly figures: scan_plots.js. Live from /api/events,
-// and re-read every few seconds while the scan or a fit is active.
+// (spot positions over the sub-frame; an adaptive scan's chosen positions: scan_adaptive.js),
+// the response raster of any pixel of the sub-frame (filling in while the scan runs; linear or
+// log colour, the whole raster or the pixel, CSV and JSON download), a point's raw frames
+// (scan_frames.js), the sub-frame overview of the pixels' maps from this scan
+// (scan_overview.js), the fit jobs of the scan with their results, and the form to fit another
+// pixel (fit_form.js). Plotly figures: scan_plots.js. Live from /api/events, and re-read every
+// few seconds while the scan or a fit is active.
 import { ApiError, get, post } from './api.js';
 import { errorBox, failure, fill, fmt, fmtTime, h, showError, stateBadge } from './dom.js';
 import { buildFitForm } from './fit_form.js';
@@ -12,6 +13,7 @@ import { requestRules } from './rules.js';
 import { purgeIn, showFigure } from './charts.js';
 import { framesPanel } from './scan_frames.js';
 import { drawOverview } from './scan_overview.js';
+import { adaptiveSpec } from './scan_adaptive.js';
 import { downloadButton, geometrySpec, rasterCsv, rasterSpec } from './scan_plots.js';
 import { ACTIVE, POLL_MS, progressCell, sensorName, setProgress } from './scan_state.js';
 
@@ -60,10 +62,25 @@ export function renderScan(root, id, ctx) {
 
     // The geometry figure, redrawn (in place, the user's zoom kept) when the pixel shown or the
     // points stored change.
+    // An adaptive scan's positions are the planner's, read from the POI's stored points.
     function drawGeometry() {
-        const key = `${scan?.points_done} ${sel.dcol} ${sel.drow} ${pitch()}`;
+        const key = `${scan?.points_done} ${sel.dcol} ${sel.drow} ${pitch()} ${scan?.state}`;
         if (!scan || !pitch() || key === geoKey) return;
         geoKey = key;
+        if (scan.strategy?.kind === 'adaptive') {
+            if (!scan.setup) return; // nothing measured yet
+            get(`/api/scans/${id}/pixels/0/0?all=1`).then((d) => {
+                if (!closed && key === geoKey) {
+                    showFigure(geoSlot, adaptiveSpec(scan, d, (k) => frames.show(k)));
+                }
+            }).catch((e) => {
+                if (!closed) {
+                    purgeIn(geoSlot);
+                    fill(geoSlot, failure(e));
+                }
+            });
+            return;
+        }
         showFigure(geoSlot, geometrySpec(scan, pitch(), { ...sel }, (k) => frames.show(k)));
     }
 
@@ -114,6 +131,16 @@ export function renderScan(root, id, ctx) {
         fill(head, `Scan #${id} `, stateBadge(scan.state), btn ? ' ' : null, btn);
     }
 
+    // An adaptive scan's strategy and, once it stopped, why (docs/api.md "strategy").
+    function adaptiveRow(s) {
+        const st = s.strategy, r = s.raster, end = s.setup?.adaptive;
+        return ['Adaptive', `${st.start_grid}×${st.start_grid} start, then batches of ` +
+            `${st.batch} until the expected error is ${fmt(st.target_err)} or ` +
+            `${st.max_points} points` + (end ? `: stopped (${end.stop}) at ${end.points} ` +
+            `points, expected error ${fmt(end.expected_err)}` : '') + `; ${r.frames} frames ` +
+            `each, ${r.sub_px}×${r.sub_px} sub-frame`];
+    }
+
     function drawSummary(sensor) {
         const s = scan, o = s.optics, r = s.raster;
         const rows = [
@@ -122,7 +149,8 @@ export function renderScan(root, id, ctx) {
             ['Pixel of interest', `(${s.poi.col}, ${s.poi.row})`],
             ['Optics', `λ = ${fmt(o.wavelength_nm)} nm, NA = ${fmt(o.na)}, spot radius ` +
                 `R = ${fmt(o.spot_radius_um)} µm`],
-            ['Raster', `${r.area_px}×${r.area_px} pixels in ${fmt(r.step_um)} µm steps: ` +
+            s.strategy?.kind === 'adaptive' ? adaptiveRow(s)
+                : ['Raster', `${r.area_px}×${r.area_px} pixels in ${fmt(r.step_um)} µm steps: ` +
                 `${r.points_per_axis}×${r.points_per_axis} = ${r.points_total} points, ` +
                 `${r.frames} frames each, ${r.sub_px}×${r.sub_px} sub-frame`],
             ['Exposure', `${fmt(s.exposure_us)} µs requested` +

@@ -1096,6 +1096,7 @@ async function run(base, page, api) {
         'a cancelled scan has no Cancel button');
     await page.screenshot({ path: path.join(SHOTS, 'scans-1280.png') });
     await checkLiveZoom(base, page, api, sensor);
+    await checkAdaptiveScan(base, page, api, sensor);
 
     // the Sensor view: a photon-transfer measurement on the simulated bench from its button, the
     // job's progress to done, the figures' table equal to the API's, the plot with every level
@@ -1237,6 +1238,43 @@ async function runReadClosed(context, base, api, logFile) {
 // scripted Plotly.relayout is not a user's edit: Plotly's uirevision keeps only those), then
 // the page's own refresh counter (data-updates) is waited for: the axes still show the zoomed
 // box, and the figure holds more points than before (the refresh redrew it).
+// An adaptive scan's Scan view: the geometry figure shows the positions the planner chose, the
+// API's stored positions of the POI in the order taken (GET .../pixels/0/0?all=1), the starting
+// raster apart from the batches, and why the scan stopped (its setup's adaptive member).
+async function checkAdaptiveScan(base, page, api, sensor) {
+    const made = await api('POST', '/api/scans', { sensor_id: sensor.id,
+        poi: { col: 40, row: 20 }, setup: 'none', raster: { sub_px: 3, frames: 2 },
+        strategy: { kind: 'adaptive', max_points: 34, start_grid: 5, batch: 9 } });
+    check(made.status === 202 && made.body.scan.strategy?.kind === 'adaptive',
+        'an adaptive scan is queued', JSON.stringify(made.body).slice(0, 300));
+    const id = made.body.scan.id;
+    const done = await until(async () => {
+        const s = (await api('GET', `/api/scans/${id}`)).body;
+        return s.state === 'done' && s;
+    }, 'the adaptive scan to be done');
+    await page.goto(`${base}/#/scans/${id}`);
+    const geo = await plotly(page, 'scan-geometry', '[data-strategy="adaptive"]');
+    const px = (await api('GET', `/api/scans/${id}/pixels/0/0?all=1`)).body;
+    const marks = geo.data.filter((t) => t.mode === 'markers');
+    const xs = marks.flatMap((t) => t.x), ys = marks.flatMap((t) => t.y);
+    const order = marks.flatMap((t) => t.customdata);
+    const same = (a, b) => a.length === b.length && a.every((v, k) => near(v, b[k], 1e-12));
+    check(xs.length === done.points_done && same(xs, px.x_um) && same(ys, px.y_um) &&
+        same(order, px.x_um.map((_, k) => k)) && marks[0].x.length === 25,
+    'the adaptive scan\'s geometry shows its stored positions in the order taken, the 25 of ' +
+        'the starting raster first', `${xs.length} markers, ${done.points_done} points`);
+    const title = await page.locator('[data-testid="scan-geometry"]').evaluate((g) =>
+        g.closest('figure')?.textContent ?? '');
+    check(title.includes(`stopped (${done.setup.adaptive.stop}) at ${done.points_done} points`),
+        'the figure says why the adaptive scan stopped', title.slice(0, 200));
+    const facts = await page.locator('dl.facts').textContent();
+    check(facts.includes('Adaptive') && facts.includes(`batches of 9`) &&
+        facts.includes(`stopped (${done.setup.adaptive.stop}) at ${done.points_done} points`),
+    'the summary states the adaptive strategy and its stop instead of a raster', facts);
+    await page.locator('[data-testid="scan-geometry"]').scrollIntoViewIfNeeded();
+    await page.screenshot({ path: path.join(SHOTS, 'scan-adaptive-1280.png') });
+}
+
 async function checkLiveZoom(base, page, api, sensor) {
     const step = (5 * sensor.pitch_um) / 160; // area 5 pixels: 161 points per axis
     const made = await api('POST', '/api/scans', { sensor_id: sensor.id,
