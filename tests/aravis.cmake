@@ -2,7 +2,8 @@
 # module is: against Aravis's own GigE Vision camera emulator on 127.0.0.1, run inside the test
 # (test_cam_aravis) or as a process (arv_emulator, for the HTTP tests of ipsd --bench aravis:ID),
 # so the tests link Aravis and ipsd does not. The emulator binds the GigE Vision control port 3956
-# of 127.0.0.1: the tests that run one hold the lock "gige_emulator" and run one at a time.
+# of 127.0.0.1: the tests that run one hold the lock "gige_emulator" and run one at a time, and
+# across ctest runs (other build or work trees) each such test holds a lock file (gige_lock.h).
 if(TARGET ipscam_aravis)
     pkg_check_modules(ARAVIS_TEST IMPORTED_TARGET aravis-0.8)
     ipsd_add_test(test_cam_aravis ipsinstr PkgConfig::ARAVIS_TEST)

@@ -11,7 +11,8 @@
  * size than the region set (-EIO, "size mismatch"), a frame losing packets (-EIO or -ETIMEDOUT), a
  * camera gone (an error with Aravis's words) and back (opened again), and a camera without a
  * monochrome format (refused at open naming PixelFormat). The emulator binds the GigE Vision
- * control port 3956: ctest runs the tests that use it one at a time (RESOURCE_LOCK). */
+ * control port 3956: ctest runs the tests that use it one at a time (RESOURCE_LOCK), and a lock
+ * file orders them across ctest runs (gige_lock.h). */
 #include <arv.h>
 #include <errno.h>
 #include <stdatomic.h>
@@ -23,6 +24,7 @@
 
 #include "instrument/cam.h"
 #include "check.h"
+#include "gige_lock.h"
 
 #define SERIAL "IPSDTEST1"
 #define DEVICE_ID "Aravis-Fake-" SERIAL /* Aravis's id: vendor, model, serial */
@@ -133,6 +135,7 @@ static double now_s(void)
 
 int main(void)
 {
+    if (gige_lock() != 0) return 1; /* another test's emulator would take our commands */
     double t0 = now_s();
     err_t err = {{0}};
     cam_t *cam = NULL;
