@@ -23,8 +23,11 @@
  * or whose size, region or format differs from what was set is -EIO; a lost control channel
  * (Aravis's control-lost signal, a camera unplugged or switched off) fails every later call with
  * -EIO. After a faulty frame the acquisition and its stream are started anew, so that nothing
- * late of the old one is taken for a later frame. Messages carry Aravis's own words. A handle is
- * used by one thread at a time. */
+ * late of the old one is taken for a later frame. Messages carry Aravis's own words. Closing a
+ * camera at fault sends it nothing itself and does not wait for Aravis, whose finalizers still
+ * talk to the camera (10 s of timeouts against one that vanished): its objects are released on a
+ * thread of their own (cam_aravis_release.c), waited for before the camera is opened again and
+ * when the program ends. A handle is used by one thread at a time. */
 #include <arv.h>
 #include <errno.h>
 #include <math.h>
@@ -36,8 +39,10 @@
 
 #include "cam_impl.h"
 #include "cam_roi.h"
+#include "cam_aravis_release.h"
 
 #define N_BUFFERS 4
+#define CLOSE_WAIT_S 1.0 /* a close waits this long at most for Aravis to release the camera */
 
 /* Monochrome formats read, deepest first: name, bits per value, bytes per value. */
 static const struct mono {
@@ -50,8 +55,9 @@ typedef struct av {
     ArvCamera *cam;
     ArvStream *stream;
     gulong lost_handler;
-    atomic_int lost; /* Aravis said the control channel is lost */
-    int silent;      /* a command went unanswered: closing sends no more (each waits it out) */
+    atomic_int *lost; /* Aravis said the control channel is lost (owned by the signal handler:
+                         an emission in flight on Aravis's heartbeat thread may still set it) */
+    int silent;       /* a command went unanswered: at fault (closing sends the camera nothing) */
     cam_info_t info;
     const struct mono *fmt;
     ArvPixelFormat pixel_format; /* fmt's code, as frames carry it */
@@ -91,12 +97,23 @@ static int fail(av_t *a, GError **e, int code, const char *what, err_t *err)
 static void on_control_lost(ArvDevice *dev, gpointer user)
 {
     (void)dev;
-    atomic_store(&((av_t *)user)->lost, 1);
+    atomic_store((atomic_int *)user, 1);
+}
+
+static void free_lost(gpointer user, GClosure *closure)
+{
+    (void)closure;
+    free(user);
+}
+
+static int is_lost(const av_t *a)
+{
+    return a->lost && atomic_load(a->lost);
 }
 
 static int check_lost(av_t *a, err_t *err)
 {
-    if (!atomic_load(&a->lost)) return 0;
+    if (!is_lost(a)) return 0;
     return err_set(err, -EIO,
                    "camera %s: control channel lost (the camera stopped answering its "
                    "heartbeat: unplugged, switched off or unreachable)",
@@ -252,18 +269,32 @@ static int setup_acquisition(av_t *a, err_t *err)
     return 0;
 }
 
+/* The test hook of cam_aravis_release: IPSD_ARAVIS_RELEASE_GATE=FD holds the release of a
+ * camera closed at fault until a byte can be read from FD; -1 when not set. */
+static int release_gate(void)
+{
+    const char *s = getenv("IPSD_ARAVIS_RELEASE_GATE");
+    char *end = NULL;
+    long fd = s && *s ? strtol(s, &end, 10) : -1;
+    return fd >= 0 && fd <= 1 << 20 && *end == '\0' ? (int)fd : -1;
+}
+
+/* A camera at fault (a command unanswered, or the control channel lost) is released in the
+ * background at once: every command Aravis's finalizers send it would wait out its timeouts. A
+ * healthy one is waited for up to CLOSE_WAIT_S (milliseconds in practice), which bounds the close
+ * of a camera that vanished unnoticed too. */
 static void av_close(void *impl)
 {
     av_t *a = impl;
     if (!a) return;
-    if (a->acquiring && !a->silent && !atomic_load(&a->lost))
-        arv_camera_stop_acquisition(a->cam, NULL);
-    if (a->stream) g_object_unref(a->stream);
-    if (a->cam) {
-        if (a->lost_handler)
-            g_signal_handler_disconnect(arv_camera_get_device(a->cam), a->lost_handler);
-        g_object_unref(a->cam);
-    }
+    int fault = a->silent || is_lost(a);
+    if (a->cam && a->lost_handler) /* frees a->lost once no emission uses it */
+        g_signal_handler_disconnect(arv_camera_get_device(a->cam), a->lost_handler);
+    else
+        free(a->lost); /* never handed to a handler */
+    if (a->cam || a->stream)
+        cam_aravis_release(a->info.id, a->cam, a->stream, a->acquiring && !fault,
+                           fault ? 0 : CLOSE_WAIT_S, fault ? release_gate() : -1);
     free(a);
 }
 
@@ -276,6 +307,7 @@ static int av_open(const char *id, void **out, err_t *err)
     cam_info_t *in = &a->info;
     int rc = find_device(id, in->id, sizeof in->id, err);
     if (rc) goto out;
+    cam_aravis_release_wait(in->id); /* an earlier handle's late commands come first */
     copy(in->backend, sizeof in->backend, "aravis");
     if (!(a->cam = arv_camera_new(in->id, &e))) {
         rc =
@@ -285,8 +317,12 @@ static int av_open(const char *id, void **out, err_t *err)
                  "cannot open", err);
         goto out;
     }
-    a->lost_handler = g_signal_connect(arv_camera_get_device(a->cam), "control-lost",
-                                       G_CALLBACK(on_control_lost), a);
+    if (!(a->lost = calloc(1, sizeof *a->lost))) {
+        rc = err_set(err, -ENOMEM, "out of memory for the camera");
+        goto out;
+    }
+    a->lost_handler = g_signal_connect_data(arv_camera_get_device(a->cam), "control-lost",
+                                            G_CALLBACK(on_control_lost), a->lost, free_lost, 0);
     get_string(a->cam, "DeviceVendorName", in->vendor, sizeof in->vendor);
     get_string(a->cam, "DeviceModelName", in->model, sizeof in->model);
     get_string(a->cam, "DeviceSerialNumber", in->serial, sizeof in->serial);
@@ -383,8 +419,7 @@ static int fit_axis(int lo, int len, int total, int oinc, int sinc, int smin, in
 /* Stops the acquisition and drops the stream (the region or the buffers change). */
 static void stop(av_t *a)
 {
-    if (a->acquiring && !atomic_load(&a->lost))
-        arv_camera_stop_acquisition(a->cam, NULL);
+    if (a->acquiring && !is_lost(a)) arv_camera_stop_acquisition(a->cam, NULL);
     a->acquiring = 0;
     if (a->stream) g_object_unref(a->stream);
     a->stream = NULL;

@@ -2,12 +2,14 @@
 # module is: against Aravis's own GigE Vision camera emulator on 127.0.0.1, run inside the test
 # (test_cam_aravis) or as a process (arv_emulator, for the HTTP tests of ipsd --bench aravis:ID),
 # so the tests link Aravis and ipsd does not. The emulator binds the GigE Vision control port 3956
-# of 127.0.0.1: the tests that run one hold the lock "gige_emulator" and run one at a time.
+# of 127.0.0.1: the tests that run one hold the lock "gige_emulator" and run one at a time, and
+# across ctest runs (other build or work trees) each such test holds a lock file (gige_lock.h).
 if(TARGET ipscam_aravis)
     pkg_check_modules(ARAVIS_TEST IMPORTED_TARGET aravis-0.8)
     ipsd_add_test(test_cam_aravis ipsinstr PkgConfig::ARAVIS_TEST)
     add_dependencies(test_cam_aravis ipscam_aravis)
-    # a camera that goes away costs Aravis's control timeouts: ~20 s, most of it waiting
+    # a camera that goes away costs Aravis's control timeouts: ~20 s, most of it waiting (its
+    # release in the background, which the test waits for, and a capture's unanswered trigger)
     set_tests_properties(test_cam_aravis PROPERTIES TIMEOUT 120 RESOURCE_LOCK gige_emulator)
 
     add_executable(arv_emulator arv_emulator.c)
@@ -19,7 +21,7 @@ if(TARGET ipscam_aravis)
                  COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_server_aravis.py
                          $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> $<TARGET_FILE:arv_emulator>
                  WORKING_DIRECTORY ${IPSD_TEST_DATA})
-        # ~25 s, most of it Aravis's timeouts on the camera gone; 4x
+        # ~14 s, some of it Aravis's timeouts on the camera gone; 10x
         set_tests_properties(test_server_aravis PROPERTIES TIMEOUT 150
             RESOURCE_LOCK gige_emulator
             ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR}"

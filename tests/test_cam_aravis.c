@@ -10,9 +10,18 @@
  * hang: a frame that does not come (-ETIMEDOUT, and the next capture is good), a frame of another
  * size than the region set (-EIO, "size mismatch"), a frame losing packets (-EIO or -ETIMEDOUT), a
  * camera gone (an error with Aravis's words) and back (opened again), and a camera without a
- * monochrome format (refused at open naming PixelFormat). The emulator binds the GigE Vision
- * control port 3956: ctest runs the tests that use it one at a time (RESOURCE_LOCK). */
+ * monochrome format (refused at open naming PixelFormat).
+ *
+ * Closing the camera that went away waits for none of Aravis's commands to it: its release is
+ * held at the backend's test gate (IPSD_ARAVIS_RELEASE_GATE, a pipe of this test) while close
+ * returns, with Aravis's stream thread still there (its finalizer, the first to talk to the
+ * camera, has not run); let go, it ends by itself and leaves no thread behind. The close and the
+ * release are printed as figures, not asserted (a wide bound only as a safety net), as is the
+ * close of the camera gone again unnoticed (no command failed: a bounded wait). The emulator
+ * binds the GigE Vision control port 3956: ctest runs the tests that use it one at a time
+ * (RESOURCE_LOCK), and a lock file orders them across ctest runs (gige_lock.h). */
 #include <arv.h>
+#include <dirent.h>
 #include <errno.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -23,6 +32,7 @@
 
 #include "instrument/cam.h"
 #include "check.h"
+#include "gige_lock.h"
 
 #define SERIAL "IPSDTEST1"
 #define DEVICE_ID "Aravis-Fake-" SERIAL /* Aravis's id: vendor, model, serial */
@@ -124,6 +134,26 @@ static int xml_without_mono(const char *path)
     return fclose(f);
 }
 
+/* How many threads of this process are named name (their /proc comm). */
+static int threads_named(const char *name)
+{
+    DIR *d = opendir("/proc/self/task");
+    int n = 0;
+    for (struct dirent *e; d && (e = readdir(d));) {
+        char path[300], comm[64] = "";
+        if (e->d_name[0] == '.') continue;
+        snprintf(path, sizeof path, "/proc/self/task/%s/comm", e->d_name);
+        FILE *f = fopen(path, "r");
+        if (f && fgets(comm, sizeof comm, f)) {
+            comm[strcspn(comm, "\n")] = '\0';
+            n += strcmp(comm, name) == 0;
+        }
+        if (f) fclose(f);
+    }
+    if (d) closedir(d);
+    return n;
+}
+
 static double now_s(void)
 {
     struct timespec t;
@@ -133,7 +163,15 @@ static double now_s(void)
 
 int main(void)
 {
+    if (gige_lock() != 0) return 1; /* another test's emulator would take our commands */
     double t0 = now_s();
+    /* the backend's test gate: a release of a camera closed at fault waits for a byte of it (set
+     * before any thread runs: the backend reads it at each close) */
+    int gate[2];
+    char gate_fd[16];
+    CHECK(pipe(gate) == 0);
+    snprintf(gate_fd, sizeof gate_fd, "%d", gate[0]);
+    setenv("IPSD_ARAVIS_RELEASE_GATE", gate_fd, 1);
     err_t err = {{0}};
     cam_t *cam = NULL;
     cam_info_t info;
@@ -196,7 +234,9 @@ int main(void)
     CHECK(strstr(err.msg, DEVICE_ID) && strstr(err.msg, "no frame within 0.3 s"));
     g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
     CHECK(cam_set_timeout(cam, 0, &err) == 0);
-    CHECK(cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f));
+    int rc = cam_capture(cam, &roi, &f, &err);
+    if (rc) fprintf(stderr, "after the frame lost: %s\n", err.msg); /* what a failure was */
+    CHECK(rc == 0 && frame_is_pattern(&f));
     cam_frame_free(&f);
 
     /* ---- a frame of another size than the region set: size mismatch ---- */
@@ -211,7 +251,7 @@ int main(void)
     cam_roi_t big = {0, 0, 256, 256}; /* 128 KiB: ~90 packets */
     CHECK(cam_set_timeout(cam, 2, &err) == 0);
     g_object_set(gv, "gvsp-lost-ratio", 0.5, NULL);
-    int rc = cam_capture(cam, &big, &f, &err);
+    rc = cam_capture(cam, &big, &f, &err);
     CHECK((rc == -EIO || rc == -ETIMEDOUT) && f.dn == NULL);
     printf("packets lost: %s\n", err.msg);
     g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
@@ -227,14 +267,39 @@ int main(void)
     CHECK((rc == -EIO || rc == -ETIMEDOUT) && strstr(err.msg, DEVICE_ID));
     printf("camera gone: %s\n", err.msg);
     printf("gone: %.2f s\n", now_s() - t0);
+    /* closed: the release held at the gate, close returns; Aravis's stream thread still runs */
+    CHECK(threads_named("arv_gv_stream") == 1 && threads_named("ipsd-arv-close") == 0);
+    double c0 = now_s();
     cam_close(cam);
-    printf("closed: %.2f s\n", now_s() - t0);
+    double close_s = now_s() - c0;
+    CHECK(threads_named("arv_gv_stream") == 1); /* the stream not released: nothing sent */
+    /* the release thread names itself once it runs: polled for (held, it cannot end) */
+    while (!threads_named("ipsd-arv-close") && now_s() < c0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 1 && threads_named("arv_gv_stream") == 1);
+    CHECK(close_s < 8); /* a safety net only: the gate is what shows it (Aravis's: 10 s) */
+    printf("closed the camera gone in %.3f s\n", close_s);
+    /* let go: the release ends by itself (Aravis's commands time out) and no thread stays */
+    CHECK(write(gate[1], "r", 1) == 1);
+    double r0 = now_s();
+    while ((threads_named("ipsd-arv-close") || threads_named("arv_gv_stream")) && now_s() < r0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 0 && threads_named("arv_gv_stream") == 0);
+    printf("released in the background in %.2f s\n", now_s() - r0);
     gv = emulator(NULL);
     CHECK(cam_open("aravis", DEVICE_ID, &cam, &err) == 0);
-    CHECK(cam && cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f));
+    rc = cam ? cam_capture(cam, &roi, &f, &err) : -1;
+    if (rc) fprintf(stderr, "back: %s\n", err.msg);
+    CHECK(rc == 0 && frame_is_pattern(&f));
     cam_frame_free(&f);
-    cam_close(cam);
+    /* gone again, unnoticed (no command failed yet): close waits for its release a bounded time
+     * (its AcquisitionStop alone is Aravis's 2.5 s), the next open of the camera for all of it */
     g_object_unref(gv);
+    c0 = now_s();
+    cam_close(cam);
+    close_s = now_s() - c0;
+    CHECK(close_s < 8); /* a safety net only (Aravis's: 12.5 s) */
+    printf("closed the camera gone unnoticed in %.3f s\n", close_s);
 
     /* ---- a camera without a monochrome format: refused, naming PixelFormat ---- */
     char xml[] = "/tmp/ipsd-arv-XXXXXX";
@@ -247,5 +312,7 @@ int main(void)
     printf("refused: %s\n", err.msg);
     g_object_unref(gv);
     unlink(xml);
+    close(gate[0]);
+    close(gate[1]);
     CHECK_DONE();
 }

@@ -16,9 +16,13 @@ resumed while another camera is on the network, it fails again (the named camera
 restarted with --bench aravis, the first camera found, it is refused naming both cameras); the
 camera comes back, the scan resumes (POST /api/scans/ID/resume) and completes with every point
 exactly once. Python's sqlite3 reads the database."""
+import errno
+import fcntl
+import socket
 import struct
 import subprocess
 import sys
+import time
 
 import ipsd_http
 from ipsd_http import Db, Ipsd
@@ -30,6 +34,41 @@ PITCH = 6.0
 RASTER = {"area_px": 1, "step_um": 2.0, "sub_px": 3, "frames": 3}  # 4 x 4 points of 3 frames
 TOTAL = 16
 HOLD_AT = 5  # the camera goes away after the 5th point is stored
+
+
+GIGE_LOCK = "/tmp/ipsd-gige-emulator.lock"
+_gige_lock_file = None
+
+
+def gige_port_taken():
+    """Whether a socket of another process is bound to 127.0.0.1:3956 (a bind without
+    SO_REUSEADDR fails then)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind(("127.0.0.1", 3956))
+        except OSError as e:
+            return e.errno == errno.EADDRINUSE
+    return False
+
+
+def gige_lock():
+    """One GigE Vision emulator on 127.0.0.1 at a time across the machine, as tests/gige_lock.h
+    (which says why): holds its lock file until this process ends (the whole test: it may run two
+    emulators), and waits (up to 300 s) while a process that does not take it has the port."""
+    global _gige_lock_file
+    _gige_lock_file = open(GIGE_LOCK, "a")
+    try:
+        fcntl.flock(_gige_lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        print("gige_lock: another test runs a GigE Vision emulator on port 3956: waiting for it "
+              "(%s)" % GIGE_LOCK, file=sys.stderr)
+        fcntl.flock(_gige_lock_file, fcntl.LOCK_EX)
+    if gige_port_taken():
+        print("gige_lock: port 3956 of 127.0.0.1 is bound by a process without the lock: waiting "
+              "for it to end", file=sys.stderr)
+    deadline = time.monotonic() + 300
+    while gige_port_taken() and time.monotonic() < deadline:
+        time.sleep(0.1)
 
 
 class Emulator:
@@ -64,6 +103,7 @@ def ramp_ok(frame, m):
 
 def test(c, t, argv, daemons):
     exe, emu_exe = argv[1], argv[3]
+    gige_lock()  # another test's emulator would take our commands
     emu = Emulator(emu_exe, SERIAL)
     try:
         run(c, t, exe, emu_exe, emu, daemons)

@@ -19,7 +19,7 @@ import time
 
 import ipsd_http
 from ipsd_http import Ipsd
-from test_server_aravis import Emulator
+from test_server_aravis import Emulator, gige_lock
 
 SERIAL = "SCENE1"
 DEVICE = "Aravis-Fake-" + SERIAL
@@ -61,6 +61,7 @@ def rms_to_truth(cal, truth):
 
 def test(c, t, argv, daemons):
     exe, ips, emu_exe, gcs = argv[1], argv[2], argv[3], argv[4]
+    gige_lock()  # another test's emulator would take our commands
     truth_path = os.path.join(t, "truth.json")
     subprocess.run([ips, "simulate", "--scene", "paperlike", "--grid", "3", "--frames", "1",
                     "--truth", truth_path, "-o", os.path.join(t, "grid.json")],
