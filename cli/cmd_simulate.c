@@ -457,18 +457,29 @@ struct outcome {
     double setup_ms, raster_ms;
 };
 
-/* --grid: no setup; N x N points around the POI's true centre (shifted by --offset). */
-static int run_grid(sim_t *sim, const struct sim_args *a, struct outcome *o, err_t *err)
+/* --grid and --adaptive: no setup; the scan starts at the POI's true centre (shifted by
+ * --offset). Fills c, o->su, o->found and o->setup_ms; *t0 gets the start time. */
+static int prepare_at_true_centre(sim_t *sim, const struct sim_args *a, scan_config_t *c,
+                                  struct outcome *o, double *t0, err_t *err)
 {
-    scan_config_t c = a->scan;
-    c.do_centre = c.do_focus = c.do_exposure = 0;
-    c.start = sim_pixel_centre(sim, c.poi_col, c.poi_row);
-    double t0 = clock_mono_ms();
-    int rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &o->su, err);
+    *c = a->scan;
+    c->do_centre = c->do_focus = c->do_exposure = 0;
+    c->start = sim_pixel_centre(sim, c->poi_col, c->poi_row);
+    *t0 = clock_mono_ms();
+    int rc = scan_prepare(sim_camera(sim), sim_stage(sim), c, NULL, &o->su, err);
     o->found = o->su.centre;
     o->su.centre.x_um += a->offset_x;
     o->su.centre.y_um += a->offset_y;
-    o->setup_ms = clock_mono_ms() - t0;
+    o->setup_ms = clock_mono_ms() - *t0;
+    return rc;
+}
+
+/* --grid: N x N points around the POI's true centre. */
+static int run_grid(sim_t *sim, const struct sim_args *a, struct outcome *o, err_t *err)
+{
+    scan_config_t c;
+    double t0;
+    int rc = prepare_at_true_centre(sim, a, &c, o, &t0, err);
     if (rc == 0)
         rc = scan_grid_pixel(sim_camera(sim), sim_stage(sim), &c, &o->su, a->grid, NULL, &o->sf,
                              err);
@@ -476,18 +487,12 @@ static int run_grid(sim_t *sim, const struct sim_args *a, struct outcome *o, err
     return rc;
 }
 
-/* --adaptive: no setup, as --grid; then the planner's batches (sim_adaptive.h). */
+/* --adaptive: the planner's batches from there (sim_adaptive.h). */
 static int run_adaptive(sim_t *sim, const struct sim_args *a, struct outcome *o, err_t *err)
 {
-    scan_config_t c = a->scan;
-    c.do_centre = c.do_focus = c.do_exposure = 0;
-    c.start = sim_pixel_centre(sim, c.poi_col, c.poi_row);
-    double t0 = clock_mono_ms();
-    int rc = scan_prepare(sim_camera(sim), sim_stage(sim), &c, NULL, &o->su, err);
-    o->found = o->su.centre;
-    o->su.centre.x_um += a->offset_x;
-    o->su.centre.y_um += a->offset_y;
-    o->setup_ms = clock_mono_ms() - t0;
+    scan_config_t c;
+    double t0;
+    int rc = prepare_at_true_centre(sim, a, &c, o, &t0, err);
     if (rc == 0) rc = cli_adaptive_run(sim, &c, &o->su, &a->ad, &o->sf, &o->adaptive, err);
     o->raster_ms = clock_mono_ms() - o->setup_ms - t0;
     return rc;

@@ -52,3 +52,26 @@ int scan_capture_at(cam_t *cam, stage_t *stage, const stage_pos_t *pos, const ca
         c->var[q] = k > 1 ? c->var[q] / (k - 1) : NAN;
     return 0;
 }
+
+scan_point_t scan_point_of_capture(const struct scan_capture *c, size_t index, size_t count,
+                                   int ix, int iy, const stage_pos_t *pos, int k, int m)
+{
+    return (scan_point_t){.index = index,
+                          .count = count,
+                          .ix = ix,
+                          .iy = iy,
+                          .commanded = *pos,
+                          .reported = c->reported,
+                          .exposure_us = c->exposure_us,
+                          .gain = c->gain,
+                          .timestamp_ns = c->t0_ns,
+                          .frames = k,
+                          .width = m,
+                          .height = m,
+                          .mean_dn = c->mean,
+                          .var_dn = c->var,
+                          .raw = c->raw,
+                          .frame_timestamps_ns = c->ts_ns,
+                          .camera_frame_ids = c->ids,
+                          .left_out_dn = c->left_out_dn};
+}

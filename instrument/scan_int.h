@@ -29,4 +29,9 @@ struct scan_capture {
 int scan_capture_at(cam_t *cam, stage_t *stage, const stage_pos_t *pos, const cam_roi_t *roi, int k,
                     int use_expected, struct scan_capture *c, err_t *err);
 
+/* The point of a capture c of k frames of m x m pixels at commanded position pos: index of
+ * count, raster cell (ix, iy) or -1, -1 off any raster. Its arrays are c's (not copied). */
+scan_point_t scan_point_of_capture(const struct scan_capture *c, size_t index, size_t count,
+                                   int ix, int iy, const stage_pos_t *pos, int k, int m);
+
 #endif

@@ -98,24 +98,7 @@ int scan_subframe_points(cam_t *cam, stage_t *stage, const scan_config_t *cfg,
                            su->centre.z_um};
         if ((rc = scan_capture_at(cam, stage, &pos, &roi, k, cfg->use_expected, &c, err)) != 0)
             goto out;
-        scan_point_t pt = {.index = index,
-                           .count = count,
-                           .ix = -1,
-                           .iy = -1,
-                           .commanded = pos,
-                           .reported = c.reported,
-                           .exposure_us = c.exposure_us,
-                           .gain = c.gain,
-                           .timestamp_ns = c.t0_ns,
-                           .frames = k,
-                           .width = m,
-                           .height = m,
-                           .mean_dn = c.mean,
-                           .var_dn = c.var,
-                           .raw = c.raw,
-                           .frame_timestamps_ns = c.ts_ns,
-                           .camera_frame_ids = c.ids,
-                           .left_out_dn = c.left_out_dn};
+        scan_point_t pt = scan_point_of_capture(&c, index, count, -1, -1, &pos, k, m);
         if (hooks && hooks->point && hooks->point(&pt, hooks->user) != 0) {
             rc = err_set(err, -ECANCELED, "scan stopped by the point handler at point %zu", index);
             goto out;

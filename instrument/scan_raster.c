@@ -106,24 +106,8 @@ int scan_raster_run(cam_t *cam, stage_t *stage, const scan_config_t *cfg, const 
         stage_pos_t pos = scan_raster_position(cfg, su, nx, i);
         if ((rc = scan_capture_at(cam, stage, &pos, &roi, k, cfg->use_expected, &c, err)) != 0)
             goto out;
-        scan_point_t pt = {.index = i,
-                           .count = count,
-                           .ix = (int)(i % (size_t)nx),
-                           .iy = (int)(i / (size_t)nx),
-                           .commanded = pos,
-                           .reported = c.reported,
-                           .exposure_us = c.exposure_us,
-                           .gain = c.gain,
-                           .timestamp_ns = c.t0_ns,
-                           .frames = k,
-                           .width = m,
-                           .height = m,
-                           .mean_dn = c.mean,
-                           .var_dn = c.var,
-                           .raw = c.raw,
-                           .frame_timestamps_ns = c.ts_ns,
-                           .camera_frame_ids = c.ids,
-                           .left_out_dn = c.left_out_dn};
+        scan_point_t pt = scan_point_of_capture(&c, i, count, (int)(i % (size_t)nx),
+                                                 (int)(i / (size_t)nx), &pos, k, m);
         if (raster && (rc = scan_raster_put(raster, &pt, err)) != 0) goto out;
         if (hooks && hooks->point && hooks->point(&pt, hooks->user) != 0) {
             rc = err_set(err, -ECANCELED, "scan stopped by the point handler at point %zu", i);
