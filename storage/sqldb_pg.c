@@ -679,11 +679,16 @@ int sqldb_pg_open(const char *uri, sqldb_t **out, err_t *err)
     p->base.ops = &pg_ops;
     p->busy_ms = -1;
     redact(uri, p->name, sizeof p->name);
+    /* the open errors name the database without its parameters: a long query string (options,
+     * sslrootcert=/a/long/path) would otherwise push libpq's reason off the end of the line */
+    char where[sizeof p->name];
+    snprintf(where, sizeof where, "%s", p->name);
+    where[strcspn(where, "?")] = '\0';
     /* a malformed URI is the caller's mistake, not the server's: say so before connecting */
     char *why = NULL;
     PQconninfoOption *opts = PQconninfoParse(uri, &why);
     if (!opts) {
-        int ret = err_set(err, -EINVAL, "cannot open database %s: %s", p->name,
+        int ret = err_set(err, -EINVAL, "cannot open database %s: %s", where,
                           why ? why : "not a valid connection URI");
         if (why) {
             char *nl = strchr(err ? err->msg : "", '\n');
@@ -705,14 +710,14 @@ int sqldb_pg_open(const char *uri, sqldb_t **out, err_t *err)
                               strstr(p->err, "password authentication failed") ||
                               strstr(p->err, "no password supplied") ||
                               strstr(p->err, "certificate"));
-        int ret = err_set(err, denied ? -EACCES : -EIO, "cannot open database %s: %s", p->name,
+        int ret = err_set(err, denied ? -EACCES : -EIO, "cannot open database %s: %s", where,
                           p->err);
         pg_close(&p->base);
         return ret;
     }
     PQsetNoticeProcessor(p->c, ignore_notice, NULL);
     if (run(p, "SET client_min_messages = warning") != SQLDB_OK) {
-        int ret = err_set(err, -EIO, "cannot open database %s: %s", p->name, p->err);
+        int ret = err_set(err, -EIO, "cannot open database %s: %s", where, p->err);
         pg_close(&p->base);
         return ret;
     }
