@@ -10,7 +10,8 @@
  *   SQLite; readers never wait;
  * - "BEGIN" (a consistent multi-statement read) becomes a REPEATABLE READ transaction: one
  *   snapshot, as SQLite's read transactions in WAL mode;
- * - the busy timeout is lock_timeout; SQLSTATEs map to sqldb_rc_t;
+ * - the busy timeout is lock_timeout; SQLSTATEs map to sqldb_rc_t (a privilege revoked, 42501,
+ *   is SQLDB_READONLY: the storage fault "read-only");
  * - a lost connection (the server restarted, the network dropped) is opened again at the next
  *   statement outside a transaction, its settings and prepared statements made again; a read or
  *   a BEGIN that found it lost is tried once more on the new one (neither can have changed
@@ -100,6 +101,10 @@ static sqldb_rc_t result_rc(pg_t *p, const PGresult *r)
     if (!strcmp(state, "53100")) return SQLDB_FULL; /* disk full */
     if (!strcmp(state, "53200")) return SQLDB_NOMEM;
     if (!strcmp(state, "25006")) return SQLDB_READONLY; /* read-only transaction */
+    /* insufficient_privilege: ipsd's role lost a privilege (revoked by the lab): to ipsd the
+     * database is read-only, like an SQLite file it may not write; the words stay PostgreSQL's
+     * ("permission denied for table frames") */
+    if (!strcmp(state, "42501")) return SQLDB_READONLY;
     if (!strncmp(state, "08", 2) || !strncmp(state, "57P", 3) || !strncmp(state, "58", 2) ||
         !strncmp(state, "XX", 2))
         return SQLDB_IOERR;

@@ -61,7 +61,9 @@ int storage_calib_generation(storage_t *st, uint64_t *gen);
 /* The storage's health as the gate saw it ("Storage faults"): every handle sharing the
  * gate records there a write (or read) that failed because of the storage itself - SQLITE_FULL
  * (fault -ENOSPC, "full"), SQLITE_READONLY (-EROFS, "read-only"), SQLITE_IOERR / SQLITE_CORRUPT /
- * SQLITE_CANTOPEN (-EIO, "io-error") - and a write that commits clears it ("full": only when the
+ * SQLITE_CANTOPEN (-EIO, "io-error"); on PostgreSQL disk full 53100, a read-only transaction
+ * 25006 or a privilege revoked 42501, lost connections and server errors alike - and a write
+ * that commits clears it ("full": only when the
  * database then has more pages or more free pages than at the fault). msg: the last fault's
  * message (which names the database), kept after it clears; since_ms: when the current fault
  * began (wall clock), 0 when healthy; faults: how many failed operations so far. */

@@ -9,7 +9,8 @@
 - Db: the database read by Python's sqlite3 module, an independent reader of what ipsd stored.
 - PostgreSQL: with IPSD_TEST_PG_URI_FILE set (tests/server.cmake's *_pg tests: the server of
   tests/pg.cmake), every Ipsd gets a fresh schema of that server's database as its --db, and Db
-  reads it with psql instead (the same SQL where SQLite's runs there too).
+  reads it with psql instead (the same SQL where SQLite's runs there too); pg_admin() runs SQL as
+  that server's superuser (a lab's administrator: privileges, databases).
 - wait_for(): polls a condition until a generous deadline: tests wait for states, never for time.
 - Checks: counts checks and failures; finish() prints the tally and gives the exit status.
 - Recording: with IPSD_API_RECORD_DIR set (tests/server.cmake sets it), every answer a Client or
@@ -263,6 +264,30 @@ def pg_fresh_database():
                     "IMMUTABLE AS 'SELECT upper(encode($1, ''hex''))'" % (schema, schema, schema)],
                    check=True, timeout=60)
     return "%s%soptions=-csearch_path%%3D%s" % (base, "&" if "?" in base else "?", schema)
+
+
+def pg_admin(uri_file, sql, database="ipsd"):
+    """Runs sql as the PostgreSQL superuser of tests/pg_server.sh's server whose URI file is
+    uri_file (through its unix socket, where local connections are trusted), in database; psql's
+    output. What a lab's database administrator does: roles' privileges, databases."""
+    d = os.path.dirname(os.path.abspath(uri_file))
+    sock = d
+    if os.path.exists(os.path.join(d, "rundir")):
+        with open(os.path.join(d, "rundir")) as f:
+            sock = f.read().strip()
+    with open(os.path.join(d, "port")) as f:
+        port = f.read().strip()
+    out = subprocess.run(["psql", "-X", "-q", "-At", "-v", "ON_ERROR_STOP=1", "-h", sock, "-p",
+                          port, "-U", "postgres", "-d", database, "-c", sql],
+                         capture_output=True, text=True, timeout=DEADLINE_S)
+    if out.returncode != 0:
+        raise RuntimeError("psql as postgres: %s: %s" % (sql, out.stderr.strip()))
+    return out.stdout
+
+
+def pg_schema_of(uri):
+    """The schema of pg_fresh_database's URI (its search_path option)."""
+    return uri.rsplit("search_path%3D", 1)[1].split("&")[0]
 
 
 class Ipsd:

@@ -53,12 +53,13 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
     endforeach()
     # the HTTP tests whose ipsd does not depend on SQLite again, each ipsd on a fresh schema of the
     # PostgreSQL server of tests/pg.cmake and the database read back with psql
-    # (tests/ipsd_http.py); the same timeouts as their SQLite runs
+    # (tests/ipsd_http.py); the same timeouts as their SQLite runs. storfault runs there the
+    # cases that are not SQLite's own, and one of its own: ipsd's role losing its privileges
     if(TEST pg_server_start)
         foreach(t flow:130 restart:380 input:80 promote:120 region:120 calib_cache:90 crash:150
                 fitstop:300 allpixels:200 points:120 scanend:120 ptc:300 security:60
                 hostile:60 flood:200 log:60 static:60 sched:60 stage:300 zaber:300 scanfile:900
-                export:240 camfault:120 adaptive:240)
+                export:240 camfault:120 adaptive:240 storfault:240)
             string(REPLACE ":" ";" t ${t})
             list(GET t 0 name)
             list(GET t 1 timeout)
