@@ -1,6 +1,7 @@
 /* srv_backup.c: online backups of the running server's database into --backup-dir
  * (srv_backup, srv.h): names the file, lets one backup run at a time, and stops a backup when
- * the server stops. The copying itself is storage's (storage_backup). */
+ * the server stops. The copying itself is storage's (storage_backup); a PostgreSQL database is
+ * pg_dump's, and is refused here. */
 #include <errno.h>
 #include <stdio.h>
 #include <string.h>
@@ -21,6 +22,11 @@ int srv_backup(srv_t *srv, storage_t *st, char *name, size_t n, storage_backup_i
                err_t *err)
 {
     const srv_config_t *cfg = &srv->cfg;
+    /* with or without --backup-dir: the directory would not help */
+    if (storage_is_postgres(cfg->db_path))
+        return err_set(err, -ENOTSUP, "backups through ipsd copy an SQLite database; a "
+                                      "PostgreSQL database is backed up with pg_dump "
+                                      "(docs/operations.md)");
     if (!cfg->backup_dir[0])
         return err_set(err, -ENOTSUP, "backups are off: start ipsd with --backup-dir DIR");
     if (srv_stopping(srv)) return err_set(err, -ESHUTDOWN, "ipsd is shutting down");
