@@ -20,6 +20,10 @@
   against 0.038 and 0.039).
 - Progress events of the scan carry phase "adaptive" and the expected error.
 - A cancel (the scan held after 10 points) ends the scan and keeps its points.
+- The scan list (GET /api/scans) says how each scan takes its points: the strategy as requested
+  with the defaults of docs/api.md filled in (target_err 0.01, max_points 300, batch 9,
+  start_grid 5), {"kind": "raster"} for a raster scan, also when the request named none; the
+  same as each scan's own GET.
 """
 import json
 import math
@@ -118,6 +122,30 @@ def check_refusals(c, d, db, sensor):
     c.ok(400 <= r.status < 500, "target_err 1e999 refused (%d)" % r.status)
     c.eq(db.one("SELECT (SELECT count(*) FROM scans), (SELECT count(*) FROM jobs)"), before,
          "nothing queued by the refused requests")
+
+
+def check_list(c, d, sensor, s1, s2, s3):
+    """Queued behind the held scan s3 (one scan worker), an adaptive scan with every member left
+    to its default, a raster scan naming its strategy and one naming none, all cancelled while
+    queued; then the list's strategies."""
+    req = {"sensor_id": sensor, "poi": {"col": 90, "row": 90}, "raster": {"sub_px": SUB}}
+    s4 = d.post("/api/scans", dict(req, strategy={"kind": "adaptive"})).json()["scan"]["id"]
+    s5 = d.post("/api/scans", dict(req, strategy={"kind": "raster"})).json()["scan"]["id"]
+    s6 = d.post("/api/scans", req).json()["scan"]["id"]
+    for s in (s4, s5, s6):
+        c.status(d.post("/api/scans/%d/cancel" % s), 200, "queued scan %d cancelled" % s)
+    defaults = {"kind": "adaptive", "target_err": 0.01, "max_points": 300, "batch": 9,
+                "start_grid": 5}
+    want = {s1: STRATEGY, s2: STRATEGY, s3: STRATEGY, s4: defaults, s5: {"kind": "raster"},
+            s6: {"kind": "raster"}}
+    page = d.get("/api/scans?limit=1000").json()
+    got = {i["id"]: i.get("strategy") for i in page["items"]}
+    c.eq(got, want, "the list's strategies: as requested, defaults filled in")
+    for s in want:
+        c.eq(d.get("/api/scans/%d" % s).json()["strategy"], want[s], "scan %d's GET agrees" % s)
+    paged = d.get("/api/scans?limit=2&offset=1&state=cancelled").json()["items"]
+    c.eq([(i["id"], i["strategy"]) for i in paged], [(s5, want[s5]), (s4, want[s4])],
+         "a filtered page carries its own scans' strategies")
 
 
 def test(c, t, argv, daemons):
@@ -227,6 +255,7 @@ def test(c, t, argv, daemons):
     s3, j3 = r.json()["scan"]["id"], r.json()["job"]["id"]
     c.ok(d.wait_held("scan.point", j3), "the third scan held after 10 points")
     kept = points(db, s3)[0]
+    check_list(c, d, sensor, s1, s2, s3)
     r = d.post("/api/scans/%d/cancel" % s3)
     c.status(r, 200, "cancelled")
     c.ok(d.wait_job(j3, "cancelled"), "its job cancelled")
