@@ -1,8 +1,8 @@
 /* adapt_plan.c: one planning step of an adaptive scan (adapt_plan.h): the kriged map of the points
  * so far with its posterior covariance Sigma, the expected rms error e = sqrt(tr Sigma / F^2), the
- * stop rule, the candidates' design rows a_j and variances s_j^2 = sigma(B + I0 a_j^T S)^2 / I0^2,
- * the greedy batch (adapt.h) and its travel order (adapt_order.c); and the starting raster and
- * the candidate lattice. */
+ * stop rule (a target confirmed by the plan before), the candidates' design rows a_j and
+ * variances s_j^2 = sigma(B + I0 a_j^T S)^2 / I0^2, the greedy batch (adapt.h) and its travel
+ * order (adapt_order.c); and the starting raster and the candidate lattice. */
 #include "fit/adapt_plan.h"
 
 #include <errno.h>
@@ -186,8 +186,18 @@ out:
     return rc;
 }
 
-int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts, fit_adapt_step_t *out,
-                   err_t *err)
+/* The target counts when the plan one batch earlier met it too with the same model: right after
+ * the likelihood test changes the model (the smooth part dropped, another recommended r), e can
+ * be several times below the error against the truth (docs/numerics.md, "An honest stop"). */
+static int target_confirmed(const fit_adapt_step_t *prev, const fit_adapt_step_t *cur,
+                            double target)
+{
+    return cur->target_met && prev && prev->expected_err <= target && prev->r == cur->r &&
+           prev->smooth == cur->smooth;
+}
+
+int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts,
+                   const fit_adapt_step_t *prev, fit_adapt_step_t *out, err_t *err)
 {
     memset(out, 0, sizeof *out);
     out->expected_err = out->predicted_err = out->path_um = NAN;
@@ -212,7 +222,9 @@ int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts, fit_ada
     double tr = 0;
     for (size_t c = 0; c < m; c++) tr += out->map.S_cov[c * m + c];
     out->expected_err = sqrt(fmax(tr, 0) / (double)m);
-    if (out->expected_err <= o.target_err) out->stop = FIT_ADAPT_TARGET;
+    out->target_met = out->expected_err <= o.target_err;
+    out->smooth = out->map.smooth;
+    if (target_confirmed(prev, out, o.target_err)) out->stop = FIT_ADAPT_TARGET;
     else if (scan->n >= o.max_points) out->stop = FIT_ADAPT_BUDGET;
     else rc = pick_batch(scan, &o, I0, out->map.S_cov, out, err);
     free(out->map.S_cov);
