@@ -91,9 +91,10 @@ int cli_adaptive_run(sim_t *sim, const scan_config_t *cfg, const scan_setup_t *s
     double last_expected = NAN, last_rms = NAN;
     fit_adapt_step_t prev = {0}; /* the plan before (its scalars: the stop rule's confirmation) */
     int planned = 0;
+    fit_adapt_cache_t cache = {0}; /* the candidates' design rows, from plan to plan */
     while (stop == FIT_ADAPT_GO) {
         fit_adapt_step_t st;
-        rc = fit_adapt_plan(&sf->scan, &o, planned ? &prev : NULL, &st, err);
+        rc = fit_adapt_plan(&sf->scan, &o, planned ? &prev : NULL, &cache, &st, err);
         if (rc) {
             fit_adapt_step_free(&st);
             goto out;
@@ -129,6 +130,7 @@ int cli_adaptive_run(sim_t *sim, const scan_config_t *cfg, const scan_setup_t *s
     *report = root;
     root = NULL;
 out:
+    fit_adapt_cache_free(&cache);
     free(x), free(y);
     json_decref(batches);
     json_decref(root);

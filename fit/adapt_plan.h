@@ -86,16 +86,32 @@ typedef struct fit_adapt_step {
     double ms;            /* cost of the step */
 } fit_adapt_step_t;
 
+/* What a scan's plans share: the candidates' design rows on the fine grid of the last plan (the
+ * bulk of a step's design work), reused while the grid, the spot and the candidates stay the
+ * same (rebuilt when the recommended r moves F), so a plan with the cache gives the batch a plan
+ * without it gives, bit for bit. Zero it before the scan's first plan; release it with
+ * fit_adapt_cache_free. One scan's, used by one thread at a time. */
+typedef struct fit_adapt_cache {
+    int grid;                 /* F of the rows kept (0: none) */
+    long nc;                  /* candidates */
+    double radius_um, pitch_um, tol; /* the spot, the pixel, the design accuracy they were built at */
+    double *cx, *cy;          /* nc candidate positions */
+    double *A;                /* nc x F^2 design rows, row-major */
+} fit_adapt_cache_t;
+
+void fit_adapt_cache_free(fit_adapt_cache_t *c);
+
 /* One planning step for scan (all points taken so far, in the order taken; positions relative to
  * the pixel's corner) under o (NULL: the defaults). prev is the step planned from the scan's
  * points before its last batch (NULL for the first plan, after the starting raster); only its
  * scalars are read, so it may have been released by fit_adapt_step_free. The target stops the
  * scan only when confirmed: e <= target_err here and in prev, with the same r and smooth; a
- * target met but not confirmed plans a batch as usual (target_met says so). 0 with *out
+ * target met but not confirmed plans a batch as usual (target_met says so). cache (NULL: none)
+ * carries the candidates' design rows from plan to plan (it changes no result). 0 with *out
  * (release with fit_adapt_step_free, also after an error); -EINVAL (bad options naming them, too
  * few points for the map, no signal), -ENOMEM, -EDOM (the algebra failed) with err. */
 int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *o, const fit_adapt_step_t *prev,
-                   fit_adapt_step_t *out, err_t *err);
+                   fit_adapt_cache_t *cache, fit_adapt_step_t *out, err_t *err);
 
 void fit_adapt_step_free(fit_adapt_step_t *s);
 

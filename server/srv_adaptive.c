@@ -70,6 +70,7 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
     size_t k = (size_t)ns; /* the points the next plan sees: a batch boundary */
     fit_adapt_step_t prev = {0}; /* the plan before (its scalars: the stop rule's confirmation) */
     int planned_before = 0;
+    fit_adapt_cache_t cache = {0}; /* the candidates' design rows, from plan to plan */
     while (rc == 0) {
         if ((rc = stored(st, sc, &sf, err))) break;
         size_t have = sf.scan.n;
@@ -81,7 +82,7 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
         fit_scan_t prefix = sf.scan;
         prefix.n = k;
         fit_adapt_step_t step;
-        rc = fit_adapt_plan(&prefix, &o, planned_before ? &prev : NULL, &step, err);
+        rc = fit_adapt_plan(&prefix, &o, planned_before ? &prev : NULL, &cache, &step, err);
         out->plans++;
         out->plan_ms += step.ms;
         if (rc == 0) {
@@ -106,6 +107,7 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
         prev = step, planned_before = 1;
         if (!go) break;
     }
+    fit_adapt_cache_free(&cache);
     scanfile_free(&sf);
     free(x), free(y);
     return rc;
