@@ -260,11 +260,16 @@ static int64_t scan_job_id(storage_t *st, int64_t scan_id)
 }
 
 /* The scan's strategy (from its job's params: a raster when it has none) into the Scan o. */
-static void add_strategy(json_t *o, const storage_job_t *j)
+static void add_strategy_params(json_t *o, const char *params)
 {
     srv_scan_params_t p = srv_scan_params_default();
-    if (o && j && j->params) srv_scan_params_parse(j->params, &p, NULL);
+    if (o && params) srv_scan_params_parse(params, &p, NULL);
     if (o) json_object_set_new(o, "strategy", srv_strategy_json(&p.strategy));
+}
+
+static void add_strategy(json_t *o, const storage_job_t *j)
+{
+    add_strategy_params(o, j ? j->params : NULL);
 }
 
 /* {"scan": ..., "job": ...} of a scan and a job, read back from the database. */
@@ -333,8 +338,11 @@ void api_h_scans_list(api_req_t *q)
         return;
     }
     json_t *items = json_array();
-    for (size_t i = 0; items && i < l.n; i++)
-        json_array_append_new(items, api_enc_scan(&l.items[i]));
+    for (size_t i = 0; items && i < l.n; i++) {
+        json_t *o = api_enc_scan(&l.items[i]);
+        add_strategy_params(o, l.items[i].job_params);
+        json_array_append_new(items, o);
+    }
     api_reply_json(q, 200, api_enc_page(items, l.total, limit, offset));
     storage_scan_list_free(&l);
 }

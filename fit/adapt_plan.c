@@ -1,8 +1,8 @@
 /* adapt_plan.c: one planning step of an adaptive scan (adapt_plan.h): the kriged map of the points
  * so far with its posterior covariance Sigma, the expected rms error e = sqrt(tr Sigma / F^2), the
- * stop rule, the candidates' design rows a_j and variances s_j^2 = sigma(B + I0 a_j^T S)^2 / I0^2,
- * the greedy batch (adapt.h) and its travel order (adapt_order.c); and the starting raster and
- * the candidate lattice. */
+ * stop rule (a target confirmed by the plan before), the candidates' design rows a_j (kept from
+ * plan to plan in a fit_adapt_cache_t while the grid stays) and variances s_j^2 = sigma(B + I0 a_j^T S)^2 / I0^2, the greedy batch (adapt.h) and its travel
+ * order (adapt_order.c); and the starting raster and the candidate lattice. */
 #include "fit/adapt_plan.h"
 
 #include <errno.h>
@@ -115,9 +115,50 @@ static double sweep_I0(const fit_sweep_t *sw)
     return sw->r_min == 1 && sw->fits[0].S ? sw->fits[0].I0 : NAN;
 }
 
+void fit_adapt_cache_free(fit_adapt_cache_t *c)
+{
+    if (!c) return;
+    free(c->cx), free(c->cy), free(c->A);
+    memset(c, 0, sizeof *c);
+}
+
+/* The nc candidates' (cx, cy) design rows on the F x F grid into A (nc x F^2): the cache's when
+ * it holds the same ones, else built, and then kept in the cache (a cache that cannot take them
+ * is emptied, not an error). */
+static int candidate_rows(const fit_scan_t *scan, const fit_adapt_opts_t *o, int F,
+                          const double *cx, const double *cy, long nc, fit_adapt_cache_t *cache,
+                          double *A, err_t *err)
+{
+    size_t m = (size_t)F * F, bytes = sizeof(double) * m * (size_t)nc;
+    double tol = o->fit.design_tol > 0 ? o->fit.design_tol : 1e-12;
+    if (cache && cache->A && cache->grid == F && cache->nc == nc &&
+        cache->radius_um == scan->spot_radius_um && cache->pitch_um == scan->pitch_um &&
+        cache->tol == tol && !memcmp(cache->cx, cx, sizeof(double) * (size_t)nc) &&
+        !memcmp(cache->cy, cy, sizeof(double) * (size_t)nc)) {
+        memcpy(A, cache->A, bytes);
+        return 0;
+    }
+    fit_design_opts_t dopt = fit_design_opts_for_tol(tol);
+    int rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, F, cx, cy, (size_t)nc, &dopt,
+                              A, NULL, err);
+    if (rc || !cache) return rc;
+    fit_adapt_cache_free(cache);
+    double *kx = malloc(sizeof(double) * (size_t)nc), *ky = malloc(sizeof(double) * (size_t)nc),
+           *kA = malloc(bytes);
+    if (!kx || !ky || !kA) {
+        free(kx), free(ky), free(kA);
+        return 0;
+    }
+    memcpy(kx, cx, sizeof(double) * (size_t)nc), memcpy(ky, cy, sizeof(double) * (size_t)nc);
+    memcpy(kA, A, bytes);
+    *cache = (fit_adapt_cache_t){F, nc, scan->spot_radius_um, scan->pitch_um, tol, kx, ky, kA};
+    return 0;
+}
+
 /* The batch: candidates' design rows and variances, the greedy pick, the travel order. */
 static int pick_batch(const fit_scan_t *scan, const fit_adapt_opts_t *o, double I0,
-                      const double *Sigma, fit_adapt_step_t *out, err_t *err)
+                      const double *Sigma, fit_adapt_cache_t *cache, fit_adapt_step_t *out,
+                      err_t *err)
 {
     int F = out->map.grid, rc = 0;
     size_t m = (size_t)F * F;
@@ -139,10 +180,7 @@ static int pick_batch(const fit_scan_t *scan, const fit_adapt_opts_t *o, double 
         rc = err_set(err, -ENOMEM, "adaptive plan: out of memory for %ld candidates", nc);
         goto out;
     }
-    fit_design_opts_t dopt = fit_design_opts_for_tol(o->fit.design_tol > 0 ? o->fit.design_tol : 1e-12);
-    if (nc && (rc = fit_design_build(scan->spot_radius_um, scan->pitch_um, F, cx, cy, (size_t)nc,
-                                     &dopt, A, NULL, err)))
-        goto out;
+    if (nc && (rc = candidate_rows(scan, o, F, cx, cy, nc, cache, A, err))) goto out;
     size_t k = 0; /* candidates kept: below full scale where the map predicts their signal */
     for (long j = 0; j < nc; j++) {
         const double *a = A + (size_t)j * m;
@@ -186,7 +224,18 @@ out:
     return rc;
 }
 
-int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts, fit_adapt_step_t *out,
+/* The target counts when the plan one batch earlier met it too with the same model: right after
+ * the likelihood test changes the model (the smooth part dropped, another recommended r), e can
+ * be several times below the error against the truth (docs/numerics.md, "An honest stop"). */
+static int target_confirmed(const fit_adapt_step_t *prev, const fit_adapt_step_t *cur,
+                            double target)
+{
+    return cur->target_met && prev && prev->expected_err <= target && prev->r == cur->r &&
+           prev->smooth == cur->smooth;
+}
+
+int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts,
+                   const fit_adapt_step_t *prev, fit_adapt_cache_t *cache, fit_adapt_step_t *out,
                    err_t *err)
 {
     memset(out, 0, sizeof *out);
@@ -212,9 +261,11 @@ int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts, fit_ada
     double tr = 0;
     for (size_t c = 0; c < m; c++) tr += out->map.S_cov[c * m + c];
     out->expected_err = sqrt(fmax(tr, 0) / (double)m);
-    if (out->expected_err <= o.target_err) out->stop = FIT_ADAPT_TARGET;
+    out->target_met = out->expected_err <= o.target_err;
+    out->smooth = out->map.smooth;
+    if (target_confirmed(prev, out, o.target_err)) out->stop = FIT_ADAPT_TARGET;
     else if (scan->n >= o.max_points) out->stop = FIT_ADAPT_BUDGET;
-    else rc = pick_batch(scan, &o, I0, out->map.S_cov, out, err);
+    else rc = pick_batch(scan, &o, I0, out->map.S_cov, cache, out, err);
     free(out->map.S_cov);
     out->map.S_cov = NULL;
 out:

@@ -8,8 +8,10 @@
  * (fit_krige_prior_for_sweep), with its posterior covariance Sigma of S over the F x F fine
  * cells (fit_krige_with_cov). The map's expected rms error is
  *     e = sqrt(tr Sigma / F^2),
- * the root of the mean posterior variance over the cells (equal areas). Stop when e <= target,
- * when the scan holds max_points points, or when no candidate lowers tr Sigma; otherwise the
+ * the root of the mean posterior variance over the cells (equal areas). Stop when the target is
+ * confirmed (e <= target at this plan and at the plan before, the one batch earlier, with the same
+ * model: the same recommended r and the smooth part kept or dropped alike), when the scan holds
+ * max_points points, or when no candidate lowers tr Sigma; otherwise the
  * batch is fit_adapt_pick's greedy choice (adapt.h) among the candidates: the nodes
  * (i p / L, j p / L) of a lattice over the pixel (L = lattice) that lie in the region (inside:
  * 0 < i, j < L; all: 0 <= i, j <= L, the edges included; margin: as far beyond as the margin
@@ -20,9 +22,10 @@
  * whose predicted signal reaches full scale is left out, as the fit would leave it out). The
  * batch is then ordered for travel (fit_adapt_order) from the scan's last position.
  *
- * Deterministic: the same points give the same batch (the fits run on the caller's thread), so
- * an interrupted scan resumes by planning again from the points it stored. Pure numerics, no
- * I/O, no globals, thread-safe. */
+ * Deterministic: the same points give the same batch (the fits run on the caller's thread), and
+ * the same plans before give the same stop, so an interrupted scan resumes by planning again,
+ * batch boundary after batch boundary, from the points it stored. Pure numerics, no I/O, no
+ * globals, thread-safe. */
 #ifndef IPSD_FIT_ADAPT_PLAN_H
 #define IPSD_FIT_ADAPT_PLAN_H
 
@@ -59,7 +62,7 @@ fit_adapt_opts_t fit_adapt_opts_default(void);
 
 typedef enum fit_adapt_stop {
     FIT_ADAPT_GO = 0,      /* a batch to take */
-    FIT_ADAPT_TARGET = 1,  /* the expected error is at or below target_err */
+    FIT_ADAPT_TARGET = 1,  /* the expected error is at or below target_err, confirmed */
     FIT_ADAPT_BUDGET = 2,  /* the scan holds max_points points */
     FIT_ADAPT_NO_GAIN = 3, /* no candidate lowers the posterior variance */
 } fit_adapt_stop_t;
@@ -71,6 +74,9 @@ typedef struct fit_adapt_step {
     fit_adapt_stop_t stop;
     size_t n_fitted;      /* the scan's usable points in the region: what the map fitted */
     double expected_err;  /* e of the map of the points so far */
+    int target_met;       /* e <= target_err at this plan (a stop needs it confirmed) */
+    int smooth;           /* the kriged map kept its smooth part (map.smooth, kept after
+                             fit_adapt_step_free for the next plan's stop rule) */
     double predicted_err; /* e expected after the batch (NaN without one) */
     int n;                /* positions in the batch (0 unless stop is FIT_ADAPT_GO) */
     double *x_um, *y_um;  /* n positions, pixel coordinates, in travel order (owned) */
@@ -80,12 +86,32 @@ typedef struct fit_adapt_step {
     double ms;            /* cost of the step */
 } fit_adapt_step_t;
 
+/* What a scan's plans share: the candidates' design rows on the fine grid of the last plan (the
+ * bulk of a step's design work), reused while the grid, the spot and the candidates stay the
+ * same (rebuilt when the recommended r moves F), so a plan with the cache gives the batch a plan
+ * without it gives, bit for bit. Zero it before the scan's first plan; release it with
+ * fit_adapt_cache_free. One scan's, used by one thread at a time. */
+typedef struct fit_adapt_cache {
+    int grid;                 /* F of the rows kept (0: none) */
+    long nc;                  /* candidates */
+    double radius_um, pitch_um, tol; /* the spot, the pixel, the design accuracy they were built at */
+    double *cx, *cy;          /* nc candidate positions */
+    double *A;                /* nc x F^2 design rows, row-major */
+} fit_adapt_cache_t;
+
+void fit_adapt_cache_free(fit_adapt_cache_t *c);
+
 /* One planning step for scan (all points taken so far, in the order taken; positions relative to
- * the pixel's corner) under o (NULL: the defaults). 0 with *out (release with
- * fit_adapt_step_free, also after an error); -EINVAL (bad options naming them, too few points
- * for the map, no signal), -ENOMEM, -EDOM (the algebra failed) with err. */
-int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *o, fit_adapt_step_t *out,
-                   err_t *err);
+ * the pixel's corner) under o (NULL: the defaults). prev is the step planned from the scan's
+ * points before its last batch (NULL for the first plan, after the starting raster); only its
+ * scalars are read, so it may have been released by fit_adapt_step_free. The target stops the
+ * scan only when confirmed: e <= target_err here and in prev, with the same r and smooth; a
+ * target met but not confirmed plans a batch as usual (target_met says so). cache (NULL: none)
+ * carries the candidates' design rows from plan to plan (it changes no result). 0 with *out
+ * (release with fit_adapt_step_free, also after an error); -EINVAL (bad options naming them, too
+ * few points for the map, no signal), -ENOMEM, -EDOM (the algebra failed) with err. */
+int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *o, const fit_adapt_step_t *prev,
+                   fit_adapt_cache_t *cache, fit_adapt_step_t *out, err_t *err);
 
 void fit_adapt_step_free(fit_adapt_step_t *s);
 

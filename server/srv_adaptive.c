@@ -1,6 +1,7 @@
 /* srv_adaptive.c: the points of an adaptive scan job (srv_adaptive.h): the starting raster, then
  * plan and measure batch after batch, every plan made from the points as stored (the database's
- * copy, so that a resumed scan plans from exactly what an uninterrupted one planned from). */
+ * copy, so that a resumed scan plans from exactly what an uninterrupted one planned from) and
+ * from the plan before it (the stop rule's confirmation, replayed the same way). */
 #include "srv_adaptive.h"
 
 #include <errno.h>
@@ -67,6 +68,9 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
         rc = take(cam, stage, sim, seed, cfg, su, sf.scan.n, count, (size_t)ns - sf.scan.n,
                   x + sf.scan.n, y + sf.scan.n, hooks, err);
     size_t k = (size_t)ns; /* the points the next plan sees: a batch boundary */
+    fit_adapt_step_t prev = {0}; /* the plan before (its scalars: the stop rule's confirmation) */
+    int planned_before = 0;
+    fit_adapt_cache_t cache = {0}; /* the candidates' design rows, from plan to plan */
     while (rc == 0) {
         if ((rc = stored(st, sc, &sf, err))) break;
         size_t have = sf.scan.n;
@@ -78,7 +82,7 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
         fit_scan_t prefix = sf.scan;
         prefix.n = k;
         fit_adapt_step_t step;
-        rc = fit_adapt_plan(&prefix, &o, &step, err);
+        rc = fit_adapt_plan(&prefix, &o, planned_before ? &prev : NULL, &cache, &step, err);
         out->plans++;
         out->plan_ms += step.ms;
         if (rc == 0) {
@@ -100,8 +104,10 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
         }
         int go = step.stop == FIT_ADAPT_GO;
         fit_adapt_step_free(&step);
+        prev = step, planned_before = 1;
         if (!go) break;
     }
+    fit_adapt_cache_free(&cache);
     scanfile_free(&sf);
     free(x), free(y);
     return rc;

@@ -231,6 +231,8 @@ typedef struct storage_scan {
     int points_done;         /* points stored (storage_frame_put keeps it) */
     char *error;             /* NULL unless failed */
     int64_t created_ms, started_ms, finished_ms;
+    char *job_params;        /* storage_scan_list only: the params of the scan's newest scan job
+                                (JSON text; NULL from the other reads, or with no job) */
 } storage_scan_t;
 
 typedef struct storage_scan_list {
@@ -249,7 +251,8 @@ int storage_scan_submit(storage_t *st, const storage_scan_t *sc, const char *par
                         int64_t *scan_id, int64_t *job_id, err_t *err);
 int storage_scan_get(storage_t *st, int64_t id, storage_scan_t *out, err_t *err);
 /* Scans newest first, filtered by sensor (0: any) and state (STORAGE_ANY: any); limit <= 0: no
- * limit. out->total counts every match. Caller frees with storage_scan_list_free. */
+ * limit. out->total counts every match. Each item also carries its scan job's params
+ * (job_params), read in the same statement. Caller frees with storage_scan_list_free. */
 int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, int offset,
                       storage_scan_list_t *out, err_t *err);
 /* Sets the state (and the error text, NULL to clear). Entering running stamps started_ms the

@@ -89,6 +89,10 @@ enum stg_id {
     "id, sensor_id, poi_col, poi_row, wavelength_um, na, spot_radius_um, area_px, step_um, "      \
     "sub_px, frames, exposure_us, points_total, state, points_done, error, created_ms, "          \
     "started_ms, finished_ms"
+/* after STG_SCAN_COLS in the scan list: the params of the scan's newest scan job (NULL: none) */
+#define STG_SCAN_JOB_PARAMS                                                                       \
+    "(SELECT j.params FROM jobs j WHERE j.scan_id = scans.id AND j.kind = 'scan' "               \
+    "ORDER BY j.id DESC LIMIT 1)"
 /* the last column: a job of every pixel ("pixels" a string) gets its fits (schema 6: fits.job_id)
  * as a JSON array in id order, the order stored ('[]' before the first; NULL for other jobs).
  * A window, not a plain aggregate: only its ORDER BY makes json_group_array's order certain. */

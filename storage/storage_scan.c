@@ -15,6 +15,7 @@ void storage_scan_free(storage_scan_t *sc)
 {
     if (!sc) return;
     free(sc->error);
+    free(sc->job_params);
     memset(sc, 0, sizeof *sc);
 }
 
@@ -51,6 +52,17 @@ static int read_scan(sqldb_stmt_t *s, void *item)
     o->created_ms = stg_col_id(s, 16);
     o->started_ms = stg_col_id(s, 17);
     o->finished_ms = stg_col_id(s, 18);
+    if (oom) storage_scan_free(o);
+    return oom ? -ENOMEM : 0;
+}
+
+/* Reads a row of the scan list: STG_SCAN_COLS, then STG_SCAN_JOB_PARAMS. */
+static int read_scan_listed(sqldb_stmt_t *s, void *item)
+{
+    storage_scan_t *o = item;
+    int oom = 0, ret = read_scan(s, item);
+    if (ret) return ret;
+    o->job_params = stg_col_text(s, 19, &oom);
     if (oom) storage_scan_free(o);
     return oom ? -ENOMEM : 0;
 }
@@ -193,8 +205,8 @@ int storage_scan_list(storage_t *st, int64_t sensor_id, int state, int limit, in
         ret = stg_error(st, rc, err, "listing scans");
         goto out;
     }
-    ret = stg_collect(st, q, sizeof *out->items, read_scan, (void **)&out->items, &out->n, err,
-                      "listing scans");
+    ret = stg_collect(st, q, sizeof *out->items, read_scan_listed, (void **)&out->items, &out->n,
+                      err, "listing scans");
 out:
     if (ret == 0) ret = stg_commit(st, err);
     if (ret) {

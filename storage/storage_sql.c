@@ -441,7 +441,8 @@ const char *const stg_sql[STG_N] = {
     [STG_SCAN_GET] = "SELECT " STG_SCAN_COLS " FROM scans WHERE id = ?1",
     [STG_SCAN_COUNT] = "SELECT count(*) FROM scans " SCAN_FILTER,
     [STG_SCAN_LIST] =
-        "SELECT " STG_SCAN_COLS " FROM scans " SCAN_FILTER " ORDER BY id DESC LIMIT ?3 OFFSET ?4",
+        "SELECT " STG_SCAN_COLS ", " STG_SCAN_JOB_PARAMS " FROM scans " SCAN_FILTER
+        " ORDER BY id DESC LIMIT ?3 OFFSET ?4",
     [STG_SCAN_SET_STATE] =
         "UPDATE scans SET state = ?2, error = ?3, "
         "started_ms = CASE WHEN ?2 = 'running' THEN coalesce(started_ms, ?4) ELSE started_ms END, "

@@ -320,7 +320,7 @@ const char *const stg_sql_pg[STG_N] = {
         "SELECT " STG_SENSOR_COLS " FROM sensors ORDER BY id " PG_LIMIT_OFFSET("1", "2"),
     /* the filters: PostgreSQL cannot type a parameter from "?1 IS NULL" alone */
     [STG_SCAN_COUNT] = "SELECT count(*) FROM scans " PG_SCAN_FILTER,
-    [STG_SCAN_LIST] = "SELECT " STG_SCAN_COLS " FROM scans " PG_SCAN_FILTER
+    [STG_SCAN_LIST] = "SELECT " STG_SCAN_COLS ", " STG_SCAN_JOB_PARAMS " FROM scans " PG_SCAN_FILTER
                       " ORDER BY id DESC " PG_LIMIT_OFFSET("3", "4"),
 
     [STG_JOB_GET] = "SELECT " PG_JOB_COLS " FROM jobs WHERE id = ?1",

@@ -23,7 +23,7 @@ set_tests_properties(test_fit_threads PROPERTIES TIMEOUT 240)
 # the adaptive scan's greedy batch against closed forms and the information-form posterior
 ipsd_add_test(test_adapt ipsfit)
 # the adaptive scan's planner: travel order against every permutation, the lattice by hand, a
-# half-seen tilted pixel of box integrals (a few kriged maps)
+# half-seen tilted pixel of box integrals, the stop rule, a whole scan of it to a target (~3 s)
 ipsd_add_test(test_adapt_plan ipsfit)
 set_tests_properties(test_adapt_plan PROPERTIES TIMEOUT 120)
 ipsd_add_test(test_krige_lik ipsfit)

@@ -15,8 +15,16 @@
  *     the refitted map's expected error lands within a factor 1.5 of the prediction; the
  *     reported path is the sum of the batch's steps from the last point; an allowed box keeps
  *     every position inside it.
- *   - Stop rule: a target above the error stops at once (target), a full budget stops (budget),
- *     a budget of fewer points than a batch shortens it.
+ *   - Stop rule: a target met on the first plan is not a stop but a batch planned as usual; met
+ *     again on the next plan with the same model it stops (target); not when the plan before
+ *     missed it, had another r or kept the smooth part where this one drops it (hand-set plans
+ *     before); a full budget stops (budget), a budget of fewer points than a batch shortens it.
+ *   - An honest stop against the truth: a scan of the tilted pixel from the 5 x 5 start, batch
+ *     after batch measured by box integrals, stops on a target; the map it stops with is within
+ *     1.5x of the target against the tilt itself (rms of the two mean-1 maps over the pixel).
+ *     Every plan of it with the candidates' rows reused from the plan before gives the batch,
+ *     stop and errors of the same plan without reuse, bit for bit; so does a plan on other
+ *     candidates (a 20-division lattice: 19 x 19 of them), which rebuilds the rows.
  *   - Bad options (batch 0, target <= 0, an empty box) are refused naming them. */
 #include <errno.h>
 #include <math.h>
@@ -37,6 +45,7 @@
 #define PEAK 3000.0 /* DN per unit-peak Airy flux (um^-2) */
 #define G 6         /* the truth's partition of the pixel */
 #define NMAX 200
+#define TILT_TARGET 0.01 /* the honest stop's target */
 
 /* A deterministic standard normal (splitmix64 and Box-Muller), fixed by seed. */
 static double gauss(unsigned long long *s)
@@ -217,7 +226,7 @@ static void planner(void)
     o.target_err = 1e-4;
     fit_adapt_step_t s1, s2;
     err_t err = {{0}};
-    CHECK(fit_adapt_plan(&b.sc, &o, &s1, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s1, &err) == 0);
     CHECK(s1.stop == FIT_ADAPT_GO && s1.n == 9 && s1.n_fitted == 36);
     int left = 1;
     for (int k = 0; k < s1.n; k++) left &= s1.x_um[k] < P / 2;
@@ -225,7 +234,7 @@ static void planner(void)
     fprintf(stderr, "half-seen tilt: expected error %.4f, predicted after 9 picks %.4f (r = %d, "
             "F = %d, %.0f ms)\n", s1.expected_err, s1.predicted_err, s1.r, s1.map.grid, s1.ms);
     /* the same points, the same batch */
-    CHECK(fit_adapt_plan(&b.sc, &o, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
     CHECK(s2.n == s1.n && !memcmp(s1.x_um, s2.x_um, sizeof(double) * (size_t)s1.n) &&
           !memcmp(s1.y_um, s2.y_um, sizeof(double) * (size_t)s1.n) &&
           s1.expected_err == s2.expected_err);
@@ -243,7 +252,7 @@ static void planner(void)
     CHECK(fabs(L - s1.path_um) < 1e-12 * L);
     /* measured: the refitted map's expected error near the prediction */
     for (int k = 0; k < s1.n; k++) measure(&b, s1.x_um[k], s1.y_um[k]);
-    CHECK(fit_adapt_plan(&b.sc, &o, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
     fprintf(stderr, "after the batch: expected error %.4f (predicted %.4f)\n", s2.expected_err,
             s1.predicted_err);
     CHECK(s2.expected_err < s1.expected_err);
@@ -252,29 +261,129 @@ static void planner(void)
     /* an allowed box: every position in it */
     const double box[4] = {0.5, 2.0, 1.0, 4.0};
     memcpy(o.box_um, box, sizeof box);
-    CHECK(fit_adapt_plan(&b.sc, &o, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
     int in_box = s2.n == 9;
     for (int k = 0; k < s2.n; k++)
         in_box &= s2.x_um[k] >= 0.5 && s2.x_um[k] <= 2.0 && s2.y_um[k] >= 1.0 && s2.y_um[k] <= 4.0;
     CHECK(in_box);
     fit_adapt_step_free(&s2);
 
-    /* the stop rule */
+    /* the stop rule: a target is confirmed by the plan before, with the same model */
     o = fit_adapt_opts_default();
     o.target_err = 1.0; /* a mean-1 map's error is far below its mean */
-    CHECK(fit_adapt_plan(&b.sc, &o, &s2, &err) == 0);
+    fit_adapt_step_t first;
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &first, &err) == 0);
+    CHECK(first.stop == FIT_ADAPT_GO && first.target_met && first.n == 9 &&
+          first.expected_err <= 1.0);
+    fit_adapt_step_free(&first);
+    CHECK(fit_adapt_plan(&b.sc, &o, &first, NULL, &s2, &err) == 0);
     CHECK(s2.stop == FIT_ADAPT_TARGET && s2.n == 0 && s2.expected_err <= 1.0);
+    fit_adapt_step_free(&s2);
+    fit_adapt_step_t before = first; /* the plan before, set by hand */
+    before.expected_err = 1.5;       /* missed the target */
+    CHECK(fit_adapt_plan(&b.sc, &o, &before, NULL, &s2, &err) == 0);
+    CHECK(s2.stop == FIT_ADAPT_GO && s2.target_met && s2.n == 9);
+    fit_adapt_step_free(&s2);
+    before = first, before.r = first.r + 1; /* another recommended r */
+    CHECK(fit_adapt_plan(&b.sc, &o, &before, NULL, &s2, &err) == 0);
+    CHECK(s2.stop == FIT_ADAPT_GO && s2.n == 9);
+    fit_adapt_step_free(&s2);
+    before = first, before.smooth = !first.smooth; /* the smooth part kept / dropped otherwise */
+    CHECK(fit_adapt_plan(&b.sc, &o, &before, NULL, &s2, &err) == 0);
+    CHECK(s2.stop == FIT_ADAPT_GO && s2.n == 9);
     fit_adapt_step_free(&s2);
     o.target_err = 1e-4;
     o.max_points = b.sc.n;
-    CHECK(fit_adapt_plan(&b.sc, &o, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
     CHECK(s2.stop == FIT_ADAPT_BUDGET && s2.n == 0 && s2.expected_err > 1e-4);
     fit_adapt_step_free(&s2);
     o.max_points = b.sc.n + 4;
-    CHECK(fit_adapt_plan(&b.sc, &o, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
     CHECK(s2.stop == FIT_ADAPT_GO && s2.n == 4);
     fit_adapt_step_free(&s2);
     fit_adapt_step_free(&s1);
+}
+
+/* The rms over the pixel of the mean-1 map S (F x F) against the mean-1 tilt on its G x G
+ * partition (the truth measure() integrates), both sampled at n x n points. */
+static double rms_vs_tilt(const double *S, int F)
+{
+    const int n = 240;
+    double ms = 0, mt = 0, acc = 0;
+    for (int c = 0; c < F * F; c++) ms += S[c] / (F * F);
+    for (int j = 0; j < G; j++)
+        for (int i = 0; i < G; i++) mt += tilt((i + 0.5) / G, (j + 0.5) / G) / (G * G);
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++) {
+            double u = (i + 0.5) / n, v = (j + 0.5) / n;
+            double d = S[(int)(v * F) * F + (int)(u * F)] / ms -
+                       tilt(((int)(u * G) + 0.5) / G, ((int)(v * G) + 0.5) / G) / mt;
+            acc += d * d;
+        }
+    return sqrt(acc / (n * n));
+}
+
+/* Do two steps hold the same stop, the same batch and the same expected errors, bit for bit? */
+static int same_batch(const fit_adapt_step_t *a, const fit_adapt_step_t *b)
+{
+    return a->stop == b->stop && a->n == b->n &&
+           (a->n == 0 || (!memcmp(a->x_um, b->x_um, sizeof(double) * (size_t)a->n) &&
+                          !memcmp(a->y_um, b->y_um, sizeof(double) * (size_t)a->n))) &&
+           !memcmp(&a->expected_err, &b->expected_err, sizeof(double)) &&
+           !memcmp(&a->predicted_err, &b->predicted_err, sizeof(double));
+}
+
+/* A whole scan of the tilted pixel, the 5 x 5 start then the planner's batches, to its stop; each
+ * plan with the candidates' rows kept from plan to plan (fit_adapt_cache_t) and again without. */
+static void honest_stop(void)
+{
+    static struct scan b;
+    memset(&b, 0, sizeof b);
+    b.sc = (fit_scan_t){0, b.x, b.y, b.sig, P, RAD, BIAS, GAIN, READ, FRAMES,
+                        FIT_FULL_SCALE_DEFAULT};
+    b.seed = 5;
+    double x[25], y[25];
+    int n0 = fit_adapt_start(P, 5, NULL, x, y);
+    CHECK(n0 == 25);
+    for (int k = 0; k < n0; k++) measure(&b, x[k], y[k]);
+    fit_adapt_opts_t o = fit_adapt_opts_default();
+    o.target_err = TILT_TARGET;
+    o.max_points = NMAX;
+    fit_adapt_step_t s, prev = {0}, ref;
+    fit_adapt_cache_t cache = {0};
+    err_t err = {{0}};
+    int plans = 0, met_before = 0, same = 1;
+    for (;;) {
+        CHECK(fit_adapt_plan(&b.sc, &o, plans ? &prev : NULL, &cache, &s, &err) == 0);
+        /* the same plan without the cache: the same batch, bit for bit */
+        CHECK(fit_adapt_plan(&b.sc, &o, plans ? &prev : NULL, NULL, &ref, &err) == 0);
+        same &= same_batch(&s, &ref);
+        fit_adapt_step_free(&ref);
+        plans++;
+        if (s.stop != FIT_ADAPT_GO) break;
+        for (int k = 0; k < s.n; k++) measure(&b, s.x_um[k], s.y_um[k]);
+        met_before = s.target_met;
+        fit_adapt_step_free(&s);
+        prev = s;
+    }
+    double rms = rms_vs_tilt(s.map.S, s.map.grid);
+    fprintf(stderr, "tilt to target %.4f: stopped (%s) at %zu points after %d plans, expected "
+            "error %.4f, against the tilt %.4f\n", TILT_TARGET, fit_adapt_stop_name(s.stop),
+            b.sc.n, plans, s.expected_err, rms);
+    CHECK(s.stop == FIT_ADAPT_TARGET && met_before && plans >= 2);
+    CHECK(rms <= 1.5 * TILT_TARGET);
+    CHECK(same && cache.A && cache.grid == s.map.grid);
+    fit_adapt_step_free(&s);
+    /* other candidates (a coarser lattice): the cache is rebuilt, the batch again the uncached */
+    o.target_err = 1e-4;
+    o.lattice = 20;
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &cache, &s, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &ref, &err) == 0);
+    CHECK(s.n == 9 && same_batch(&s, &ref) && cache.nc == 19 * 19);
+    fit_adapt_step_free(&s);
+    fit_adapt_step_free(&ref);
+    fit_adapt_cache_free(&cache);
+    CHECK(!cache.A && cache.grid == 0);
 }
 
 static void bad_options(void)
@@ -285,15 +394,15 @@ static void bad_options(void)
     err_t err = {{0}};
     fit_adapt_opts_t o = fit_adapt_opts_default();
     o.batch = 0;
-    CHECK(fit_adapt_plan(&b.sc, &o, &s, &err) == -EINVAL && strstr(err.msg, "batch"));
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s, &err) == -EINVAL && strstr(err.msg, "batch"));
     fit_adapt_step_free(&s);
     o = fit_adapt_opts_default();
     o.target_err = 0;
-    CHECK(fit_adapt_plan(&b.sc, &o, &s, &err) == -EINVAL && strstr(err.msg, "target_err"));
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s, &err) == -EINVAL && strstr(err.msg, "target_err"));
     fit_adapt_step_free(&s);
     o = fit_adapt_opts_default();
     o.box_um[0] = 4, o.box_um[1] = 3;
-    CHECK(fit_adapt_plan(&b.sc, &o, &s, &err) == -EINVAL && strstr(err.msg, "box"));
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s, &err) == -EINVAL && strstr(err.msg, "box"));
     fit_adapt_step_free(&s);
 }
 
@@ -302,6 +411,7 @@ int main(void)
     order();
     start_and_candidates();
     planner();
+    honest_stop();
     bad_options();
     CHECK_DONE();
 }

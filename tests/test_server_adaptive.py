@@ -20,6 +20,13 @@
   against 0.038 and 0.039).
 - Progress events of the scan carry phase "adaptive" and the expected error.
 - A cancel (the scan held after 10 points) ends the scan and keeps its points.
+- A target reached early (0.05), the scan killed after 30 points: it resumes and stops on the
+  target (confirmed by the plan one batch later, so after 34 points at least) where the same scan
+  uninterrupted stops, with the same points.
+- The scan list (GET /api/scans) says how each scan takes its points: the strategy as requested
+  with the defaults of docs/api.md filled in (target_err 0.01, max_points 300, batch 9,
+  start_grid 5), {"kind": "raster"} for a raster scan, also when the request named none; the
+  same as each scan's own GET.
 """
 import json
 import math
@@ -118,6 +125,30 @@ def check_refusals(c, d, db, sensor):
     c.ok(400 <= r.status < 500, "target_err 1e999 refused (%d)" % r.status)
     c.eq(db.one("SELECT (SELECT count(*) FROM scans), (SELECT count(*) FROM jobs)"), before,
          "nothing queued by the refused requests")
+
+
+def check_list(c, d, sensor, s1, s2, s3):
+    """Queued behind the held scan s3 (one scan worker), an adaptive scan with every member left
+    to its default, a raster scan naming its strategy and one naming none, all cancelled while
+    queued; then the list's strategies."""
+    req = {"sensor_id": sensor, "poi": {"col": 90, "row": 90}, "raster": {"sub_px": SUB}}
+    s4 = d.post("/api/scans", dict(req, strategy={"kind": "adaptive"})).json()["scan"]["id"]
+    s5 = d.post("/api/scans", dict(req, strategy={"kind": "raster"})).json()["scan"]["id"]
+    s6 = d.post("/api/scans", req).json()["scan"]["id"]
+    for s in (s4, s5, s6):
+        c.status(d.post("/api/scans/%d/cancel" % s), 200, "queued scan %d cancelled" % s)
+    defaults = {"kind": "adaptive", "target_err": 0.01, "max_points": 300, "batch": 9,
+                "start_grid": 5}
+    want = {s1: STRATEGY, s2: STRATEGY, s3: STRATEGY, s4: defaults, s5: {"kind": "raster"},
+            s6: {"kind": "raster"}}
+    page = d.get("/api/scans?limit=1000").json()
+    got = {i["id"]: i.get("strategy") for i in page["items"]}
+    c.eq(got, want, "the list's strategies: as requested, defaults filled in")
+    for s in want:
+        c.eq(d.get("/api/scans/%d" % s).json()["strategy"], want[s], "scan %d's GET agrees" % s)
+    paged = d.get("/api/scans?limit=2&offset=1&state=cancelled").json()["items"]
+    c.eq([(i["id"], i["strategy"]) for i in paged], [(s5, want[s5]), (s4, want[s4])],
+         "a filtered page carries its own scans' strategies")
 
 
 def test(c, t, argv, daemons):
@@ -227,6 +258,7 @@ def test(c, t, argv, daemons):
     s3, j3 = r.json()["scan"]["id"], r.json()["job"]["id"]
     c.ok(d.wait_held("scan.point", j3), "the third scan held after 10 points")
     kept = points(db, s3)[0]
+    check_list(c, d, sensor, s1, s2, s3)
     r = d.post("/api/scans/%d/cancel" % s3)
     c.status(r, 200, "cancelled")
     c.ok(d.wait_job(j3, "cancelled"), "its job cancelled")
@@ -235,7 +267,39 @@ def test(c, t, argv, daemons):
          "the scan cancelled with its 10 points")
     c.eq(points(db, s3)[0], kept, "the points stored before the cancel are kept")
     c.eq(d.get("/api/scans/%d" % s3).json()["strategy"], STRATEGY, "and its strategy")
+    c.eq(d.stop_term(), 0, "ipsd stops cleanly")
+    check_target_resume(c, d, db, sensor)
     db.close()
+
+
+def check_target_resume(c, d, db, sensor):
+    """A target the map reaches early (0.05): killed mid-way through its first batch, the scan
+    resumes, replays its plans and stops on the target where the same scan run uninterrupted
+    does, with the same points; a target counts only when the plan one batch later confirms it,
+    so it stops after one batch at least."""
+    loose = dict(STRATEGY, target_err=0.05)
+    req = dict(scan_request(sensor), poi={"col": 110, "row": 110}, strategy=loose)
+    d.start(failpoints="scan.point=hold@30;scan.point=crash@30")
+    r = d.post("/api/scans", req)
+    s4, j4 = r.json()["scan"]["id"], r.json()["job"]["id"]
+    c.ok(d.wait_held("scan.point", j4), "the loose-target scan held after 30 points")
+    d.release("scan.point", j4)
+    d.wait_exit()
+    d.start()
+    c.ok(d.wait_job(j4, "done"), "the resumed loose-target scan is done")
+    r = d.post("/api/scans", req)
+    s5, j5 = r.json()["scan"]["id"], r.json()["job"]["id"]
+    c.ok(d.wait_job(j5, "done"), "the uninterrupted loose-target scan is done")
+    p4, setup4 = points(db, s4)
+    p5, setup5 = points(db, s5)
+    a4, a5 = setup4["adaptive"], setup5["adaptive"]
+    print("target 0.05: the resumed scan stopped (%s) at %d points, expected error %.4f"
+          % (a4["stop"], len(p4), a4["expected_err"]))
+    c.ok(a4["stop"] == "target" and a4["expected_err"] <= 0.05 and 34 <= len(p4) < 49,
+         "stopped on the target 0.05 after one batch at least: %r, %d points" % (a4, len(p4)))
+    c.eq((a4["stop"], a4["points"], len(p4)), (a5["stop"], a5["points"], len(p5)),
+         "the resumed scan stopped where the uninterrupted one did")
+    c.eq(p4, p5, "with the same positions and values")
     c.eq(d.stop_term(), 0, "ipsd stops cleanly")
 
 

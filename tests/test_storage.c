@@ -1092,6 +1092,20 @@ static void test_pagination(void)
     CHECK(storage_job_list(st, STORAGE_ANY, STORAGE_ANY, ids[0], 0, 0, &jl, NULL) == 0);
     CHECK(jl.total == 2 && jl.n == 2);
     storage_job_list_free(&jl);
+    /* each listed scan carries its newest scan job's params (not a fit job's), NULL without */
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_FIT, "{\"fit\": 1}", ids[0], &id, NULL) == 0);
+    CHECK(storage_scan_list(st, a, STORAGE_ANY, 0, 0, &l, NULL) == 0 && l.n == 5);
+    CHECK(l.items[4].id == ids[0] && l.items[4].job_params &&
+          strcmp(l.items[4].job_params, "[]") == 0);
+    CHECK(!l.items[0].job_params && !l.items[3].job_params);
+    storage_scan_list_free(&l);
+    CHECK(storage_job_enqueue(st, STORAGE_JOB_SCAN, "{\"again\": 2}", ids[0], &id, NULL) == 0);
+    CHECK(storage_scan_list(st, a, STORAGE_ANY, 1, 4, &l, NULL) == 0 && l.n == 1);
+    CHECK(l.items[0].id == ids[0] && l.items[0].job_params &&
+          strcmp(l.items[0].job_params, "{\"again\": 2}") == 0);
+    storage_scan_list_free(&l);
+    CHECK(storage_scan_get(st, ids[0], &sc, NULL) == 0 && !sc.job_params);
+    storage_scan_free(&sc);
     storage_close(st);
 }
 

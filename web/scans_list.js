@@ -103,7 +103,10 @@ export function renderScans(root, ctx) {
         const ev = live.get(sc.id);
         const p = { ...sc, eta_s: ev?.eta_s, phase: ev?.phase };
         return h('tr', { dataset: { scanId: sc.id, state: sc.state, key: rowKey(sc) } },
-            h('td', {}, h('a', { href: `#/scans/${sc.id}` }, `#${sc.id}`)),
+            h('td', {}, h('a', { href: `#/scans/${sc.id}` }, `#${sc.id}`),
+                sc.strategy?.kind === 'adaptive' // how the scan takes its points (docs/api.md)
+                    ? h('span', { class: 'tag adaptive', title: 'adaptive scan' }, 'adaptive')
+                    : null),
             h('td', { class: 'st' }, stateBadge(sc.state)),
             progressCell(p),
             h('td', {}, `(${sc.poi.col}, ${sc.poi.row})`),

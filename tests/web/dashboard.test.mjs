@@ -1240,7 +1240,8 @@ async function runReadClosed(context, base, api, logFile) {
 // box, and the figure holds more points than before (the refresh redrew it).
 // An adaptive scan's Scan view: the geometry figure shows the positions the planner chose, the
 // API's stored positions of the POI in the order taken (GET .../pixels/0/0?all=1), the starting
-// raster apart from the batches, and why the scan stopped (its setup's adaptive member).
+// raster apart from the batches, and why the scan stopped (its setup's adaptive member); the
+// Scans list tags it "adaptive".
 async function checkAdaptiveScan(base, page, api, sensor) {
     const made = await api('POST', '/api/scans', { sensor_id: sensor.id,
         poi: { col: 40, row: 20 }, setup: 'none', raster: { sub_px: 3, frames: 2 },
@@ -1273,6 +1274,13 @@ async function checkAdaptiveScan(base, page, api, sensor) {
     'the summary states the adaptive strategy and its stop instead of a raster', facts);
     await page.locator('[data-testid="scan-geometry"]').scrollIntoViewIfNeeded();
     await page.screenshot({ path: path.join(SHOTS, 'scan-adaptive-1280.png') });
+    // the Scans list tags it, from the list item's strategy, and no raster scan
+    await page.goto(`${base}/#/scans`);
+    const tag = page.locator(`tr[data-scan-id="${id}"] .tag.adaptive`);
+    await tag.waitFor({ timeout: WAIT });
+    const tagged = await page.locator('tr[data-scan-id] .tag.adaptive').count();
+    check(await tag.textContent() === 'adaptive' && tagged === 1,
+        'the scan list tags the adaptive scan, and it alone', `${tagged} tagged`);
 }
 
 async function checkLiveZoom(base, page, api, sensor) {
