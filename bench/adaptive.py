@@ -13,11 +13,13 @@ Per scene family (each with 10 x 10 cells, so that `--truth` holds the scene its
   expected error (the rms of its S_err, E);
 - one adaptive scan (5 x 5 start, batches of 9, no target, up to --max-points): after each batch
   the summary gives the refitted map's expected error and its rms against the truth (the map `ips
-  fit` gives of the same points). Per reference: the points at the first batch whose measured rms
-  is <= e (n_meas: what an oracle would stop at) and whose expected error is <= E (n_exp: what the
-  planner can see, its own stop with the reference's error bar as its target), the measured rms at
-  n_exp, and the adaptive map's rms at the reference's point count (the last batch not past it);
-  the ratio of measured to expected error over every batch;
+  fit` gives of the same points), its recommended r and whether the map kept its smooth part.
+  Per reference: the points at the first batch whose measured rms is <= e (n_meas: what an oracle
+  would stop at) and where the scan itself would stop with the reference's error bar E as its
+  target (n_exp: fit/adapt_plan.h's confirmed stop, from what the summary's batches say: the
+  first batch k >= 1 whose expected error is <= E at k and at k - 1, with the same r and smooth
+  at both), the measured rms at n_exp, and the adaptive map's rms at the reference's point count
+  (the last batch not past it); the ratio of measured to expected error over every batch;
 - the smallest n x n raster of cell centres (n = 4..9, `--grid n --step 6/n`) as good as e9;
 - bench time, modelled from the positions in the order the scan file holds them, starting at the
   pixel's centre: per point one move (settling plus distance over the stage speed) and `frames`
@@ -110,6 +112,7 @@ def measure(ips, scene, light, seed, max_points, peak_default, tmp):
     exp_us = summary["setup"]["exposure_us"]
     rec["batches"] = [{"points": b["points"], "expected": b["expected_err"],
                        "measured": b["rms_err_truth"], "plan_ms": b["plan_ms"],
+                       "r": b["r"], "smooth": b["smooth"],
                        **bench_s(sf["x_um"][:b["points"]], sf["y_um"][:b["points"]],
                                  sf["pitch_um"], sf["frames"], exp_us)} for b in bs]
     rec["cells"] = None  # the smallest n x n raster of cell centres as good as e9
@@ -122,13 +125,20 @@ def measure(ips, scene, light, seed, max_points, peak_default, tmp):
     return rec
 
 
+def confirmed(prev, b, target):
+    """fit/adapt_plan.h's stop at batch b on target: the expected error at or below it at b and
+    at prev (the batch before), with the same recommended r and smooth flag at both."""
+    return (b["expected"] <= target + TOL and prev["expected"] <= target + TOL
+            and b["r"] == prev["r"] and b["smooth"] == prev["smooth"])
+
+
 def derive(rec, n):
     """Per reference n x n: n_meas, n_exp (None: never), the rms at n_exp, the rms at n points,
     bench and planning seconds at n_meas and n_exp."""
     bs = rec["batches"]
     e, E = rec["e%d" % n], rec["E%d" % n]
     bm = next((b for b in bs if b["measured"] <= e + TOL), None)
-    be = next((b for b in bs if b["expected"] <= E + TOL), None)
+    be = next((b for p, b in zip(bs, bs[1:]) if confirmed(p, b, E)), None)
 
     def plan_s(b):
         return sum(c["plan_ms"] for c in bs if c["points"] <= b["points"]) / 1000 if b else None
@@ -174,7 +184,7 @@ def tables(recs, max_points):
     for n, _ in REFS:
         N = n * n
         out.append("\n### Against the %d x %d raster (%d points)\n" % (n, n, N))
-        out.append("| scene | light | e%d (E%d) | n_meas: rms <= e | n_exp: expected <= E | "
+        out.append("| scene | light | e%d (E%d) | n_meas: rms <= e | n_exp: the scan's stop on E | "
                    "rms at n_exp / e | adaptive rms at %d / e | bench s: raster, adaptive at "
                    "n_meas, at n_exp (+ planning) |" % (n, n, N - (N - 25) % 9))
         out.append("|---|---|---|---|---|---|---|---|")
