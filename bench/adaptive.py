@@ -27,7 +27,7 @@ Per scene family (each with 10 x 10 cells, so that `--truth` holds the scene its
   (below); frames and exposure are the scan's own (scan file, simulate summary). The adaptive
   scan's planning (the summary's plan_ms, this machine's CPU) is reported beside it, not in it.
 
-Defaults: the twelve families, light 1 and 0.1, seeds 1-5, 250 points (about 13 minutes on one
+Defaults: the twelve families, light 1 and 0.1, seeds 1-5, 250 points (7-13 minutes on one
 core); --quick: dip, gradient and softedge, seed 1, 180 points (15-30 s). Medians over seeds (a scan
 that never reaches the error counts as more than any that does), each seed in brackets; errors
 below 1e-9 (the uniform scene's exact maps) are "exact". The raw results go to --json FILE, and
