@@ -17,7 +17,9 @@
  *   - software trigger (TriggerSelector FrameStart, TriggerMode On, TriggerSource Software) with
  *     continuous acquisition: one trigger, one frame, exposed after the call that asked for it (a
  *     stage move before it is never in an older frame). A camera without a software trigger is
- *     started and stopped around each frame instead.
+ *     started and stopped around each frame instead;
+ *   - GigE Vision streams on a UDP socket of their own port, never Aravis's AF_PACKET ring (stray
+ *     packets of other traffic read as frames), with a receive buffer that holds a frame's burst.
  * Faults are errors, never hangs: no frame within the timeout (cam_set_timeout; default the
  * exposure plus 5 s) is -ETIMEDOUT; a frame with missing packets, one that timed out in transfer,
  * or whose size, region or format differs from what was set is -EIO; a lost control channel
@@ -28,7 +30,9 @@
  * talk to the camera (10 s of timeouts against one that vanished): its objects are released on a
  * thread of their own (cam_aravis_release.c), waited for before the camera is opened again and
  * when the program ends. A handle is used by one thread at a time. */
+#include <arpa/inet.h>
 #include <arv.h>
+#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
@@ -36,6 +40,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 
 #include "cam_impl.h"
 #include "cam_roi.h"
@@ -317,6 +322,14 @@ static int av_open(const char *id, void **out, err_t *err)
                  "cannot open", err);
         goto out;
     }
+    /* GigE Vision streams on a plain UDP socket. Aravis's packet socket method (taken when the
+     * process may open one: root, CAP_NET_RAW) reads the interface's IP packets through an
+     * AF_PACKET ring and attaches its filter for the stream's port only after binding it: packets
+     * of other traffic on that interface in between are parsed as the camera's, and one may hold
+     * a buffer as a frame that never completes, which then comes out, timed out, before the good
+     * frame the camera sent after it (docs/instrument.md, "Stray packets"). */
+    if (arv_camera_is_gv_device(a->cam))
+        arv_camera_gv_set_stream_options(a->cam, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
     if (!(a->lost = calloc(1, sizeof *a->lost))) {
         rc = err_set(err, -ENOMEM, "out of memory for the camera");
         goto out;
@@ -433,6 +446,35 @@ static void reset(av_t *a)
     a->has_region = 0;
 }
 
+/* A GigE Vision frame arrives as a burst of datagrams, each counted in the stream socket's receive
+ * buffer at about twice its payload: the default buffer (net.core.rmem_default, 208 KiB) holds
+ * about 90 of them, and a 128 KiB frame (94 packets of 1400 bytes) lost its last ones whenever
+ * the stream's thread waited for a core. So the socket asks for four frames, at least 1 MiB, which
+ * the kernel caps at net.core.rmem_max (docs/instrument.md, "Socket buffers"). Aravis sets a size
+ * it is given only when the first packet of a frame is read, after the burst has begun, so the
+ * backend also sets it at once on the socket (Aravis keeps it private: the UDP socket of this
+ * process bound to the stream's port). */
+static void size_socket(ArvGvStream *stream, guint payload)
+{
+    int size = payload < (1u << 18) ? 1 << 20 : (int)MIN(payload, 1u << 28) * 4;
+    g_object_set(stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
+                 size, NULL);
+    guint16 port = arv_gv_stream_get_port(stream);
+    DIR *d = opendir("/proc/self/fd");
+    for (struct dirent *e; d && (e = readdir(d));) {
+        int fd = atoi(e->d_name), type = 0;
+        struct sockaddr_in sa;
+        socklen_t len = sizeof sa, tlen = sizeof type;
+        if (e->d_name[0] != '.' && getsockname(fd, (struct sockaddr *)&sa, &len) == 0 &&
+            sa.sin_family == AF_INET && ntohs(sa.sin_port) == port &&
+            getsockopt(fd, SOL_SOCKET, SO_TYPE, &type, &tlen) == 0 && type == SOCK_DGRAM) {
+            setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &size, sizeof size);
+            break;
+        }
+    }
+    if (d) closedir(d);
+}
+
 /* A camera region holding r: the current one, or a new one set, with a stream for it. */
 static int ensure_region(av_t *a, const cam_roi_t *r, err_t *err)
 {
@@ -480,6 +522,7 @@ static int ensure_region(av_t *a, const cam_roi_t *r, err_t *err)
     if (e) return fail(a, &e, -EIO, "cannot read PayloadSize", err);
     if (!(a->stream = arv_camera_create_stream(a->cam, NULL, NULL, &e)))
         return fail(a, &e, -EIO, "cannot open a stream", err);
+    if (ARV_IS_GV_STREAM(a->stream)) size_socket(ARV_GV_STREAM(a->stream), payload);
     for (int i = 0; i < N_BUFFERS; i++)
         arv_stream_push_buffer(a->stream, arv_buffer_new(payload, NULL));
     a->has_region = 1;

@@ -6,7 +6,8 @@
  * sensor position and the camera's frame id, so every frame ipsd reads is checked pixel for pixel
  * against what the emulator sent. Then: the camera's description (vendor, model, serial,
  * firmware, Mono16 at 16 bits), exposure reaching the camera, one trigger one frame (consecutive
- * frame ids), regions inside the current one reused, and the faults, each an error and never a
+ * frame ids), regions inside the current one reused, the stream on a UDP socket (no AF_PACKET
+ * socket in this process, which Aravis would open when run as root), and the faults, each an error and never a
  * hang: a frame that does not come (-ETIMEDOUT, and the next capture is good), a frame of another
  * size than the region set (-EIO, "size mismatch"), a frame losing packets (-EIO or -ETIMEDOUT), a
  * camera gone (an error with Aravis's words) and back (opened again), and a camera without a
@@ -27,6 +28,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -154,6 +156,42 @@ static int threads_named(const char *name)
     return n;
 }
 
+/* Whether this process may open an AF_PACKET socket (root or CAP_NET_RAW), as Aravis checks
+ * before it streams through one. */
+static int may_open_packet_socket(void)
+{
+    int fd = socket(AF_PACKET, SOCK_RAW, 0);
+    if (fd >= 0) close(fd);
+    return fd >= 0;
+}
+
+/* How many AF_PACKET sockets this process holds: the inodes of /proc/net/packet (its last
+ * column) among the sockets of /proc/self/fd. */
+static int packet_sockets_held(void)
+{
+    FILE *f = fopen("/proc/net/packet", "r");
+    char line[512];
+    int n = 0;
+    if (!f || !fgets(line, sizeof line, f)) { /* the header */
+        if (f) fclose(f);
+        return -1;
+    }
+    while (fgets(line, sizeof line, f)) {
+        char *last = strrchr(line, ' '), want[64], path[300], link[64];
+        snprintf(want, sizeof want, "socket:[%lu]", last ? strtoul(last + 1, NULL, 10) : 0ul);
+        DIR *d = opendir("/proc/self/fd");
+        for (struct dirent *e; d && (e = readdir(d));) {
+            snprintf(path, sizeof path, "/proc/self/fd/%s", e->d_name);
+            ssize_t k = readlink(path, link, sizeof link - 1);
+            if (k > 0) link[k] = '\0';
+            n += k > 0 && strcmp(link, want) == 0;
+        }
+        if (d) closedir(d);
+    }
+    fclose(f);
+    return n;
+}
+
 static double now_s(void)
 {
     struct timespec t;
@@ -212,6 +250,13 @@ int main(void)
     CHECK(frame_is_pattern(&f));
     CHECK(f.exposure_us == 2500 && atomic_load(&seen_exposure_us) == 2500);
     CHECK(f.gain == 1 && f.timestamp_ns > 0);
+    /* the stream reads a UDP socket of its own port, never Aravis's AF_PACKET ring of the whole
+     * interface, which it would take here when the process may open one (docs/instrument.md,
+     * "Stray packets") */
+    CHECK(threads_named("arv_gv_stream") == 1 && packet_sockets_held() == 0);
+    printf("stream socket: UDP (%s)\n", may_open_packet_socket()
+                                            ? "an AF_PACKET ring was open to this process"
+                                            : "this process may not open an AF_PACKET socket");
     CHECK(cam_capture(cam, &roi, &g, &err) == 0 && frame_is_pattern(&g));
     CHECK(g.camera_frame_id == f.camera_frame_id + 1); /* nothing in between: one per trigger */
     cam_frame_free(&g);
