@@ -25,7 +25,9 @@
  * or whose size, region or format differs from what was set is -EIO; a lost control channel
  * (Aravis's control-lost signal, a camera unplugged or switched off) fails every later call with
  * -EIO. After a faulty frame the acquisition and its stream are started anew, so that nothing
- * late of the old one is taken for a later frame. Messages carry Aravis's own words. Closing a
+ * late of the old one is taken for a later frame; the old ones are stopped and released on a
+ * thread of their own, waited for at most 1 s (5 s of Aravis's timeouts when the camera stopped
+ * answering after its trigger). Messages carry Aravis's own words. Closing a
  * camera at fault sends it nothing itself and does not wait for Aravis, whose finalizers still
  * talk to the camera (10 s of timeouts against one that vanished): its objects are released on a
  * thread of their own (cam_aravis_release.c), waited for before the camera is opened again and
@@ -63,6 +65,7 @@ typedef struct av {
     atomic_int *lost; /* Aravis said the control channel is lost (owned by the signal handler:
                          an emission in flight on Aravis's heartbeat thread may still set it) */
     int silent;       /* a command went unanswered: at fault (closing sends the camera nothing) */
+    int releasing;    /* the old stream of a reset is still being released (reset) */
     cam_info_t info;
     const struct mono *fmt;
     ArvPixelFormat pixel_format; /* fmt's code, as frames carry it */
@@ -274,32 +277,34 @@ static int setup_acquisition(av_t *a, err_t *err)
     return 0;
 }
 
-/* The test hook of cam_aravis_release: IPSD_ARAVIS_RELEASE_GATE=FD holds the release of a
- * camera closed at fault until a byte can be read from FD; -1 when not set. */
-static int release_gate(void)
+/* The test hooks of cam_aravis_release: IPSD_ARAVIS_RELEASE_GATE=FD holds the release of a
+ * camera closed at fault, IPSD_ARAVIS_RESET_GATE=FD that of the old stream after a faulty frame
+ * (reset), until a byte can be read from FD; -1 when not set. */
+static int release_gate(const char *name)
 {
-    const char *s = getenv("IPSD_ARAVIS_RELEASE_GATE");
+    const char *s = getenv(name);
     char *end = NULL;
     long fd = s && *s ? strtol(s, &end, 10) : -1;
     return fd >= 0 && fd <= 1 << 20 && *end == '\0' ? (int)fd : -1;
 }
 
-/* A camera at fault (a command unanswered, or the control channel lost) is released in the
- * background at once: every command Aravis's finalizers send it would wait out its timeouts. A
- * healthy one is waited for up to CLOSE_WAIT_S (milliseconds in practice), which bounds the close
- * of a camera that vanished unnoticed too. */
+/* A camera at fault (a command unanswered, the control channel lost, or the release of a reset
+ * still going on) is released in the background at once: every command Aravis's finalizers send
+ * it would wait out its timeouts. A healthy one is waited for up to CLOSE_WAIT_S (milliseconds in
+ * practice), which bounds the close of a camera that vanished unnoticed too. */
 static void av_close(void *impl)
 {
     av_t *a = impl;
     if (!a) return;
-    int fault = a->silent || is_lost(a);
+    int fault = a->silent || is_lost(a) || a->releasing;
     if (a->cam && a->lost_handler) /* frees a->lost once no emission uses it */
         g_signal_handler_disconnect(arv_camera_get_device(a->cam), a->lost_handler);
     else
         free(a->lost); /* never handed to a handler */
     if (a->cam || a->stream)
         cam_aravis_release(a->info.id, a->cam, a->stream, a->acquiring && !fault,
-                           fault ? 0 : CLOSE_WAIT_S, fault ? release_gate() : -1);
+                           fault ? 0 : CLOSE_WAIT_S,
+                           fault ? release_gate("IPSD_ARAVIS_RELEASE_GATE") : -1);
     free(a);
 }
 
@@ -370,6 +375,14 @@ static int av_info(void *impl, cam_info_t *info, err_t *err)
     return 0;
 }
 
+/* Before the camera is used: the release of a reset that outlived its wait has ended. */
+static void settle(av_t *a)
+{
+    if (!a->releasing) return;
+    cam_aravis_release_wait(a->info.id);
+    a->releasing = 0;
+}
+
 static int av_set_exposure(void *impl, double us, err_t *err)
 {
     av_t *a = impl;
@@ -379,6 +392,7 @@ static int av_set_exposure(void *impl, double us, err_t *err)
                        a->info.exposure_min_us, a->info.exposure_max_us);
     int rc = check_lost(a, err);
     if (rc) return rc;
+    settle(a);
     arv_camera_set_exposure_time(a->cam, us, &e);
     if (e) return fail(a, &e, -EIO, "cannot set ExposureTime", err);
     a->exposure_us = arv_camera_get_exposure_time(a->cam, &e); /* on the camera's own steps */
@@ -396,6 +410,7 @@ static int av_set_gain(void *impl, double gain, err_t *err)
                        a->gain_db ? "" : " (its GainRaw has no known unit: only 1, the base gain)");
     int rc = check_lost(a, err);
     if (rc) return rc;
+    settle(a);
     if (arv_camera_is_gain_available(a->cam, NULL)) {
         arv_camera_set_gain(a->cam, a->gain_feature_min + (a->gain_db ? 20 * log10(gain) : 0), &e);
         if (e) return fail(a, &e, -EIO, "cannot set the gain", err);
@@ -439,10 +454,23 @@ static void stop(av_t *a)
 }
 
 /* After a faulty frame: a new acquisition and stream at the next capture, so that nothing of the
- * old one (a frame arriving late) is taken for a later frame. */
+ * old one (a frame arriving late) is taken for a later frame. Stopping the acquisition and
+ * releasing the stream (whose finalizer writes the stream channel's port register) are commands
+ * to the camera: milliseconds when it answers, 5 s of Aravis's timeouts when it stopped answering
+ * after the trigger (docs/instrument.md). So they run on a release thread (cam_aravis_release.c),
+ * waited for at most CLOSE_WAIT_S, and a camera known at fault gets no AcquisitionStop and no
+ * wait. A release that goes on is waited for before the camera is used again (settle): ArvCamera
+ * is not used from two threads at once, and the old stream's port write must not land after a
+ * new stream has set the port. */
 static void reset(av_t *a)
 {
-    stop(a);
+    int fault = a->silent || is_lost(a), halt = a->acquiring && !fault;
+    if ((a->stream || halt) &&
+        !cam_aravis_release(a->info.id, halt ? g_object_ref(a->cam) : NULL, a->stream, halt,
+                            fault ? 0 : CLOSE_WAIT_S, release_gate("IPSD_ARAVIS_RESET_GATE")))
+        a->releasing = 1;
+    a->stream = NULL;
+    a->acquiring = 0;
     a->has_region = 0;
 }
 
@@ -602,7 +630,9 @@ static int av_capture(void *impl, const cam_roi_t *roi, cam_frame_t *f, err_t *e
     av_t *a = impl;
     cam_roi_t r;
     int rc = cam_roi_check(roi, a->info.width, a->info.height, &r, err);
-    if (rc || (rc = check_lost(a, err)) || (rc = ensure_region(a, &r, err))) return rc;
+    if (rc || (rc = check_lost(a, err))) return rc;
+    settle(a);
+    if ((rc = ensure_region(a, &r, err))) return rc;
     ArvBuffer *b = NULL;
     if ((rc = get_frame(a, &b, err))) return rc;
     ArvBufferStatus st = arv_buffer_get_status(b);

@@ -24,6 +24,7 @@
 #include <arv.h>
 #include <dirent.h>
 #include <errno.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -40,6 +41,15 @@
 #define DEVICE_ID "Aravis-Fake-" SERIAL /* Aravis's id: vendor, model, serial */
 
 static atomic_uint seen_exposure_us, fills;
+
+/* The camera going away right after it sent a frame: armed by the test, the emulator's thread
+ * says when it filled the next frame, and a thread of the test then stops the emulator. */
+static struct {
+    pthread_mutex_t mu;
+    pthread_cond_t cond;
+    int armed, filled;
+    ArvGvFakeCamera *gv;
+} vanish = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0, NULL};
 
 /* What the emulator sends at sensor column x, row y in frame fid. */
 static uint16_t pattern(int x, int y, uint64_t fid)
@@ -67,6 +77,23 @@ static void fill(ArvBuffer *buffer, void *data, guint32 exposure_us, guint32 gai
             p[2 * ((size_t)y * w + x) + 1] = (uint8_t)(v >> 8);
         }
     atomic_fetch_add(&fills, 1);
+    pthread_mutex_lock(&vanish.mu);
+    if (vanish.armed) {
+        vanish.filled = 1;
+        pthread_cond_signal(&vanish.cond);
+    }
+    pthread_mutex_unlock(&vanish.mu);
+}
+
+static void *vanish_run(void *unused)
+{
+    (void)unused;
+    pthread_mutex_lock(&vanish.mu);
+    while (!vanish.filled)
+        pthread_cond_wait(&vanish.cond, &vanish.mu);
+    pthread_mutex_unlock(&vanish.mu);
+    g_object_unref(vanish.gv); /* its thread joined, its sockets closed: the camera is gone */
+    return NULL;
 }
 
 static ArvGvFakeCamera *emulator(const char *genicam)
@@ -199,9 +226,97 @@ static double now_s(void)
     return t.tv_sec + t.tv_nsec * 1e-9;
 }
 
-int main(void)
+/* test_cam_aravis --reset: the reset after a frame that did not come (instrument/cam_aravis.c,
+ * reset) stops the acquisition and releases the old stream on a thread of its own, and the
+ * capture waits for it a bounded time. Shown by a test hook, not by the clock: with
+ * IPSD_ARAVIS_RESET_GATE=FD set (for this whole process: every reset in it is held), that
+ * release first reads a byte from FD, so the capture returns while it is held, with the old
+ * stream's thread still there. Then: let go, the next capture waits for it and gets a good frame
+ * on a new stream; and the camera gone right after its trigger, whose release (AcquisitionStop
+ * and the stream's port write, each waiting out Aravis's timeouts) goes on in the background
+ * while the capture has returned. The times are printed as figures. */
+static int reset_case(void)
+{
+    int gate[2];
+    char gate_fd[16];
+    CHECK(pipe(gate) == 0);
+    snprintf(gate_fd, sizeof gate_fd, "%d", gate[0]);
+    setenv("IPSD_ARAVIS_RESET_GATE", gate_fd, 1); /* before any thread runs */
+    err_t err = {{0}};
+    cam_t *cam = NULL;
+    cam_frame_t f = {0};
+    ArvGvFakeCamera *gv = emulator(NULL);
+    cam_roi_t roi = {1000, 1200, 9, 9};
+    CHECK(cam_open("aravis", DEVICE_ID, &cam, &err) == 0 && cam != NULL);
+    if (!cam) {
+        fprintf(stderr, "%s\n", err.msg);
+        CHECK_DONE();
+    }
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f));
+    cam_frame_free(&f);
+    CHECK(threads_named("arv_gv_stream") == 1);
+
+    /* ---- a frame that does not come: the capture returns, its reset's release held ---- */
+    CHECK(cam_set_timeout(cam, 0.3, &err) == 0);
+    g_object_set(gv, "gvsp-lost-ratio", 1.0, NULL);
+    double t0 = now_s();
+    int rc = cam_capture(cam, &roi, &f, &err);
+    double late_s = now_s() - t0 - 0.3;
+    CHECK(rc == -ETIMEDOUT && strstr(err.msg, "no frame within 0.3 s"));
+    /* the release thread names itself once it runs: polled for (held, it cannot end) */
+    while (!threads_named("ipsd-arv-close") && now_s() < t0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 1 && threads_named("arv_gv_stream") == 1);
+    printf("a frame timed out with its reset held: the capture returned %.3f s after its "
+           "timeout\n", late_s);
+    /* let go: the next capture waits for that release, then sets up a new stream */
+    g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
+    CHECK(cam_set_timeout(cam, 0, &err) == 0);
+    CHECK(write(gate[1], "r", 1) == 1);
+    rc = cam_capture(cam, &roi, &f, &err);
+    if (rc) fprintf(stderr, "after the reset: %s\n", err.msg);
+    CHECK(rc == 0 && frame_is_pattern(&f));
+    cam_frame_free(&f);
+    CHECK(threads_named("ipsd-arv-close") == 0 && threads_named("arv_gv_stream") == 1);
+
+    /* ---- the camera gone right after its trigger: the capture returns, the release goes on ---- */
+    pthread_t vanisher;
+    vanish.gv = gv;
+    pthread_mutex_lock(&vanish.mu);
+    vanish.armed = 1;
+    pthread_mutex_unlock(&vanish.mu);
+    CHECK(pthread_create(&vanisher, NULL, vanish_run, NULL) == 0);
+    CHECK(cam_set_timeout(cam, 0.3, &err) == 0);
+    g_object_set(gv, "gvsp-lost-ratio", 1.0, NULL);
+    t0 = now_s();
+    rc = cam_capture(cam, &roi, &f, &err);
+    late_s = now_s() - t0 - 0.3;
+    CHECK(rc == -ETIMEDOUT && f.dn == NULL);
+    CHECK(pthread_join(vanisher, NULL) == 0); /* the camera is gone before its release runs */
+    while (!threads_named("ipsd-arv-close") && now_s() < t0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 1 && threads_named("arv_gv_stream") == 1);
+    printf("the camera gone after its trigger: the capture returned %.3f s after its timeout\n",
+           late_s);
+    CHECK(write(gate[1], "r", 1) == 1);
+    double r0 = now_s();
+    while ((threads_named("ipsd-arv-close") || threads_named("arv_gv_stream")) && now_s() < r0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 0 && threads_named("arv_gv_stream") == 0);
+    printf("its reset (AcquisitionStop, the stream released) took %.2f s in the background\n",
+           now_s() - r0);
+    double c0 = now_s();
+    cam_close(cam); /* at fault: sends nothing, waits for nothing */
+    printf("closed in %.3f s\n", now_s() - c0);
+    close(gate[0]);
+    close(gate[1]);
+    CHECK_DONE();
+}
+
+int main(int argc, char **argv)
 {
     if (gige_lock() != 0) return 1; /* another test's emulator would take our commands */
+    if (argc > 1 && strcmp(argv[1], "--reset") == 0) return reset_case();
     double t0 = now_s();
     /* the backend's test gate: a release of a camera closed at fault waits for a byte of it (set
      * before any thread runs: the backend reads it at each close) */
@@ -275,7 +390,10 @@ int main(void)
     /* ---- a frame that does not come (every packet lost): -ETIMEDOUT, then good frames ---- */
     CHECK(cam_set_timeout(cam, 0.3, &err) == 0);
     g_object_set(gv, "gvsp-lost-ratio", 1.0, NULL);
+    double l0 = now_s();
     CHECK(cam_capture(cam, &roi, &f, &err) == -ETIMEDOUT && f.dn == NULL);
+    printf("a frame lost: the capture returned %.3f s after its timeout (with its reset)\n",
+           now_s() - l0 - 0.3);
     CHECK(strstr(err.msg, DEVICE_ID) && strstr(err.msg, "no frame within 0.3 s"));
     g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
     CHECK(cam_set_timeout(cam, 0, &err) == 0);
