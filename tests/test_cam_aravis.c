@@ -24,6 +24,7 @@
 #include <arv.h>
 #include <dirent.h>
 #include <errno.h>
+#include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -313,10 +314,78 @@ static int reset_case(void)
     CHECK_DONE();
 }
 
+/* test_cam_aravis --lost-loop N [--size S]: not a test (ctest does not run it) but the figures of
+ * docs/instrument.md ("Stray packets", "Socket buffers", "The reset after a faulty frame"): N
+ * times on one camera a good frame, a frame whose packets are all lost (or half of them, with
+ * --half), and a good frame again, in an S x S region (9 by default; 256: ~90 packets a frame).
+ * Prints how many frames failed and how long the faulty frame's capture took after its timeout
+ * (its reset). Run it with busy loops on the cores, and other loopback traffic for the first. */
+static int lost_loop(int n, int size, double lost)
+{
+    err_t err = {{0}};
+    cam_t *cam = NULL;
+    cam_frame_t f = {0};
+    ArvGvFakeCamera *gv = emulator(NULL);
+    cam_roi_t roi = size > 9 ? (cam_roi_t){0, 0, size, size} : (cam_roi_t){1000, 1200, 9, 9};
+    double timeout_s = size > 9 ? 2 : 0.3, sum_s = 0, max_s = 0;
+    int before = 0, faulty = 0, after = 0, timeouts = 0;
+    if (cam_open("aravis", DEVICE_ID, &cam, &err) != 0) {
+        fprintf(stderr, "%s\n", err.msg);
+        return 1;
+    }
+    for (int i = 0; i < n; i++) {
+        cam_set_timeout(cam, 0, &err);
+        if (cam_capture(cam, &roi, &f, &err) || !frame_is_pattern(&f)) {
+            printf("run %d, the frame before: %s\n", i, err.msg);
+            before++;
+        }
+        cam_frame_free(&f);
+        cam_set_timeout(cam, timeout_s, &err);
+        g_object_set(gv, "gvsp-lost-ratio", lost, NULL);
+        double t0 = now_s();
+        int rc = cam_capture(cam, &roi, &f, &err);
+        double late_s = now_s() - t0 - timeout_s;
+        if (rc == -ETIMEDOUT) {
+            timeouts++;
+            sum_s += late_s;
+            max_s = late_s > max_s ? late_s : max_s;
+        }
+        if (!(rc == -ETIMEDOUT || (lost < 1 && rc == -EIO))) {
+            printf("run %d, the faulty frame: %d %s\n", i, rc, rc ? err.msg : "");
+            faulty++;
+        }
+        cam_frame_free(&f);
+        g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
+        cam_set_timeout(cam, 0, &err);
+        if (cam_capture(cam, &roi, &f, &err) || !frame_is_pattern(&f)) {
+            printf("run %d, the frame after: %s\n", i, err.msg);
+            after++;
+        }
+        cam_frame_free(&f);
+    }
+    printf("%d runs of %dx%d, %.0f %% of the packets lost: %d failed at the frame after, %d at the "
+           "frame before, %d faulty frames not an error; a timed-out capture returned %.4f s after "
+           "its timeout on average (longest %.4f s)\n",
+           n, roi.width, roi.height, lost * 100, after, before, faulty,
+           timeouts ? sum_s / timeouts : NAN, max_s);
+    cam_close(cam);
+    g_object_unref(gv);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     if (gige_lock() != 0) return 1; /* another test's emulator would take our commands */
     if (argc > 1 && strcmp(argv[1], "--reset") == 0) return reset_case();
+    if (argc > 2 && strcmp(argv[1], "--lost-loop") == 0) {
+        int size = 9;
+        double lost = 1;
+        for (int i = 3; i < argc; i++) {
+            if (strcmp(argv[i], "--size") == 0 && i + 1 < argc) size = atoi(argv[++i]);
+            if (strcmp(argv[i], "--half") == 0) lost = 0.5;
+        }
+        return lost_loop(atoi(argv[2]), size < 9 ? 9 : size > 1024 ? 1024 : size, lost);
+    }
     double t0 = now_s();
     /* the backend's test gate: a release of a camera closed at fault waits for a byte of it (set
      * before any thread runs: the backend reads it at each close) */
