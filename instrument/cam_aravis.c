@@ -17,18 +17,24 @@
  *   - software trigger (TriggerSelector FrameStart, TriggerMode On, TriggerSource Software) with
  *     continuous acquisition: one trigger, one frame, exposed after the call that asked for it (a
  *     stage move before it is never in an older frame). A camera without a software trigger is
- *     started and stopped around each frame instead.
+ *     started and stopped around each frame instead;
+ *   - GigE Vision streams on a UDP socket of their own port, never Aravis's AF_PACKET ring (stray
+ *     packets of other traffic read as frames), with a receive buffer that holds a frame's burst.
  * Faults are errors, never hangs: no frame within the timeout (cam_set_timeout; default the
  * exposure plus 5 s) is -ETIMEDOUT; a frame with missing packets, one that timed out in transfer,
  * or whose size, region or format differs from what was set is -EIO; a lost control channel
  * (Aravis's control-lost signal, a camera unplugged or switched off) fails every later call with
  * -EIO. After a faulty frame the acquisition and its stream are started anew, so that nothing
- * late of the old one is taken for a later frame. Messages carry Aravis's own words. Closing a
+ * late of the old one is taken for a later frame; the old ones are stopped and released on a
+ * thread of their own, waited for at most 1 s (5 s of Aravis's timeouts when the camera stopped
+ * answering after its trigger). Messages carry Aravis's own words. Closing a
  * camera at fault sends it nothing itself and does not wait for Aravis, whose finalizers still
  * talk to the camera (10 s of timeouts against one that vanished): its objects are released on a
  * thread of their own (cam_aravis_release.c), waited for before the camera is opened again and
  * when the program ends. A handle is used by one thread at a time. */
+#include <arpa/inet.h>
 #include <arv.h>
+#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
@@ -36,6 +42,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 
 #include "cam_impl.h"
 #include "cam_roi.h"
@@ -58,6 +65,7 @@ typedef struct av {
     atomic_int *lost; /* Aravis said the control channel is lost (owned by the signal handler:
                          an emission in flight on Aravis's heartbeat thread may still set it) */
     int silent;       /* a command went unanswered: at fault (closing sends the camera nothing) */
+    int releasing;    /* the old stream of a reset is still being released (reset) */
     cam_info_t info;
     const struct mono *fmt;
     ArvPixelFormat pixel_format; /* fmt's code, as frames carry it */
@@ -269,32 +277,34 @@ static int setup_acquisition(av_t *a, err_t *err)
     return 0;
 }
 
-/* The test hook of cam_aravis_release: IPSD_ARAVIS_RELEASE_GATE=FD holds the release of a
- * camera closed at fault until a byte can be read from FD; -1 when not set. */
-static int release_gate(void)
+/* The test hooks of cam_aravis_release: IPSD_ARAVIS_RELEASE_GATE=FD holds the release of a
+ * camera closed at fault, IPSD_ARAVIS_RESET_GATE=FD that of the old stream after a faulty frame
+ * (reset), until a byte can be read from FD; -1 when not set. */
+static int release_gate(const char *name)
 {
-    const char *s = getenv("IPSD_ARAVIS_RELEASE_GATE");
+    const char *s = getenv(name);
     char *end = NULL;
     long fd = s && *s ? strtol(s, &end, 10) : -1;
     return fd >= 0 && fd <= 1 << 20 && *end == '\0' ? (int)fd : -1;
 }
 
-/* A camera at fault (a command unanswered, or the control channel lost) is released in the
- * background at once: every command Aravis's finalizers send it would wait out its timeouts. A
- * healthy one is waited for up to CLOSE_WAIT_S (milliseconds in practice), which bounds the close
- * of a camera that vanished unnoticed too. */
+/* A camera at fault (a command unanswered, the control channel lost, or the release of a reset
+ * still going on) is released in the background at once: every command Aravis's finalizers send
+ * it would wait out its timeouts. A healthy one is waited for up to CLOSE_WAIT_S (milliseconds in
+ * practice), which bounds the close of a camera that vanished unnoticed too. */
 static void av_close(void *impl)
 {
     av_t *a = impl;
     if (!a) return;
-    int fault = a->silent || is_lost(a);
+    int fault = a->silent || is_lost(a) || a->releasing;
     if (a->cam && a->lost_handler) /* frees a->lost once no emission uses it */
         g_signal_handler_disconnect(arv_camera_get_device(a->cam), a->lost_handler);
     else
         free(a->lost); /* never handed to a handler */
     if (a->cam || a->stream)
         cam_aravis_release(a->info.id, a->cam, a->stream, a->acquiring && !fault,
-                           fault ? 0 : CLOSE_WAIT_S, fault ? release_gate() : -1);
+                           fault ? 0 : CLOSE_WAIT_S,
+                           fault ? release_gate("IPSD_ARAVIS_RELEASE_GATE") : -1);
     free(a);
 }
 
@@ -317,6 +327,14 @@ static int av_open(const char *id, void **out, err_t *err)
                  "cannot open", err);
         goto out;
     }
+    /* GigE Vision streams on a plain UDP socket. Aravis's packet socket method (taken when the
+     * process may open one: root, CAP_NET_RAW) reads the interface's IP packets through an
+     * AF_PACKET ring and attaches its filter for the stream's port only after binding it: packets
+     * of other traffic on that interface in between are parsed as the camera's, and one may hold
+     * a buffer as a frame that never completes, which then comes out, timed out, before the good
+     * frame the camera sent after it (docs/instrument.md, "Stray packets"). */
+    if (arv_camera_is_gv_device(a->cam))
+        arv_camera_gv_set_stream_options(a->cam, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
     if (!(a->lost = calloc(1, sizeof *a->lost))) {
         rc = err_set(err, -ENOMEM, "out of memory for the camera");
         goto out;
@@ -357,6 +375,14 @@ static int av_info(void *impl, cam_info_t *info, err_t *err)
     return 0;
 }
 
+/* Before the camera is used: the release of a reset that outlived its wait has ended. */
+static void settle(av_t *a)
+{
+    if (!a->releasing) return;
+    cam_aravis_release_wait(a->info.id);
+    a->releasing = 0;
+}
+
 static int av_set_exposure(void *impl, double us, err_t *err)
 {
     av_t *a = impl;
@@ -366,6 +392,7 @@ static int av_set_exposure(void *impl, double us, err_t *err)
                        a->info.exposure_min_us, a->info.exposure_max_us);
     int rc = check_lost(a, err);
     if (rc) return rc;
+    settle(a);
     arv_camera_set_exposure_time(a->cam, us, &e);
     if (e) return fail(a, &e, -EIO, "cannot set ExposureTime", err);
     a->exposure_us = arv_camera_get_exposure_time(a->cam, &e); /* on the camera's own steps */
@@ -383,6 +410,7 @@ static int av_set_gain(void *impl, double gain, err_t *err)
                        a->gain_db ? "" : " (its GainRaw has no known unit: only 1, the base gain)");
     int rc = check_lost(a, err);
     if (rc) return rc;
+    settle(a);
     if (arv_camera_is_gain_available(a->cam, NULL)) {
         arv_camera_set_gain(a->cam, a->gain_feature_min + (a->gain_db ? 20 * log10(gain) : 0), &e);
         if (e) return fail(a, &e, -EIO, "cannot set the gain", err);
@@ -426,11 +454,53 @@ static void stop(av_t *a)
 }
 
 /* After a faulty frame: a new acquisition and stream at the next capture, so that nothing of the
- * old one (a frame arriving late) is taken for a later frame. */
+ * old one (a frame arriving late) is taken for a later frame. Stopping the acquisition and
+ * releasing the stream (whose finalizer writes the stream channel's port register) are commands
+ * to the camera: milliseconds when it answers, 5 s of Aravis's timeouts when it stopped answering
+ * after the trigger (docs/instrument.md). So they run on a release thread (cam_aravis_release.c),
+ * waited for at most CLOSE_WAIT_S, and a camera known at fault gets no AcquisitionStop and no
+ * wait. A release that goes on is waited for before the camera is used again (settle): ArvCamera
+ * is not used from two threads at once, and the old stream's port write must not land after a
+ * new stream has set the port. */
 static void reset(av_t *a)
 {
-    stop(a);
+    int fault = a->silent || is_lost(a), halt = a->acquiring && !fault;
+    if ((a->stream || halt) &&
+        !cam_aravis_release(a->info.id, halt ? g_object_ref(a->cam) : NULL, a->stream, halt,
+                            fault ? 0 : CLOSE_WAIT_S, release_gate("IPSD_ARAVIS_RESET_GATE")))
+        a->releasing = 1;
+    a->stream = NULL;
+    a->acquiring = 0;
     a->has_region = 0;
+}
+
+/* A GigE Vision frame arrives as a burst of datagrams, each counted in the stream socket's receive
+ * buffer at about twice its payload: the default buffer (net.core.rmem_default, 208 KiB) holds
+ * about 90 of them, and a 128 KiB frame (94 packets of 1400 bytes) lost its last ones whenever
+ * the stream's thread waited for a core. So the socket asks for four frames, at least 1 MiB, which
+ * the kernel caps at net.core.rmem_max (docs/instrument.md, "Socket buffers"). Aravis sets a size
+ * it is given only when the first packet of a frame is read, after the burst has begun, so the
+ * backend also sets it at once on the socket (Aravis keeps it private: the UDP socket of this
+ * process bound to the stream's port). */
+static void size_socket(ArvGvStream *stream, guint payload)
+{
+    int size = payload < (1u << 18) ? 1 << 20 : (int)MIN(payload, 1u << 28) * 4;
+    g_object_set(stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
+                 size, NULL);
+    guint16 port = arv_gv_stream_get_port(stream);
+    DIR *d = opendir("/proc/self/fd");
+    for (struct dirent *e; d && (e = readdir(d));) {
+        int fd = atoi(e->d_name), type = 0;
+        struct sockaddr_in sa;
+        socklen_t len = sizeof sa, tlen = sizeof type;
+        if (e->d_name[0] != '.' && getsockname(fd, (struct sockaddr *)&sa, &len) == 0 &&
+            sa.sin_family == AF_INET && ntohs(sa.sin_port) == port &&
+            getsockopt(fd, SOL_SOCKET, SO_TYPE, &type, &tlen) == 0 && type == SOCK_DGRAM) {
+            setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &size, sizeof size);
+            break;
+        }
+    }
+    if (d) closedir(d);
 }
 
 /* A camera region holding r: the current one, or a new one set, with a stream for it. */
@@ -480,6 +550,7 @@ static int ensure_region(av_t *a, const cam_roi_t *r, err_t *err)
     if (e) return fail(a, &e, -EIO, "cannot read PayloadSize", err);
     if (!(a->stream = arv_camera_create_stream(a->cam, NULL, NULL, &e)))
         return fail(a, &e, -EIO, "cannot open a stream", err);
+    if (ARV_IS_GV_STREAM(a->stream)) size_socket(ARV_GV_STREAM(a->stream), payload);
     for (int i = 0; i < N_BUFFERS; i++)
         arv_stream_push_buffer(a->stream, arv_buffer_new(payload, NULL));
     a->has_region = 1;
@@ -559,7 +630,9 @@ static int av_capture(void *impl, const cam_roi_t *roi, cam_frame_t *f, err_t *e
     av_t *a = impl;
     cam_roi_t r;
     int rc = cam_roi_check(roi, a->info.width, a->info.height, &r, err);
-    if (rc || (rc = check_lost(a, err)) || (rc = ensure_region(a, &r, err))) return rc;
+    if (rc || (rc = check_lost(a, err))) return rc;
+    settle(a);
+    if ((rc = ensure_region(a, &r, err))) return rc;
     ArvBuffer *b = NULL;
     if ((rc = get_frame(a, &b, err))) return rc;
     ArvBufferStatus st = arv_buffer_get_status(b);

@@ -61,14 +61,14 @@ static void reap(void)
     }
 }
 
-void cam_aravis_release(const char *id, ArvCamera *cam, ArvStream *stream, int stop, double wait_s,
-                        int gate_fd)
+int cam_aravis_release(const char *id, ArvCamera *cam, ArvStream *stream, int stop, double wait_s,
+                       int gate_fd)
 {
     struct release *r = calloc(1, sizeof *r);
     if (!r) { /* out of memory: released here, waiting as long as it takes */
         struct release here = {.cam = cam, .stream = stream, .stop = stop};
         release_objects(&here);
-        return;
+        return 1;
     }
     snprintf(r->id, sizeof r->id, "%s", id ? id : "");
     r->cam = cam;
@@ -83,7 +83,7 @@ void cam_aravis_release(const char *id, ArvCamera *cam, ArvStream *stream, int s
         r->gate_fd = -1;
         release_objects(r); /* no thread: here */
         free(r);
-        return;
+        return 1;
     }
     r->next = pending;
     pending = r;
@@ -91,9 +91,11 @@ void cam_aravis_release(const char *id, ArvCamera *cam, ArvStream *stream, int s
     gint64 end_us = g_get_monotonic_time() + (gint64)(wait_s * 1e6);
     while (!r->done && wait_s > 0 && g_cond_wait_until(&ended, &mu, end_us))
         ;
+    int done = r->done;
     r->waited = 0;
-    reap();
+    reap(); /* r is freed here when done */
     g_mutex_unlock(&mu);
+    return done;
 }
 
 void cam_aravis_release_wait(const char *id)

@@ -1,6 +1,7 @@
 /* cam_aravis_release.h (internal to instrument/, the aravis module): releasing what an opened
  * camera holds in Aravis (its ArvCamera and ArvStream) on a thread of its own, so that closing a
- * camera that stopped answering does not wait out Aravis's commands to it.
+ * camera that stopped answering does not wait out Aravis's commands to it; and the old stream of
+ * a reset after a faulty frame, with its AcquisitionStop, for the same reason.
  *
  * Why: Aravis 0.8's finalizers talk to the camera and cannot be told not to. Unreferencing a GigE
  * Vision stream writes its channel's port register to 0; unreferencing the device joins its
@@ -19,12 +20,13 @@
 #include <arv.h>
 
 /* Releases cam and stream (either may be NULL; both references are taken over), sending
- * AcquisitionStop first when stop is set. The caller waits for it at most wait_s seconds (0: not
- * at all); a release that takes longer goes on in the background. gate_fd >= 0 (a test hook): the
- * release first reads one byte from it, so that a test holds it until it writes one. id names the
- * camera (cam_info_t's id) for cam_aravis_release_wait. */
-void cam_aravis_release(const char *id, ArvCamera *cam, ArvStream *stream, int stop, double wait_s,
-                        int gate_fd);
+ * AcquisitionStop first when stop is set (cam must then be given). The caller waits for it at
+ * most wait_s seconds (0: not at all); a release that takes longer goes on in the background.
+ * gate_fd >= 0 (a test hook): the release first reads one byte from it, so that a test holds it
+ * until it writes one. id names the camera (cam_info_t's id) for cam_aravis_release_wait.
+ * Returns 1 when the release ended within the wait, 0 when it goes on. */
+int cam_aravis_release(const char *id, ArvCamera *cam, ArvStream *stream, int stop, double wait_s,
+                       int gate_fd);
 
 /* Waits until no release of camera id (NULL: of any camera) is running, and joins the threads of
  * those that ended. */

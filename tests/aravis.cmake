@@ -11,6 +11,11 @@ if(TARGET ipscam_aravis)
     # a camera that goes away costs Aravis's control timeouts: ~20 s, most of it waiting (its
     # release in the background, which the test waits for, and a capture's unanswered trigger)
     set_tests_properties(test_cam_aravis PROPERTIES TIMEOUT 120 RESOURCE_LOCK gige_emulator)
+    # the reset after a frame that did not come, its release held at a test hook: ~20 s, most of
+    # it Aravis's timeouts against the camera gone (its release, then its close's)
+    add_test(NAME test_cam_aravis_reset COMMAND test_cam_aravis --reset
+             WORKING_DIRECTORY ${IPSD_TEST_DATA})
+    set_tests_properties(test_cam_aravis_reset PROPERTIES TIMEOUT 120 RESOURCE_LOCK gige_emulator)
 
     add_executable(arv_emulator arv_emulator.c)
     target_link_libraries(arv_emulator PRIVATE ipsinstr PkgConfig::ARAVIS_TEST)

@@ -6,7 +6,8 @@
  * sensor position and the camera's frame id, so every frame ipsd reads is checked pixel for pixel
  * against what the emulator sent. Then: the camera's description (vendor, model, serial,
  * firmware, Mono16 at 16 bits), exposure reaching the camera, one trigger one frame (consecutive
- * frame ids), regions inside the current one reused, and the faults, each an error and never a
+ * frame ids), regions inside the current one reused, the stream on a UDP socket (no AF_PACKET
+ * socket in this process, which Aravis would open when run as root), and the faults, each an error and never a
  * hang: a frame that does not come (-ETIMEDOUT, and the next capture is good), a frame of another
  * size than the region set (-EIO, "size mismatch"), a frame losing packets (-EIO or -ETIMEDOUT), a
  * camera gone (an error with Aravis's words) and back (opened again), and a camera without a
@@ -23,10 +24,13 @@
 #include <arv.h>
 #include <dirent.h>
 #include <errno.h>
+#include <math.h>
+#include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -38,6 +42,15 @@
 #define DEVICE_ID "Aravis-Fake-" SERIAL /* Aravis's id: vendor, model, serial */
 
 static atomic_uint seen_exposure_us, fills;
+
+/* The camera going away right after it sent a frame: armed by the test, the emulator's thread
+ * says when it filled the next frame, and a thread of the test then stops the emulator. */
+static struct {
+    pthread_mutex_t mu;
+    pthread_cond_t cond;
+    int armed, filled;
+    ArvGvFakeCamera *gv;
+} vanish = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_COND_INITIALIZER, 0, 0, NULL};
 
 /* What the emulator sends at sensor column x, row y in frame fid. */
 static uint16_t pattern(int x, int y, uint64_t fid)
@@ -65,6 +78,23 @@ static void fill(ArvBuffer *buffer, void *data, guint32 exposure_us, guint32 gai
             p[2 * ((size_t)y * w + x) + 1] = (uint8_t)(v >> 8);
         }
     atomic_fetch_add(&fills, 1);
+    pthread_mutex_lock(&vanish.mu);
+    if (vanish.armed) {
+        vanish.filled = 1;
+        pthread_cond_signal(&vanish.cond);
+    }
+    pthread_mutex_unlock(&vanish.mu);
+}
+
+static void *vanish_run(void *unused)
+{
+    (void)unused;
+    pthread_mutex_lock(&vanish.mu);
+    while (!vanish.filled)
+        pthread_cond_wait(&vanish.cond, &vanish.mu);
+    pthread_mutex_unlock(&vanish.mu);
+    g_object_unref(vanish.gv); /* its thread joined, its sockets closed: the camera is gone */
+    return NULL;
 }
 
 static ArvGvFakeCamera *emulator(const char *genicam)
@@ -154,6 +184,42 @@ static int threads_named(const char *name)
     return n;
 }
 
+/* Whether this process may open an AF_PACKET socket (root or CAP_NET_RAW), as Aravis checks
+ * before it streams through one. */
+static int may_open_packet_socket(void)
+{
+    int fd = socket(AF_PACKET, SOCK_RAW, 0);
+    if (fd >= 0) close(fd);
+    return fd >= 0;
+}
+
+/* How many AF_PACKET sockets this process holds: the inodes of /proc/net/packet (its last
+ * column) among the sockets of /proc/self/fd. */
+static int packet_sockets_held(void)
+{
+    FILE *f = fopen("/proc/net/packet", "r");
+    char line[512];
+    int n = 0;
+    if (!f || !fgets(line, sizeof line, f)) { /* the header */
+        if (f) fclose(f);
+        return -1;
+    }
+    while (fgets(line, sizeof line, f)) {
+        char *last = strrchr(line, ' '), want[64], path[300], link[64];
+        snprintf(want, sizeof want, "socket:[%lu]", last ? strtoul(last + 1, NULL, 10) : 0ul);
+        DIR *d = opendir("/proc/self/fd");
+        for (struct dirent *e; d && (e = readdir(d));) {
+            snprintf(path, sizeof path, "/proc/self/fd/%s", e->d_name);
+            ssize_t k = readlink(path, link, sizeof link - 1);
+            if (k > 0) link[k] = '\0';
+            n += k > 0 && strcmp(link, want) == 0;
+        }
+        if (d) closedir(d);
+    }
+    fclose(f);
+    return n;
+}
+
 static double now_s(void)
 {
     struct timespec t;
@@ -161,9 +227,165 @@ static double now_s(void)
     return t.tv_sec + t.tv_nsec * 1e-9;
 }
 
-int main(void)
+/* test_cam_aravis --reset: the reset after a frame that did not come (instrument/cam_aravis.c,
+ * reset) stops the acquisition and releases the old stream on a thread of its own, and the
+ * capture waits for it a bounded time. Shown by a test hook, not by the clock: with
+ * IPSD_ARAVIS_RESET_GATE=FD set (for this whole process: every reset in it is held), that
+ * release first reads a byte from FD, so the capture returns while it is held, with the old
+ * stream's thread still there. Then: let go, the next capture waits for it and gets a good frame
+ * on a new stream; and the camera gone right after its trigger, whose release (AcquisitionStop
+ * and the stream's port write, each waiting out Aravis's timeouts) goes on in the background
+ * while the capture has returned. The times are printed as figures. */
+static int reset_case(void)
+{
+    int gate[2];
+    char gate_fd[16];
+    CHECK(pipe(gate) == 0);
+    snprintf(gate_fd, sizeof gate_fd, "%d", gate[0]);
+    setenv("IPSD_ARAVIS_RESET_GATE", gate_fd, 1); /* before any thread runs */
+    err_t err = {{0}};
+    cam_t *cam = NULL;
+    cam_frame_t f = {0};
+    ArvGvFakeCamera *gv = emulator(NULL);
+    cam_roi_t roi = {1000, 1200, 9, 9};
+    CHECK(cam_open("aravis", DEVICE_ID, &cam, &err) == 0 && cam != NULL);
+    if (!cam) {
+        fprintf(stderr, "%s\n", err.msg);
+        CHECK_DONE();
+    }
+    CHECK(cam_capture(cam, &roi, &f, &err) == 0 && frame_is_pattern(&f));
+    cam_frame_free(&f);
+    CHECK(threads_named("arv_gv_stream") == 1);
+
+    /* ---- a frame that does not come: the capture returns, its reset's release held ---- */
+    CHECK(cam_set_timeout(cam, 0.3, &err) == 0);
+    g_object_set(gv, "gvsp-lost-ratio", 1.0, NULL);
+    double t0 = now_s();
+    int rc = cam_capture(cam, &roi, &f, &err);
+    double late_s = now_s() - t0 - 0.3;
+    CHECK(rc == -ETIMEDOUT && strstr(err.msg, "no frame within 0.3 s"));
+    /* the release thread names itself once it runs: polled for (held, it cannot end) */
+    while (!threads_named("ipsd-arv-close") && now_s() < t0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 1 && threads_named("arv_gv_stream") == 1);
+    printf("a frame timed out with its reset held: the capture returned %.3f s after its "
+           "timeout\n", late_s);
+    /* let go: the next capture waits for that release, then sets up a new stream */
+    g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
+    CHECK(cam_set_timeout(cam, 0, &err) == 0);
+    CHECK(write(gate[1], "r", 1) == 1);
+    rc = cam_capture(cam, &roi, &f, &err);
+    if (rc) fprintf(stderr, "after the reset: %s\n", err.msg);
+    CHECK(rc == 0 && frame_is_pattern(&f));
+    cam_frame_free(&f);
+    CHECK(threads_named("ipsd-arv-close") == 0 && threads_named("arv_gv_stream") == 1);
+
+    /* ---- the camera gone right after its trigger: the capture returns, the release goes on ---- */
+    pthread_t vanisher;
+    vanish.gv = gv;
+    pthread_mutex_lock(&vanish.mu);
+    vanish.armed = 1;
+    pthread_mutex_unlock(&vanish.mu);
+    CHECK(pthread_create(&vanisher, NULL, vanish_run, NULL) == 0);
+    CHECK(cam_set_timeout(cam, 0.3, &err) == 0);
+    g_object_set(gv, "gvsp-lost-ratio", 1.0, NULL);
+    t0 = now_s();
+    rc = cam_capture(cam, &roi, &f, &err);
+    late_s = now_s() - t0 - 0.3;
+    CHECK(rc == -ETIMEDOUT && f.dn == NULL);
+    CHECK(pthread_join(vanisher, NULL) == 0); /* the camera is gone before its release runs */
+    while (!threads_named("ipsd-arv-close") && now_s() < t0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 1 && threads_named("arv_gv_stream") == 1);
+    printf("the camera gone after its trigger: the capture returned %.3f s after its timeout\n",
+           late_s);
+    CHECK(write(gate[1], "r", 1) == 1);
+    double r0 = now_s();
+    while ((threads_named("ipsd-arv-close") || threads_named("arv_gv_stream")) && now_s() < r0 + 60)
+        usleep(10000);
+    CHECK(threads_named("ipsd-arv-close") == 0 && threads_named("arv_gv_stream") == 0);
+    printf("its reset (AcquisitionStop, the stream released) took %.2f s in the background\n",
+           now_s() - r0);
+    double c0 = now_s();
+    cam_close(cam); /* at fault: sends nothing, waits for nothing */
+    printf("closed in %.3f s\n", now_s() - c0);
+    close(gate[0]);
+    close(gate[1]);
+    CHECK_DONE();
+}
+
+/* test_cam_aravis --lost-loop N [--size S]: not a test (ctest does not run it) but the figures of
+ * docs/instrument.md ("Stray packets", "Socket buffers", "The reset after a faulty frame"): N
+ * times on one camera a good frame, a frame whose packets are all lost (or half of them, with
+ * --half), and a good frame again, in an S x S region (9 by default; 256: ~90 packets a frame).
+ * Prints how many frames failed and how long the faulty frame's capture took after its timeout
+ * (its reset). Run it with busy loops on the cores, and other loopback traffic for the first. */
+static int lost_loop(int n, int size, double lost)
+{
+    err_t err = {{0}};
+    cam_t *cam = NULL;
+    cam_frame_t f = {0};
+    ArvGvFakeCamera *gv = emulator(NULL);
+    cam_roi_t roi = size > 9 ? (cam_roi_t){0, 0, size, size} : (cam_roi_t){1000, 1200, 9, 9};
+    double timeout_s = size > 9 ? 2 : 0.3, sum_s = 0, max_s = 0;
+    int before = 0, faulty = 0, after = 0, timeouts = 0;
+    if (cam_open("aravis", DEVICE_ID, &cam, &err) != 0) {
+        fprintf(stderr, "%s\n", err.msg);
+        return 1;
+    }
+    for (int i = 0; i < n; i++) {
+        cam_set_timeout(cam, 0, &err);
+        if (cam_capture(cam, &roi, &f, &err) || !frame_is_pattern(&f)) {
+            printf("run %d, the frame before: %s\n", i, err.msg);
+            before++;
+        }
+        cam_frame_free(&f);
+        cam_set_timeout(cam, timeout_s, &err);
+        g_object_set(gv, "gvsp-lost-ratio", lost, NULL);
+        double t0 = now_s();
+        int rc = cam_capture(cam, &roi, &f, &err);
+        double late_s = now_s() - t0 - timeout_s;
+        if (rc == -ETIMEDOUT) {
+            timeouts++;
+            sum_s += late_s;
+            max_s = late_s > max_s ? late_s : max_s;
+        }
+        if (!(rc == -ETIMEDOUT || (lost < 1 && rc == -EIO))) {
+            printf("run %d, the faulty frame: %d %s\n", i, rc, rc ? err.msg : "");
+            faulty++;
+        }
+        cam_frame_free(&f);
+        g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
+        cam_set_timeout(cam, 0, &err);
+        if (cam_capture(cam, &roi, &f, &err) || !frame_is_pattern(&f)) {
+            printf("run %d, the frame after: %s\n", i, err.msg);
+            after++;
+        }
+        cam_frame_free(&f);
+    }
+    printf("%d runs of %dx%d, %.0f %% of the packets lost: %d failed at the frame after, %d at the "
+           "frame before, %d faulty frames not an error; a timed-out capture returned %.4f s after "
+           "its timeout on average (longest %.4f s)\n",
+           n, roi.width, roi.height, lost * 100, after, before, faulty,
+           timeouts ? sum_s / timeouts : NAN, max_s);
+    cam_close(cam);
+    g_object_unref(gv);
+    return 0;
+}
+
+int main(int argc, char **argv)
 {
     if (gige_lock() != 0) return 1; /* another test's emulator would take our commands */
+    if (argc > 1 && strcmp(argv[1], "--reset") == 0) return reset_case();
+    if (argc > 2 && strcmp(argv[1], "--lost-loop") == 0) {
+        int size = 9;
+        double lost = 1;
+        for (int i = 3; i < argc; i++) {
+            if (strcmp(argv[i], "--size") == 0 && i + 1 < argc) size = atoi(argv[++i]);
+            if (strcmp(argv[i], "--half") == 0) lost = 0.5;
+        }
+        return lost_loop(atoi(argv[2]), size < 9 ? 9 : size > 1024 ? 1024 : size, lost);
+    }
     double t0 = now_s();
     /* the backend's test gate: a release of a camera closed at fault waits for a byte of it (set
      * before any thread runs: the backend reads it at each close) */
@@ -212,6 +434,13 @@ int main(void)
     CHECK(frame_is_pattern(&f));
     CHECK(f.exposure_us == 2500 && atomic_load(&seen_exposure_us) == 2500);
     CHECK(f.gain == 1 && f.timestamp_ns > 0);
+    /* the stream reads a UDP socket of its own port, never Aravis's AF_PACKET ring of the whole
+     * interface, which it would take here when the process may open one (docs/instrument.md,
+     * "Stray packets") */
+    CHECK(threads_named("arv_gv_stream") == 1 && packet_sockets_held() == 0);
+    printf("stream socket: UDP (%s)\n", may_open_packet_socket()
+                                            ? "an AF_PACKET ring was open to this process"
+                                            : "this process may not open an AF_PACKET socket");
     CHECK(cam_capture(cam, &roi, &g, &err) == 0 && frame_is_pattern(&g));
     CHECK(g.camera_frame_id == f.camera_frame_id + 1); /* nothing in between: one per trigger */
     cam_frame_free(&g);
@@ -230,7 +459,10 @@ int main(void)
     /* ---- a frame that does not come (every packet lost): -ETIMEDOUT, then good frames ---- */
     CHECK(cam_set_timeout(cam, 0.3, &err) == 0);
     g_object_set(gv, "gvsp-lost-ratio", 1.0, NULL);
+    double l0 = now_s();
     CHECK(cam_capture(cam, &roi, &f, &err) == -ETIMEDOUT && f.dn == NULL);
+    printf("a frame lost: the capture returned %.3f s after its timeout (with its reset)\n",
+           now_s() - l0 - 0.3);
     CHECK(strstr(err.msg, DEVICE_ID) && strstr(err.msg, "no frame within 0.3 s"));
     g_object_set(gv, "gvsp-lost-ratio", 0.0, NULL);
     CHECK(cam_set_timeout(cam, 0, &err) == 0);
