@@ -110,6 +110,24 @@ if(TARGET ipsapi AND TARGET ips AND Python3_Interpreter_FOUND)
             ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};PGPASSFILE=${IPSD_PG_DIR}/pgpass"
             FIXTURES_SETUP api_records)
     endif()
+    # the scans through Aravis's GigE Vision emulator (tests/aravis.cmake) on PostgreSQL too: a
+    # camera path's points, frame times and provenance stored by the other driver
+    if(TEST pg_server_start AND TEST test_server_aravis)
+        add_test(NAME test_server_aravis_pg
+                 COMMAND ${Python3_EXECUTABLE} -B ${CMAKE_CURRENT_SOURCE_DIR}/test_server_aravis.py
+                         $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> $<TARGET_FILE:arv_emulator>
+                 WORKING_DIRECTORY ${IPSD_TEST_DATA})
+        add_test(NAME test_server_aravis_scene_pg
+                 COMMAND ${Python3_EXECUTABLE} -B
+                         ${CMAKE_CURRENT_SOURCE_DIR}/test_server_aravis_scene.py
+                         $<TARGET_FILE:ipsd> $<TARGET_FILE:ips> $<TARGET_FILE:arv_emulator>
+                         ${CMAKE_CURRENT_SOURCE_DIR}/gcs_emulator.py
+                 WORKING_DIRECTORY ${IPSD_TEST_DATA})
+        set_tests_properties(test_server_aravis_pg test_server_aravis_scene_pg PROPERTIES
+            TIMEOUT 300 RESOURCE_LOCK gige_emulator FIXTURES_REQUIRED pg SKIP_RETURN_CODE 77
+            FIXTURES_SETUP api_records
+            ENVIRONMENT "IPSD_API_RECORD_DIR=${IPSD_API_RECORD_DIR};IPSD_TEST_PG_URI_FILE=${IPSD_PG_DIR}/uri;PGPASSFILE=${IPSD_PG_DIR}/pgpass")
+    endif()
     # SIGTERM under a flood of connections, with epoll removals slowed by an LD_PRELOAD shim
     # (test_server_quiesce.py: 30 starts and stops, ~10 s optimised)
     add_library(shim_epoll_slowdel MODULE shim_epoll_slowdel.c)

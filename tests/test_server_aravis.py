@@ -15,7 +15,7 @@ stopped): the job fails with the camera's own words, nothing stays running and i
 resumed while another camera is on the network, it fails again (the named camera is not there;
 restarted with --bench aravis, the first camera found, it is refused naming both cameras); the
 camera comes back, the scan resumes (POST /api/scans/ID/resume) and completes with every point
-exactly once. Python's sqlite3 reads the database."""
+exactly once. Python's sqlite3 reads the database (psql in the PostgreSQL run)."""
 import errno
 import fcntl
 import socket
