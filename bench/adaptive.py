@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """adaptive.py [BUILD_DIR] [--quick] [--scenes A,B] [--seeds N] [--light F,G] [--max-points N]
-[--json FILE] [--from FILE]: how many points, and how much bench time, an adaptive scan (`ips
+[--start-grid N] [--batch B] [--json FILE] [--from FILE]: how many points, and how much bench time, an adaptive scan (`ips
 simulate --adaptive`, fit/adapt_plan.h) needs to reach the kriged map's error that the paper's
 rasters reach, on the simulated bench against its truth; prints figures (never pass/fail).
 
@@ -11,7 +11,8 @@ Per scene family (each with 10 x 10 cells, so that `--truth` holds the scene its
   3/2 as densely), each fitted by `ips fit --sigma shot+read`: its kriged map's rms against the
   truth (e, the scene's own 10 x 10 cells, sampled as the fidelity harness samples) and its
   expected error (the rms of its S_err, E);
-- one adaptive scan (5 x 5 start, batches of 9, no target, up to --max-points): after each batch
+- one adaptive scan (5 x 5 start, batches of 9, or --start-grid N, --batch B; no target, up
+  to --max-points): after each batch
   the summary gives the refitted map's expected error and its rms against the truth (the map `ips
   fit` gives of the same points), its recommended r and whether the map kept its smooth part.
   Per reference: the points at the first batch whose measured rms is <= e (n_meas: what an oracle
@@ -78,7 +79,7 @@ def total(t):
     return t["move_s"] + t["expose_s"]
 
 
-def measure(ips, scene, light, seed, max_points, peak_default, tmp):
+def measure(ips, scene, light, seed, max_points, peak_default, tmp, plan=(5, 9)):
     truth, grid, adapt = (os.path.join(tmp, n) for n in ("t.json", "g.json", "a.json"))
 
     def run(*a):
@@ -107,7 +108,7 @@ def measure(ips, scene, light, seed, max_points, peak_default, tmp):
         rec["t%d" % n] = bench_s(sf["x_um"], sf["y_um"], sf["pitch_um"], sf["frames"],
                                  summary["setup"]["exposure_us"])
     summary, sf = scan("--adaptive", "--target-err", "1e-6", "--max-points", str(max_points),
-                       "-o", adapt)
+                       "--start-grid", str(plan[0]), "--batch", str(plan[1]), "-o", adapt)
     bs = summary["adaptive"]["batches"]
     exp_us = summary["setup"]["exposure_us"]
     rec["batches"] = [{"points": b["points"], "expected": b["expected_err"],
@@ -176,7 +177,7 @@ def seeds_of(v):
     return "[" + ", ".join("-" if x is None else "%g" % x for x in v) + "]"
 
 
-def tables(recs, max_points):
+def tables(recs, max_points, plan=(5, 9)):
     groups = {}
     for r in recs:
         groups.setdefault((r["scene"], r["light"]), []).append(r)
@@ -186,7 +187,7 @@ def tables(recs, max_points):
         out.append("\n### Against the %d x %d raster (%d points)\n" % (n, n, N))
         out.append("| scene | light | e%d (E%d) | n_meas: rms <= e | n_exp: the scan's stop on E | "
                    "rms at n_exp / e | adaptive rms at %d / e | bench s: raster, adaptive at "
-                   "n_meas, at n_exp (+ planning) |" % (n, n, N - (N - 25) % 9))
+                   "n_meas, at n_exp (+ planning) |" % (n, n, N - (N - plan[0] ** 2) % plan[1]))
         out.append("|---|---|---|---|---|---|---|---|")
         for (scene, light), rs in groups.items():
             d = [derive(r, n) for r in rs]
@@ -260,11 +261,13 @@ def tables(recs, max_points):
 
 def header(doc):
     rs = doc["results"]
-    return ("%d scene families x %d light levels x %d seeds, adaptive scans to %d points; "
-            "default --peak-e %g; bench model: settling %g s a move, stage %g um/s, read-out %g s "
-            "a frame" % (len({r["scene"] for r in rs}), len({r["light"] for r in rs}),
-                         len({r["seed"] for r in rs}), doc["max_points"], doc["peak_e"],
-                         SETTLE_S, SPEED_UM_S, READOUT_S))
+    return ("%d scene families x %d light levels x %d seeds, adaptive scans from %d x %d in "
+            "batches of %d to %d points; default --peak-e %g; bench model: settling %g s a move, "
+            "stage %g um/s, read-out %g s a frame"
+            % (len({r["scene"] for r in rs}), len({r["light"] for r in rs}),
+               len({r["seed"] for r in rs}), doc.get("start_grid", 5), doc.get("start_grid", 5),
+               doc.get("batch", 9), doc["max_points"], doc["peak_e"], SETTLE_S, SPEED_UM_S,
+               READOUT_S))
 
 
 def _k(x):
@@ -276,6 +279,7 @@ def main():
     build = os.path.join(HERE, "..", "build")
     scenes, seeds, lights, max_points = FAMILIES, 5, [1.0, 0.1], 250
     json_out = json_in = None
+    plan = (5, 9)  # the adaptive scan's starting raster (N x N) and batch, ips simulate's defaults
     while args:
         a = args.pop(0)
         if a == "--quick":
@@ -286,6 +290,10 @@ def main():
             seeds = int(args.pop(0))
         elif a == "--light":
             lights = [float(x) for x in args.pop(0).split(",")]
+        elif a == "--start-grid":
+            plan = (int(args.pop(0)), plan[1])
+        elif a == "--batch":
+            plan = (plan[0], int(args.pop(0)))
         elif a == "--max-points":
             max_points = int(args.pop(0))
         elif a == "--json":
@@ -298,7 +306,8 @@ def main():
         with open(json_in) as f:
             doc = json.load(f)
         print(header(doc))
-        print(tables(doc["results"], doc["max_points"]))
+        print(tables(doc["results"], doc["max_points"],
+                     (doc.get("start_grid", 5), doc.get("batch", 9))))
         print("\nran in %.0f s" % doc["seconds"])
         return
     ips = os.path.join(build, "cli", "ips")
@@ -312,7 +321,7 @@ def main():
         for scene in scenes:
             for light in lights:
                 for seed in range(1, seeds + 1):
-                    r = measure(ips, scene, light, seed, max_points, peak_default, tmp)
+                    r = measure(ips, scene, light, seed, max_points, peak_default, tmp, plan)
                     d9, d13 = derive(r, 9), derive(r, 13)
                     print("  %s light %g seed %d: e9 %.4f E9 %.4f n_meas %s n_exp %s; e13 %.4f "
                           "E13 %.4f n_meas %s n_exp %s; cells %s (%.0f s)"
@@ -321,12 +330,13 @@ def main():
                              time.monotonic() - t0), file=sys.stderr, flush=True)
                     recs.append(r)
     took = time.monotonic() - t0
-    doc = {"max_points": max_points, "seconds": took, "peak_e": peak_default, "results": recs}
+    doc = {"max_points": max_points, "start_grid": plan[0], "batch": plan[1], "seconds": took,
+           "peak_e": peak_default, "results": recs}
     if json_out:
         with open(json_out, "w") as f:
             json.dump(doc, f)
     print(header(doc))
-    print(tables(recs, max_points))
+    print(tables(recs, max_points, plan))
     print("\nran in %.0f s" % took)
 
 
