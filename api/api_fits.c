@@ -14,7 +14,7 @@
 #define FIT_OPTION_KEYS                                                                            \
     "r_min", "r_max", "sigma", "ftest", "ftest_r", "wiener", "method", "nonneg", "region",       \
         "margin_um", "fit_geometry", "geometry_r", "gain_e_per_dn", "read_noise_e", "map", \
-        "krige"
+        "krige", "geometry_model"
 
 #define FIT_PROMOTE_KEYS "promote", "by", "reason"
 
@@ -63,7 +63,7 @@ static int read_region(api_req_t *q, json_t *o, srv_fit_params_t *p)
 static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
 {
     long long r_min = p->r_min, r_max = p->r_max, ftest_r = p->ftest_r, geometry_r = 0;
-    const char *sigma = NULL, *method = NULL, *map = NULL;
+    const char *sigma = NULL, *method = NULL, *map = NULL, *gmodel = NULL;
     json_t *ftest = json_object_get(o, "ftest");
     if (api_get_int(q, o, "r_min", "r_min", 0, 1, 32, &r_min) ||
         api_get_int(q, o, "r_max", "r_max", 0, 1, 32, &r_max) ||
@@ -78,8 +78,20 @@ static int read_options(api_req_t *q, json_t *o, srv_fit_params_t *p)
         /* sigma's constants (eq. 5), overriding the sensor's photon transfer and the scan's */
         api_get_num(q, o, "gain_e_per_dn", "gain_e_per_dn", 0, 0, 1e6, 1, &p->gain_e_per_dn) ||
         api_get_num(q, o, "read_noise_e", "read_noise_e", 0, 0, 1e6, 0, &p->read_noise_e) ||
-        api_get_str(q, o, "map", "map", 0, 16, &map))
+        api_get_str(q, o, "map", "map", 0, 16, &map) ||
+        api_get_str(q, o, "geometry_model", "geometry_model", 0, 16, &gmodel))
         return -1;
+    if (gmodel && strcmp(gmodel, "kriged") && strcmp(gmodel, "map")) {
+        api_error(q, 422, "out_of_range", "geometry_model",
+                  "geometry_model must be kriged or map (got '%s')", gmodel);
+        return -1;
+    }
+    if (gmodel && !p->fit_geometry) {
+        api_error(q, 422, "invalid", "geometry_model",
+                  "geometry_model goes with \"fit_geometry\": true");
+        return -1;
+    }
+    p->geometry_map_only = gmodel && strcmp(gmodel, "map") == 0;
     /* without "map", ipsd's --calibration-map (the kriged map unless told otherwise) */
     int which = map ? storage_map_parse(map) : srv_config(q->srv)->calibration_map;
     if (which < 0) {

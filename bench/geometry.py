@@ -4,12 +4,13 @@
 For each scene family, raster and seed, `ips simulate` writes a scan whose true spot radius and
 grid offset differ from the written ones (radius 0.9..1.6 um written 4 % small, offsets up to
 0.2 um, chosen from the seed), and `ips fit --fit-geometry --sigma shot+read` recovers them, with
-the r picked from the data (default) or asked (--geometry-r). Prints one line per case (recovered
+the r picked from the data (default) or asked (--geometry-r), refined under the kriged model
+(`--geometry-model kriged`, the default) or kept as the r x r map's (`map`). Prints one line per case (recovered
 R, dx, dy, their errors in um and in quoted sigmas, the r, status, chi2_red, ms) and the summary:
 the pass rate of the target (every parameter within 3 quoted sigma and within 0.03 um of the
 truth), the worst cases and the time per fit. A benchmark: it prints, it never fails on numbers.
 Usage: bench/geometry.py [--ips build/cli/ips] [--seeds N] [--geometry-r R] [--families a,b]
-[--rasters 9,13,19]
+[--rasters 9,13,19] [--geometry-model kriged|map]
 """
 import argparse
 import json
@@ -23,7 +24,7 @@ RADII = [0.9, 1.15, 1.4, 1.6]
 OFFSETS = [(-0.15, 0.05), (0.2, -0.1), (0.08, 0.18), (-0.2, -0.2)]
 
 
-def case(ips, fam, grid, seed, geometry_r, tmp):
+def case(ips, fam, grid, seed, geometry_r, tmp, model="map"):
     R = RADII[(seed + grid) % len(RADII)]
     dx, dy = OFFSETS[(seed + len(fam)) % len(OFFSETS)]
     path = os.path.join(tmp, "s.scan")
@@ -35,6 +36,7 @@ def case(ips, fam, grid, seed, geometry_r, tmp):
            "--threads", "1"]
     if geometry_r:
         cmd += ["--geometry-r", str(geometry_r)]
+    cmd += ["--geometry-model", model]
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode:
         return dict(fam=fam, grid=grid, seed=seed, fail=p.stderr.strip())
@@ -58,13 +60,14 @@ def main():
     ap.add_argument("--geometry-r", type=int, default=0)
     ap.add_argument("--families", default="paperlike,dip,edge,deadcorner")
     ap.add_argument("--rasters", default="9,13,19")
+    ap.add_argument("--geometry-model", default="kriged", choices=["kriged", "map"])
     a = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for grid in [int(x) for x in a.rasters.split(",")]:
             for fam in a.families.split(","):
                 for seed in range(1, a.seeds + 1):
-                    c = case(a.ips, fam, grid, seed, a.geometry_r, tmp)
+                    c = case(a.ips, fam, grid, seed, a.geometry_r, tmp, a.geometry_model)
                     rows.append(c)
                     if "fail" in c:
                         print("%-10s %2dx%-2d seed %d  FAILED: %s" % (fam, grid, grid, seed,

@@ -53,6 +53,9 @@ static const char usage[] =
     "                      and fit the maps with them\n"
     "  --geometry-r N      r of the geometry fit (1..32; default: picked from the data,\n"
     "                      the smallest BIC over r = 3, 4, ...)\n"
+    "  --geometry-model kriged|map  refine that fit's geometry under the kriged model\n"
+    "                      (default: its likelihood over R, dx, dy with the map integrated\n"
+    "                      out), or keep the r x r map's (faster, biased on smooth pixels)\n"
     "  --no-krige          leave out the kriged map (kriged_map: a Gaussian-process estimate\n"
     "                      of the sensitivity on a fine grid, the map ipsd stores as the\n"
     "                      calibration; docs/numerics.md \"The kriged map\"); --krige (the\n"
@@ -75,7 +78,7 @@ struct fit_args {
     unsigned edges;
     int ftest_r, wiener, interp_n;
     int have_full_scale, table;
-    int fit_geometry, geometry_r;
+    int fit_geometry, geometry_r, geometry_map_only;
     int all_pixels; /* --pixels all */
     double full_scale;
     fit_region_t region;
@@ -87,7 +90,7 @@ struct fit_args {
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
        OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
-       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_PIXELS, OPT_THREADS, OPT_KRIGE, OPT_NO_KRIGE, OPT_HELP };
+       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_GEOMETRY_MODEL, OPT_PIXELS, OPT_THREADS, OPT_KRIGE, OPT_NO_KRIGE, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -107,6 +110,7 @@ static const struct option long_opts[] = {
     {"wiener-nsr", required_argument, NULL, OPT_WIENER_NSR},
     {"fit-geometry", no_argument, NULL, OPT_FIT_GEOMETRY},
     {"geometry-r", required_argument, NULL, OPT_GEOMETRY_R},
+    {"geometry-model", required_argument, NULL, OPT_GEOMETRY_MODEL},
     {"pixels", required_argument, NULL, OPT_PIXELS},
     {"threads", required_argument, NULL, OPT_THREADS},
     {"krige", no_argument, NULL, OPT_KRIGE},
@@ -196,6 +200,11 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
     case OPT_KRIGE: a->krige = 1; return 0;
     case OPT_NO_KRIGE: a->krige = 0; return 0;
     case OPT_GEOMETRY_R: return opts_int32("geometry-r", arg, 1, R_LIMIT, &a->geometry_r, err);
+    case OPT_GEOMETRY_MODEL:
+        if (strcmp(arg, "map") == 0) a->geometry_map_only = 1;
+        else if (strcmp(arg, "kriged") == 0) a->geometry_map_only = 0;
+        else return err_set(err, -EINVAL, "--geometry-model must be map or kriged (got '%s')", arg);
+        return 0;
     case OPT_THREADS: return opts_int32("threads", arg, 1, THREADS_LIMIT, &a->threads, err);
     case OPT_PIXELS:
         if (strcmp(arg, "all") != 0)
@@ -235,6 +244,8 @@ static int check_args(int argc, char **argv, int first, struct fit_args *a, cons
         return err_set(err, -EINVAL, "--wiener-nsr needs --wiener");
     if (seen[OPT_GEOMETRY_R - OPT_R] && !a->fit_geometry)
         return err_set(err, -EINVAL, "--geometry-r needs --fit-geometry");
+    if (seen[OPT_GEOMETRY_MODEL - OPT_R] && !a->fit_geometry)
+        return err_set(err, -EINVAL, "--geometry-model needs --fit-geometry");
     if (a->all_pixels && a->table)
         return err_set(err, -EINVAL, "--table prints one pixel's report: not with --pixels all");
     if (first >= argc) return err_set(err, -EINVAL, "missing FILE (usage: ips fit FILE [options])");
@@ -308,7 +319,8 @@ static int run_pipeline(const struct fit_args *a, const fit_scan_t *scan, fit_pi
                               .wiener = a->wiener, .interp_n = a->interp_n,
                               .region = a->region, .wiener_method = a->wiener_method,
                               .wiener_nsr = a->wiener_nsr, .fit_geometry = a->fit_geometry,
-                              .geometry_r = a->geometry_r, .threads = a->threads,
+                              .geometry_r = a->geometry_r,
+                              .geometry_map_only = a->geometry_map_only, .threads = a->threads,
                               .krige = a->krige};
     if ((rc = fit_pipeline_run(scan, &po, NULL, pl, err))) return rc;
     const fit_part_t *parts[] = {&pl->geometry_part, &pl->ftest_part, &pl->wiener_part,

@@ -72,6 +72,12 @@ typedef struct fit_geometry {
     double corr[3];            /* correlations R-dx, R-dy, dx-dy */
     int iterations;            /* LM iterations */
     int evaluations;           /* design matrices built (the cost) */
+    int kriged;                /* 1: refined under the kriged model (fit_geometry_krige); the
+                                  chi2_* and bic above stay the r x r fit's, and the kriged
+                                  model's own fit is below */
+    double kriged_chi2;        /* d^T P d at the kriged optimum (krige_int.h) */
+    double kriged_chi2_red;    /* over N - 1, its expectation under the model */
+    double kriged_chi2_p;      /* upper tail of chi-square(N - 1): poor_fit below FIT_POOR_FIT_P */
 } fit_geometry_t;
 
 /* "ok", or "not_converged" / "at_bound" / "ill_conditioned" / "poor_fit" (the first of flags).
@@ -96,6 +102,14 @@ int fit_geometry_run(const fit_scan_t *scan, int r, const fit_options_t *opts,
  * fit_geometry_run (-ERANGE when not even the first r fits). */
 int fit_geometry_pick(const fit_scan_t *scan, const fit_options_t *opts, fit_geometry_t *out,
                       err_t *err);
+
+/* Refines the r x r fit start (fit_geometry_run or _pick: its r and geometry) under the kriged
+ * model (krige.h, the divisor grids of start->r): the (R, dx, dy) of largest likelihood with the
+ * map integrated out and the hyperparameters profiled (geometry_krige.c), its sigmas from that
+ * profile's curvature. *out is start with the geometry, sigmas, flags and evaluations replaced.
+ * Returns 0, -EINVAL, -EDOM, -ENOMEM, -ECANCELED (opts->stop). */
+int fit_geometry_krige(const fit_scan_t *scan, const fit_geometry_t *start,
+                       const fit_options_t *opts, fit_geometry_t *out, err_t *err);
 
 /* The scan as the geometry says it was: *out is a copy of scan with positions x_um + dx_um,
  * y_um + dy_um written into x and y (scan->n each, caller-allocated; out borrows them) and radius

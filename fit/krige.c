@@ -90,7 +90,7 @@ static int grids_negligible(const kr_prob_t *k, const double *th)
 
 /* The best of the starts for the model in k; th gets its optimum, and the state is left there
  * (value and derivatives, for the posterior). */
-static double best_of_starts(kr_prob_t *k, int n_starts, double *th)
+double kr_best_of_starts(kr_prob_t *k, int n_starts, double *th)
 {
     int np = kr_theta_count(k);
     double best = HUGE_VAL, t[KR_MAX_THETA];
@@ -304,8 +304,8 @@ static int krige_run(const fit_scan_t *scan, const fit_krige_prior_t *pr,
     double th1[KR_MAX_THETA] = {0}, th0[KR_MAX_THETA] = {0};
     kr_prob_t *k1 = &w->k1, *k0 = &w->k0;
     /* with the smooth part, then without; keep the smaller model unless the ratio is large */
-    double f1 = best_of_starts(k1, 2, th1);
-    double f0 = best_of_starts(k0, 1, th0);
+    double f1 = kr_best_of_starts(k1, 2, th1);
+    double f0 = kr_best_of_starts(k0, 1, th0);
     if (k1->stopped || k0->stopped) {
         rc = err_set(err, -ECANCELED, "kriged map stopped");
         goto out;

@@ -58,6 +58,8 @@ typedef struct kr_prob {
     double *t, *y;          /* scratch: p x KR_MAX_THETA each */
 
     double mu;              /* the mean's estimate at the last evaluation */
+    double dPd;             /* and d^T P d there: the data's distance from the model, whose
+                               expectation under the model is n - 1 (tr P V) */
     int at_valid;           /* the state above belongs to the theta of the last kr_value */
     double at[KR_MAX_THETA];
 } kr_prob_t;
@@ -94,6 +96,10 @@ int kr_derivs(kr_prob_t *k, const double *th, double *g, double *AI);
  * information, within the bounds. th gets the best point; returns -log L there (HUGE_VAL: none
  * found). The state is left at th. */
 double kr_maximise(kr_prob_t *k, const double *start, double *th);
+
+/* The best of krige.c's n_starts starting points (1 or 2) for the model in k: th gets its optimum
+ * and the state is left there (value and derivatives). Returns -log L there (HUGE_VAL: none). */
+double kr_best_of_starts(kr_prob_t *k, int n_starts, double *th);
 
 /* The posterior mean and standard deviation of S = T / mean T on the fine cells at th (after
  * kr_value and kr_derivs there), into S and S_err (m each). Bq: per level, m x q^2, the

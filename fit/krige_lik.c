@@ -167,6 +167,7 @@ static double value_points(kr_prob_t *k, const double *th)
         k->Py[i] = k->Vd[i] - k->Vone[i] * k->mu;
         dPd += k->d[i] * k->Py[i];
     }
+    k->dPd = dPd;
     return 0.5 * (logdet + log(a) + dPd);
 }
 
@@ -217,6 +218,7 @@ static double value_cells(kr_prob_t *k, const double *th)
     double hc = 0;
     for (size_t i = 0; i < p; i++) hc += k->h[i] * k->chat[i];
     k->mu = k->chat[0];
+    k->dPd = k->dDd - hc; /* Woodbury: d^T V^-1 d less the part the cells explain */
     /* log|X^T V^-1 X| is inside log|C| (the 1_A column is W's first) */
     return 0.5 * (k->logdetD + logdetS + logdetC + k->dDd - hc);
 }

@@ -217,6 +217,10 @@ static void geometry_step(struct run *rn)
                    : fit_geometry_pick(scan, &rn->o->fit, g, &p->err)))
         return;
     r = g->r;
+    if (!rn->o->geometry_map_only && !(g->flags & FIT_GEOMETRY_UNUSABLE)) {
+        fit_geometry_t rg = *g;
+        if ((p->rc = fit_geometry_krige(scan, &rg, &rn->o->fit, g, &p->err))) return;
+    }
     if (g->flags & FIT_GEOMETRY_UNUSABLE) { /* poor_fit alone: used, and said in its status */
         p->rc = err_set(&p->err, -EDOM,
                         "geometry fit at r = %d: %s (R %.4g um, dx %.4g um, dy %.4g um after %d "

@@ -51,6 +51,8 @@ typedef struct fit_pipeline_opts {
                               scan as the fitted geometry says it was (0) */
     int geometry_r;        /* r of the geometry fit, 1..FIT_R_MAX; 0: picked from the data
                               (fit_geometry_pick) */
+    int geometry_map_only; /* 1: keep the r x r fit's geometry; 0: refine it under the kriged
+                              model (fit_geometry_krige), the default (0) */
     int threads;           /* fit the sweep's r on up to this many threads, the caller's
                               included, when the run has no watch (a watch's functions run on
                               the caller's thread, so a watched sweep runs there); 0 or 1: the

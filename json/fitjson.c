@@ -149,6 +149,12 @@ json_t *fitjson_geometry(const fit_geometry_t *g)
                           fitjson_num(g->chi2_fitted));
     if (!o) return NULL;
     json_object_set_new(o, "r", json_integer(g->r));
+    json_object_set_new(o, "model", json_string(g->kriged ? "kriged" : "map"));
+    json_object_set_new(o, "kriged_fit",
+                        g->kriged ? json_pack("{s:o, s:o, s:o}", "chi2", fitjson_num(g->kriged_chi2),
+                                              "chi2_red", fitjson_num(g->kriged_chi2_red), "chi2_p",
+                                              fitjson_num(g->kriged_chi2_p))
+                                  : json_null());
     json_object_set_new(o, "status", json_string(fit_geometry_status(g->flags)));
     json_object_set_new(o, "N", json_integer((json_int_t)g->n_used));
     json_object_set_new(o, "params", json_integer(g->params));

@@ -162,6 +162,7 @@ int srv_fit_run(const fit_scan_t *scan, const srv_fit_params_t *p, const srv_fit
                               .ftest_edges = p->ftest_edges, .ftest_r = p->ftest_r,
                               .wiener = p->wiener, .region = p->region,
                               .fit_geometry = p->fit_geometry, .geometry_r = p->geometry_r,
+                              .geometry_map_only = p->geometry_map_only,
                               .krige = p->krige};
     fit_watch_t watch = {.stop = watch_stop, .progress = watch_progress, .params = (void *)hooks,
                          .poll = watch_poll, .poll_at = watch_poll_at};

@@ -156,6 +156,7 @@ char *srv_fit_params_dump(const srv_fit_params_t *p)
     if (p->fit_geometry) {
         json_object_set_new(o, "fit_geometry", json_true());
         if (p->geometry_r) json_object_set_new(o, "geometry_r", json_integer(p->geometry_r));
+        if (p->geometry_map_only) json_object_set_new(o, "geometry_model", json_string("map"));
     }
     if (p->region.kind == FIT_REGION_MARGIN)
         json_object_set_new(o, "margin_um", json_real(p->region.margin_um));
@@ -222,6 +223,8 @@ int srv_fit_params_parse(const char *text, srv_fit_params_t *p, err_t *err)
     if (p->map == STORAGE_MAP_KRIGED) p->krige = 1;
     if ((x = json_object_get(o, "geometry_r")) && json_is_integer(x))
         p->geometry_r = (int)json_integer_value(x);
+    if ((x = json_object_get(o, "geometry_model")) && json_is_string(x))
+        p->geometry_map_only = strcmp(json_string_value(x), "map") == 0;
     p->opts.nonneg = json_is_true(json_object_get(o, "nonneg"));
     if ((x = json_object_get(o, "wavelength_um")) && json_is_number(x))
         p->wavelength_um = json_number_value(x);

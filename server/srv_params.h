@@ -79,6 +79,8 @@ typedef struct srv_fit_params {
     int fit_geometry;     /* fit R, dx, dy first (fit/geometry.h) at geometry_r (0: default) */
     int krige;            /* add the kriged map (fit/krige.h) to the result */
     int geometry_r;
+    int geometry_map_only; /* "geometry_model": "map": the r x r fit's geometry, not refined
+                              under the kriged model (fit/geometry.h) */
     /* every pixel of the scan's sub-frame its raster covers (instrument/scan_cover.h), one fit
      * each, instead of (dcol, drow): "pixels": "all" (server/srv_fitall.c) */
     int all_pixels;

@@ -57,3 +57,6 @@ endif()
 # the geometry fit's r picked from the data: recovered R, dx, dy against the simulator's truth on
 # structured pixels, and poor_fit at a map too coarse (~6 s optimised)
 ips_python_test(test_fit_geometry_pick 240)
+# the geometry refined under the kriged model: R, dx, dy against the simulator's truth on an edge
+# and a dead-corner pixel, poor_fit under a noise model 5x too small, bad options (~12 s optimised)
+ips_python_test(test_fit_geometry_kriged 300)

@@ -4,7 +4,8 @@ With the geometry fit's r picked from the data (fit/geometry_pick.c, the smalles
 R, dx, dy are within 3 quoted sigma of the truth (and within 0.03 um on the dip and dead-corner
 scenes), `r_from` is "data"; the same paperlike scan at an asked r = 5, a map too coarse for its
 edge dips, says `poor_fit` (its chi2 beyond the noise model) and still exits 0 with the geometry
-used. Runs in a temporary directory; Python's standard library only."""
+used. The r x r map's geometry itself (`--geometry-model map`): test_fit_geometry_kriged.py has the
+kriged refinement. Runs in a temporary directory; Python's standard library only."""
 import json
 import os
 import subprocess
@@ -28,7 +29,8 @@ def geometry(tmp, scene, grid, step, R, dx, dy, seed, extra=()):
                     "--offset", "%g,%g" % (dx, dy), "--seed", str(seed), "-o", path],
                    check=True, capture_output=True)
     p = subprocess.run([IPS, "fit", path, "--sigma", "shot+read", "--fit-geometry", "--r-max", "2",
-                        "--threads", "1", *extra], capture_output=True, text=True)
+                        "--threads", "1", "--geometry-model", "map", *extra], capture_output=True,
+                       text=True)
     check(p.returncode == 0, "%s: ips fit exit %d: %s" % (scene, p.returncode, p.stderr))
     return json.loads(p.stdout)["geometry"] if p.returncode == 0 else None
 

@@ -67,6 +67,9 @@ def test(c, t, argv, daemons):
             ({"fit_geometry": "yes"}, 400, "fit_geometry"),
             ({"geometry_r": 3}, 422, "geometry_r"),
             ({"fit_geometry": True, "geometry_r": 0}, 422, "geometry_r"),
+            ({"geometry_model": "map"}, 422, "geometry_model"),
+            ({"fit_geometry": True, "geometry_model": "spline"}, 422, "geometry_model"),
+            ({"fit_geometry": True, "geometry_model": 1}, 400, "geometry_model"),
             ({"krige": "yes"}, 400, "krige")]:
         c.error(d.post("/api/fits", dict(base, **extra)), status, field, "upload with %r" % extra)
     c.eq(fits_jobs(), before, "bad regions stored nothing")
@@ -120,6 +123,19 @@ def test(c, t, argv, daemons):
             c.ok(g["chi2_fitted"] <= g["chi2_fixed"] * (1 + 1e-9),
                  "chi2 fitted %r <= fixed %r" % (g.get("chi2_fitted"), g.get("chi2_fixed")))
             c.ok("geometry" in res["timing_ms"], "timing_ms has geometry")
+            c.eq(g.get("model"), "kriged", "the geometry is refined under the kriged model by default")
+            kf = g.get("kriged_fit") or {}
+            c.ok(isinstance(kf.get("chi2_red"), (int, float)) and kf["chi2_red"] > 0,
+                 "kriged_fit carries the kriged model's chi2_red: %r" % kf)
+    # the r x r map's geometry, asked: recorded in the job and said in the document
+    r = d.post("/api/fits", dict(base, fit_geometry=True, geometry_r=5, geometry_model="map"))
+    c.status(r, 202, "upload with geometry_model map")
+    j = d.wait_job(r.json()["job"]["id"], "done") if r.status == 202 else None
+    c.ok(j, "map geometry fit done")
+    if j:
+        c.eq(j["params"].get("geometry_model"), "map", "job params record geometry_model")
+        g = d.get("/api/fits/%d" % j["fit_id"]).json()["result"].get("geometry", {})
+        c.eq((g.get("model"), g.get("kriged_fit")), ("map", None), "the map's geometry, not refined")
 
     # the kriged map (fit/krige.h) through the API: the result's kriged_map, number for number
     # the `ips fit --krige` document's of the same scan file

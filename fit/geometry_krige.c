@@ -1,0 +1,198 @@
+/* geometry_krige.c: the spot radius and the scan-grid offset refined under the kriged model
+ * (geometry.h, fit_geometry_krige): the geometry g = (R, dx, dy) that maximises the kriged map's
+ * likelihood with mu integrated out (flat prior) and the hyperparameters theta profiled,
+ *     -log L_p(g) = min_theta -log L(theta; g),   -2 log L = log|V| + log(1_A^T V^-1 1_A) + d^T P d
+ * (krige_int.h), V = D + A(g) K(theta) A(g)^T. With mu's flat prior the same for every g (mu is
+ * the pixel's mean level whatever the geometry), L is the marginal density of the data, so values
+ * at different g compare as likelihoods do; the r x r map's chi2 cannot, on a pixel whose
+ * structure no r x r map holds (its discretisation error is charged to R, dx, dy). The search
+ * starts at the r x r fit's geometry (fit_geometry_pick or _run) with the prior of its r's divisor
+ * grids; a simplex (GSL's nmsimplex2) on the three values, since each value is an inner
+ * maximisation whose gradient in g is not at hand; each theta starts from the last optimum's.
+ * Uncertainties: the inverse of the profile's Hessian in g by central differences at the optimum
+ * (the profile likelihood's curvature, which counts the map and theta as nuisance parameters).
+ * Pure numerics: no I/O, no globals, thread-safe. */
+#include <errno.h>
+#include <gsl/gsl_cdf.h>
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_multimin.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fit/geometry.h"
+#include "fit/gslerr.h"
+#include "krige_int.h"
+
+#define KG_MAX_ITER 150      /* simplex iterations */
+#define KG_SIZE_TOL 2e-4     /* um: the simplex's size at which the search ends */
+#define KG_STEP0 0.02        /* um: the first simplex's size */
+#define KG_HESS_STEP 0.006   /* um: central-difference step of the profile's Hessian */
+
+struct kg {
+    const fit_scan_t *scan;
+    const fit_krige_prior_t *pr;
+    const fit_options_t *o;
+    double *x, *y;           /* shifted positions */
+    double th[KR_MAX_THETA]; /* warm start: the last optimum's hyperparameters */
+    int have_th, evals, rc;
+    double dPd;              /* d^T P d at the last value */
+    size_t n_used;
+    double Rlo, Rhi, dmax;
+    err_t err;
+};
+
+/* -log L_p at g (HUGE_VAL outside the bounds or where the likelihood fails). th_from: start theta
+ * (NULL: krige.c's starts). */
+static double profile(struct kg *s, const double g[3], const double *th_from, double *th_out)
+{
+    if (!(g[0] >= s->Rlo && g[0] <= s->Rhi && fabs(g[1]) <= s->dmax && fabs(g[2]) <= s->dmax))
+        return HUGE_VAL;
+    const fit_scan_t *sc = s->scan;
+    for (size_t k = 0; k < sc->n; k++) s->x[k] = sc->x_um[k] + g[1], s->y[k] = sc->y_um[k] + g[2];
+    fit_scan_t moved = *sc;
+    moved.x_um = s->x, moved.y_um = s->y, moved.spot_radius_um = g[0];
+    kr_work_t *w;
+    err_t e;
+    int rc = kr_work_new(&moved, s->pr, s->o, -1, &w, &e);
+    if (rc) {
+        if (!s->rc) s->rc = rc, s->err = e;
+        return HUGE_VAL;
+    }
+    kr_prob_t *k = kr_work_model(w, 1);
+    double th[KR_MAX_THETA], f = th_from ? kr_maximise(k, th_from, th) : kr_best_of_starts(k, 2, th);
+    s->dPd = k->dPd, s->n_used = k->n;
+    if (k->stopped && !s->rc) s->rc = -ECANCELED, err_set(&s->err, -ECANCELED, "geometry fit stopped");
+    if (isfinite(f) && th_out) memcpy(th_out, th, sizeof th);
+    kr_work_free(w);
+    s->evals++;
+    return isfinite(f) ? f : HUGE_VAL;
+}
+
+static double simplex_f(const gsl_vector *v, void *p)
+{
+    struct kg *s = p;
+    if (s->rc) return HUGE_VAL;
+    double g[3] = {gsl_vector_get(v, 0), gsl_vector_get(v, 1), gsl_vector_get(v, 2)}, th[KR_MAX_THETA];
+    double f = profile(s, g, s->have_th ? s->th : NULL, th);
+    if (isfinite(f) && f < HUGE_VAL) memcpy(s->th, th, sizeof th), s->have_th = 1;
+    return f;
+}
+
+/* The profile's Hessian at g0 (value f0, hyperparameters th0) by central differences; 0 or -1. */
+static int hessian(struct kg *s, const double g0[3], double f0, const double *th0, double H[9])
+{
+    double h = KG_HESS_STEP;
+    for (int i = 0; i < 3; i++) {
+        double gp[3], gm[3];
+        memcpy(gp, g0, sizeof gp), memcpy(gm, g0, sizeof gm);
+        gp[i] += h, gm[i] -= h;
+        double fp = profile(s, gp, th0, NULL), fm = profile(s, gm, th0, NULL);
+        if (!(fp < HUGE_VAL && fm < HUGE_VAL)) return -1;
+        H[i * 3 + i] = (fp - 2 * f0 + fm) / (h * h);
+        for (int j = 0; j < i; j++) {
+            double c[4];
+            for (int q = 0; q < 4; q++) {
+                double gq[3];
+                memcpy(gq, g0, sizeof gq);
+                gq[i] += q & 1 ? -h : h;
+                gq[j] += q & 2 ? -h : h;
+                if (!((c[q] = profile(s, gq, th0, NULL)) < HUGE_VAL)) return -1;
+            }
+            H[i * 3 + j] = H[j * 3 + i] = (c[0] - c[1] - c[2] + c[3]) / (4 * h * h);
+        }
+    }
+    return 0;
+}
+
+/* Inverts the symmetric 3 x 3 H into C; -1 when H is not positive definite. */
+static int invert3(const double H[9], double C[9])
+{
+    double a = H[0], b = H[1], c = H[2], d = H[4], e = H[5], f = H[8];
+    double A = d * f - e * e, B = c * e - b * f, Cc = b * e - c * d;
+    double det = a * A + b * B + c * Cc;
+    if (!(a > 0) || !(a * d - b * b > 0) || !(det > 0)) return -1;
+    C[0] = A / det, C[1] = C[3] = B / det, C[2] = C[6] = Cc / det;
+    C[4] = (a * f - c * c) / det, C[5] = C[7] = (b * c - a * e) / det, C[8] = (a * d - b * b) / det;
+    return 0;
+}
+
+int fit_geometry_krige(const fit_scan_t *scan, const fit_geometry_t *start,
+                       const fit_options_t *opts, fit_geometry_t *out, err_t *err)
+{
+    *out = *start;
+    if (start->r < 1 || start->r > 32)
+        return err_set(err, -EINVAL, "the kriged geometry needs the r x r fit's r (got %d)", start->r);
+    fit_gsl_policy();
+    fit_options_t o = opts ? *opts : fit_options_default();
+    fit_krige_prior_t pr = fit_krige_prior_divisors(start->r);
+    struct kg s = {.scan = scan, .pr = &pr, .o = &o};
+    double Rw = start->R_written_um > 0 ? start->R_written_um : scan->spot_radius_um;
+    s.Rlo = Rw / 2, s.Rhi = Rw * 2, s.dmax = scan->pitch_um;
+    s.x = malloc(sizeof(double) * (scan->n ? scan->n : 1));
+    s.y = malloc(sizeof(double) * (scan->n ? scan->n : 1));
+    gsl_multimin_fminimizer *mz = gsl_multimin_fminimizer_alloc(gsl_multimin_fminimizer_nmsimplex2, 3);
+    gsl_vector *x0 = gsl_vector_alloc(3), *step = gsl_vector_alloc(3);
+    int rc = 0;
+    if (!s.x || !s.y || !mz || !x0 || !step) {
+        rc = err_set(err, -ENOMEM, "out of memory for the kriged geometry");
+        goto out;
+    }
+    double g0[3] = {start->R_um, start->dx_um, start->dy_um};
+    if (start->flags & FIT_GEOMETRY_UNUSABLE) /* from the written geometry */
+        g0[0] = Rw, g0[1] = g0[2] = 0;
+    for (int i = 0; i < 3; i++) gsl_vector_set(x0, i, g0[i]), gsl_vector_set(step, i, KG_STEP0);
+    gsl_multimin_function fn = {.f = simplex_f, .n = 3, .params = &s};
+    if (gsl_multimin_fminimizer_set(mz, &fn, x0, step) || s.rc) {
+        rc = s.rc ? err_set(err, s.rc, "%s", s.err.msg)
+                  : err_set(err, -EDOM, "the kriged geometry's likelihood could not be evaluated");
+        goto out;
+    }
+    int iter = 0, status = GSL_CONTINUE;
+    while (status == GSL_CONTINUE && iter < KG_MAX_ITER) {
+        iter++;
+        if (gsl_multimin_fminimizer_iterate(mz) || s.rc) break;
+        status = gsl_multimin_test_size(gsl_multimin_fminimizer_size(mz), KG_SIZE_TOL);
+    }
+    if (s.rc) {
+        rc = err_set(err, s.rc, "%s", s.err.msg);
+        goto out;
+    }
+    double g[3] = {gsl_vector_get(mz->x, 0), gsl_vector_get(mz->x, 1), gsl_vector_get(mz->x, 2)};
+    double th[KR_MAX_THETA];
+    double f = profile(&s, g, s.have_th ? s.th : NULL, th);
+    if (!(f < HUGE_VAL)) {
+        rc = err_set(err, -EDOM, "the kriged geometry's likelihood could not be evaluated");
+        goto out;
+    }
+    out->flags = status == GSL_SUCCESS ? 0 : FIT_GEOMETRY_NOT_CONVERGED;
+    out->kriged = 1;
+    out->R_um = g[0], out->dx_um = g[1], out->dy_um = g[2];
+    out->iterations = iter;
+    /* the model's own goodness of fit: d^T P d against chi-square(n - 1) (krige_int.h) */
+    double dof = (double)s.n_used - 1;
+    out->kriged_chi2 = s.dPd;
+    out->kriged_chi2_red = dof > 0 ? s.dPd / dof : NAN;
+    out->kriged_chi2_p = dof > 0 ? gsl_cdf_chisq_Q(s.dPd, dof) : NAN;
+    if (out->kriged_chi2_p < FIT_POOR_FIT_P) out->flags |= FIT_GEOMETRY_POOR_FIT;
+    double H[9], C[9];
+    if (hessian(&s, g, f, th, H) || invert3(H, C)) {
+        out->flags |= FIT_GEOMETRY_ILL_CONDITIONED;
+        out->R_err_um = out->dx_err_um = out->dy_err_um = NAN;
+    } else {
+        out->R_err_um = sqrt(C[0]), out->dx_err_um = sqrt(C[4]), out->dy_err_um = sqrt(C[8]);
+        out->corr[0] = C[1] / sqrt(C[0] * C[4]);
+        out->corr[1] = C[2] / sqrt(C[0] * C[8]);
+        out->corr[2] = C[5] / sqrt(C[4] * C[8]);
+    }
+    if (g[0] - s.Rlo < 0.01 * Rw || s.Rhi - g[0] < 0.01 * Rw || s.dmax - fabs(g[1]) < 0.01 * s.dmax ||
+        s.dmax - fabs(g[2]) < 0.01 * s.dmax)
+        out->flags |= FIT_GEOMETRY_AT_BOUND;
+    out->evaluations = start->evaluations + s.evals;
+out:
+    gsl_multimin_fminimizer_free(mz);
+    gsl_vector_free(x0);
+    gsl_vector_free(step);
+    free(s.x), free(s.y);
+    return rc;
+}
