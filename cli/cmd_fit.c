@@ -430,6 +430,7 @@ int cmd_fit(int argc, char **argv)
     if (a.table) {
         const fit_pipeline_t *pl = &run.pl;
         fit_table_print(stdout, a.path, &run.sf.scan, &pl->sweep,
+                        pl->geometry_part.asked ? &pl->geometry : NULL,
                         pl->ftest_part.asked ? &pl->ftest : NULL,
                         pl->wiener_part.asked ? &pl->wiener : NULL,
                         a.krige && !pl->sweep.kriged ? pl->kriged_error : NULL,

@@ -51,13 +51,31 @@ static void print_sweep(FILE *f, const fit_sweep_t *sw)
         fprintf(f, "  note: AIC or BIC picked the largest r the sweep or the points allow\n");
 }
 
+/* The geometry fitted before the sweep (geometry.h), which every map below uses. */
+static void print_geometry(FILE *f, const fit_geometry_t *g)
+{
+    fprintf(f, "\nGeometry (fitted first; the maps below use it): %s, r = %d (%s), %s\n",
+            g->kriged ? "refined under the kriged model" : "the r x r map's", g->r,
+            g->r_picked ? "picked from the data" : "asked", fit_geometry_status(g->flags));
+    fprintf(f, "  spot radius %.4f +- %.4f um (written %.4f); offset dx %+.4f +- %.4f um, "
+               "dy %+.4f +- %.4f um\n", g->R_um, g->R_err_um, g->R_written_um, g->dx_um,
+            g->dx_err_um, g->dy_um, g->dy_err_um);
+    if (g->kriged)
+        fprintf(f, "  kriged model's chi2/(N - 1) = %.3f (p = %.3g); the r x r map's chi2/dof = "
+                   "%.3f\n", g->kriged_chi2_red, g->kriged_chi2_p, g->chi2_red);
+    else
+        fprintf(f, "  chi2/dof = %.3f (p = %.3g); chi2 %.6g at the written geometry, %.6g fitted\n",
+                g->chi2_red, g->chi2_p, g->chi2_fixed, g->chi2_fitted);
+}
+
 void fit_table_print(FILE *f, const char *path, const fit_scan_t *scan, const fit_sweep_t *sw,
-                     const fit_ftest_t *ftest, const fit_wiener_t *wiener,
+                     const fit_geometry_t *geometry, const fit_ftest_t *ftest, const fit_wiener_t *wiener,
                      const char *kriged_error, double total_ms)
 {
     const fit_result_t *first = &sw->fits[0];
     fprintf(f, "%s: %zu points (%zu used), pitch %g um, spot radius %g um, %d frames\n", path,
             scan->n, first->n_used, scan->pitch_um, scan->spot_radius_um, scan->frames);
+    if (geometry) print_geometry(f, geometry);
     fprintf(f, "\nModel selection (weighted chi-square, eq. 4; AIC/BIC with p = r*r + 1)\n");
     print_sweep(f, sw);
     int best = sw->recommended_r;

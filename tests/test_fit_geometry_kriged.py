@@ -10,6 +10,7 @@ seeds):
   five times too small: status poor_fit, the kriged model's chi2_p < 1e-3 (its chi2_red stays far
   below 25: the fine grid's smooth part takes up much of the excess as structure);
 - `--geometry-model map` keeps the r x r fit (model "map", kriged_fit null);
+- `--table` reports the geometry the JSON gives, and which model made it;
 - bad use exits 2 with one line: an unknown model, the option without --fit-geometry.
 Runs in a temporary directory; Python's standard library only."""
 import json
@@ -75,6 +76,12 @@ with tempfile.TemporaryDirectory() as tmp:
             m = fit(path, "--geometry-model", "map")
             check(m and m["model"] == "map" and m["kriged_fit"] is None,
                   "--geometry-model map: %r" % ((m["model"], m["kriged_fit"]) if m else None,))
+            p = subprocess.run([IPS, "fit", path, "--sigma", "shot+read", "--fit-geometry",
+                                "--r-max", "2", "--threads", "1", "--no-krige", "--table"],
+                               capture_output=True, text=True)
+            want = "spot radius %.4f +- %.4f um" % (g["spot_radius_um"], g["spot_radius_um_err"])
+            check(p.returncode == 0 and "refined under the kriged model" in p.stdout and
+                  want in p.stdout, "--table: no '%s' in %r" % (want, p.stdout[:400]))
             # the noise model five times too small: the gain written 25x too large
             with open(path) as f:
                 doc = json.load(f)
