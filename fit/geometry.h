@@ -78,6 +78,8 @@ typedef struct fit_geometry {
     double kriged_chi2;        /* d^T P d at the kriged optimum (krige_int.h) */
     double kriged_chi2_red;    /* over N - 1, its expectation under the model */
     double kriged_chi2_p;      /* upper tail of chi-square(N - 1): poor_fit below FIT_POOR_FIT_P */
+    char kriged_error[256];    /* why the kriged refinement asked for was not kept (the pipeline,
+                                  fit/pipeline.c): "" when it was, or was not asked */
 } fit_geometry_t;
 
 /* "ok", or "not_converged" / "at_bound" / "ill_conditioned" / "poor_fit" (the first of flags).

@@ -218,8 +218,24 @@ static void geometry_step(struct run *rn)
         return;
     r = g->r;
     if (!rn->o->geometry_map_only && !(g->flags & FIT_GEOMETRY_UNUSABLE)) {
+        /* refined under the kriged model; where that fails, the r x r fit's geometry stays and
+         * the document says why (kriged_error) */
         fit_geometry_t rg = *g;
-        if ((p->rc = fit_geometry_krige(scan, &rg, &rn->o->fit, g, &p->err))) return;
+        err_t ke;
+        int krc = fit_geometry_krige(scan, &rg, &rn->o->fit, g, &ke);
+        if (krc == -ECANCELED || krc == -ENOMEM) {
+            p->rc = err_set(&p->err, krc, "%s", ke.msg);
+            return;
+        }
+        if (krc || (g->flags & FIT_GEOMETRY_UNUSABLE)) {
+            unsigned bad = g->flags;
+            *g = rg;
+            if (krc) snprintf(g->kriged_error, sizeof g->kriged_error, "%s", ke.msg);
+            else
+                snprintf(g->kriged_error, sizeof g->kriged_error,
+                         "the kriged refinement was %s; the r x r map's geometry is kept",
+                         fit_geometry_status(bad));
+        }
     }
     if (g->flags & FIT_GEOMETRY_UNUSABLE) { /* poor_fit alone: used, and said in its status */
         p->rc = err_set(&p->err, -EDOM,

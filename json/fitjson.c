@@ -154,7 +154,8 @@ json_t *fitjson_geometry(const fit_geometry_t *g)
                         g->kriged ? json_pack("{s:o, s:o, s:o}", "chi2", fitjson_num(g->kriged_chi2),
                                               "chi2_red", fitjson_num(g->kriged_chi2_red), "chi2_p",
                                               fitjson_num(g->kriged_chi2_p))
-                                  : json_null());
+                        : g->kriged_error[0] ? json_pack("{s:s}", "error", g->kriged_error)
+                                             : json_null());
     json_object_set_new(o, "status", json_string(fit_geometry_status(g->flags)));
     json_object_set_new(o, "N", json_integer((json_int_t)g->n_used));
     json_object_set_new(o, "params", json_integer(g->params));
