@@ -19,14 +19,9 @@ import subprocess
 import sys
 import tempfile
 
+from oklines import check, finish
+
 IPS = sys.argv[1]
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what, file=sys.stderr)
 
 
 def simulate(tmp, scene, grid, step, R, dx, dy, seed):
@@ -41,7 +36,7 @@ def simulate(tmp, scene, grid, step, R, dx, dy, seed):
 def fit(path, *extra):
     p = subprocess.run([IPS, "fit", path, "--sigma", "shot+read", "--fit-geometry", "--r-max", "2",
                         "--threads", "1", *extra], capture_output=True, text=True)
-    check(p.returncode == 0, "%s: ips fit exit %d: %s" % (path, p.returncode, p.stderr))
+    check(p.returncode == 0, "%s: ips fit exits 0 (%d: %s)" % (path, p.returncode, p.stderr.strip()))
     return json.loads(p.stdout)["geometry"] if p.returncode == 0 else None
 
 
@@ -52,10 +47,10 @@ def near(g, truth, label):
           % (label, got[0], sig[0], got[1], sig[1], got[2], sig[2], truth, g["status"],
              g["kriged_fit"]["chi2_red"]))
     for name, a, t, s in zip(("R", "dx", "dy"), got, truth, sig):
-        check(0 < s < 0.1, "%s: sigma of %s %.4f" % (label, name, s))
-        check(abs(a - t) <= 3 * s, "%s: %s %.4f not within 3 sigma (%.4f) of %.4f" %
+        check(0 < s < 0.1, "%s: sigma of %s %.4f in (0, 0.1) um" % (label, name, s))
+        check(abs(a - t) <= 3 * s, "%s: %s %.4f within 3 sigma (%.4f) of the truth %.4f" %
               (label, name, a, s, t))
-        check(abs(a - t) <= 0.03, "%s: %s %.4f not within 0.03 um of %.4f" % (label, name, a, t))
+        check(abs(a - t) <= 0.03, "%s: %s %.4f within 0.03 um of the truth %.4f" % (label, name, a, t))
 
 
 with tempfile.TemporaryDirectory() as tmp:
@@ -66,22 +61,24 @@ with tempfile.TemporaryDirectory() as tmp:
         g = fit(path)
         if not g:
             continue
-        check(g["model"] == "kriged", "%s: model %s" % (label, g["model"]))
-        check(g["status"] == "ok", "%s: status %s" % (label, g["status"]))
+        check(g["model"] == "kriged", "%s: model kriged (%s)" % (label, g["model"]))
+        check(g["status"] == "ok", "%s: status ok (%s)" % (label, g["status"]))
         kf = g["kriged_fit"]
         check(0.7 < kf["chi2_red"] < 1.4 and kf["chi2_p"] > 1e-3,
-              "%s: kriged chi2_red %.3f, chi2_p %.3g" % (label, kf["chi2_red"], kf["chi2_p"]))
+              "%s: kriged chi2_red %.3f in (0.7, 1.4), chi2_p %.3g above 1e-3" %
+              (label, kf["chi2_red"], kf["chi2_p"]))
         near(g, (R, dx, dy), label)
         if scene == "deadcorner":
             m = fit(path, "--geometry-model", "map")
             check(m and m["model"] == "map" and m["kriged_fit"] is None,
-                  "--geometry-model map: %r" % ((m["model"], m["kriged_fit"]) if m else None,))
+                  "--geometry-model map: model map, kriged_fit null (%r)" %
+                  ((m["model"], m["kriged_fit"]) if m else None,))
             p = subprocess.run([IPS, "fit", path, "--sigma", "shot+read", "--fit-geometry",
                                 "--r-max", "2", "--threads", "1", "--no-krige", "--table"],
                                capture_output=True, text=True)
             want = "spot radius %.4f +- %.4f um" % (g["spot_radius_um"], g["spot_radius_um_err"])
             check(p.returncode == 0 and "refined under the kriged model" in p.stdout and
-                  want in p.stdout, "--table: no '%s' in %r" % (want, p.stdout[:400]))
+                  want in p.stdout, "--table says the model and '%s'" % want)
             # the noise model five times too small: the gain written 25x too large
             with open(path) as f:
                 doc = json.load(f)
@@ -95,13 +92,14 @@ with tempfile.TemporaryDirectory() as tmp:
                                                                      b["kriged_fit"]["chi2_red"]))
                 check(b["status"] == "poor_fit" and b["kriged_fit"]["chi2_p"] < 1e-3 and
                       b["kriged_fit"]["chi2_red"] > 1.4,
-                      "gain x25: status %s, kriged_fit %r" % (b["status"], b["kriged_fit"]))
+                      "gain x25: poor_fit, chi2_p < 1e-3, chi2_red > 1.4 (%s, %r)" %
+                      (b["status"], b["kriged_fit"]))
             for extra, what in [(["--fit-geometry", "--geometry-model", "spline"], "unknown model"),
                                 (["--geometry-model", "map"], "without --fit-geometry")]:
                 p = subprocess.run([IPS, "fit", path, *extra], capture_output=True, text=True)
                 check(p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and
                       "geometry-model" in p.stderr,
-                      "%s: exit %d, stderr %r" % (what, p.returncode, p.stderr))
+                      "%s: exit 2 with one line naming --geometry-model (%d, %r)" %
+                      (what, p.returncode, p.stderr))
 
-print("%d failure(s)" % len(failures))
-sys.exit(1 if failures else 0)
+finish()
