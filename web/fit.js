@@ -18,6 +18,7 @@ import {
     errFigure, fitPoints, mapPairFigure, resFigure, residualFigure, surfaceFigure,
 } from './fit_maps.js';
 import { goodness, reasonText, selectionFigure } from './fit_select.js';
+import { geometryFacts } from './fit_geometry.js';
 import { storedContent, storedKind } from './fit_stored.js';
 import { requestRules, ruleAttrs } from './rules.js';
 
@@ -309,7 +310,8 @@ export function renderFit(root, id, ctx) {
                         h('dt', {}, 'Points used'),
                         h('dd', {}, `${res.N ?? '–'} of ${res.n_points ?? '–'}`),
                         h('dt', {}, 'Noise model'), h('dd', {}, `${res.sigma ?? fit.noise_model}, ` +
-                            `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`))),
+                            `${res.method ?? ''}${res.nonneg ? ', S ≥ 0' : ''}`),
+                        geometryFacts(res.geometry))),
                 h('section', { class: 'panel', 'aria-labelledby': 'ft-h' },
                     h('h3', { id: 'ft-h' }, 'F-test: is the centre of the pixel flat?'),
                     ftestPanel(res.ftest))),

@@ -899,6 +899,28 @@ async function run(base, page, api) {
     await page.locator('[data-testid="current-map-note"]').waitFor({ timeout: WAIT });
     check(await text('current-map-note') === fewCal.map_note,
         'the Pixel view gives the calibration\'s map_note', await text('current-map-note'));
+
+    // a fit with the geometry fitted first (an upload of the pixel's file, fit_geometry): the
+    // Fit view's Result gives the API's radius, offset and model
+    const geoJob = (await api('POST', '/api/fits', { scan: pixelFile, fit_geometry: true,
+        geometry_r: 3, r_max: 3 })).body.job;
+    const geoFit = (await until(async () => {
+        const j = (await api('GET', `/api/jobs/${geoJob.id}`)).body;
+        return j.state === 'done' && j;
+    }, 'the upload with fit_geometry to be fitted', LONG_WAIT)).fit_id;
+    const geo = (await api('GET', `/api/fits/${geoFit}`)).body.result.geometry;
+    await page.goto(`${base}/#/fits/${geoFit}`);
+    await page.locator('[data-testid="geometry-R"]').waitFor({ timeout: WAIT });
+    const geoModel = page.locator('[data-testid="geometry-model"]');
+    check(geo && geo.model === 'kriged' &&
+        Number(await page.locator('[data-testid="geometry-R"]').getAttribute('data-value')) ===
+            geo.spot_radius_um &&
+        (await text('geometry-R')).startsWith(geo.spot_radius_um.toFixed(4)) &&
+        (await text('geometry-offset')).includes(`dx ${geo.dx_um.toFixed(4)}`) &&
+        await geoModel.getAttribute('data-model') === geo.model &&
+        await geoModel.getAttribute('data-status') === geo.status,
+    'the Fit view gives the fitted geometry the API gives, and the model that made it',
+    JSON.stringify([geo, await text('geometry-R'), await text('geometry-model')]));
     await page.goto(`${base}/#/fits/${refit}`);
 
     // a re-fit from the Fit view that becomes the calibration ("promote": true)
