@@ -127,13 +127,14 @@ static int invert3(const double H[9], double C[9])
 
 /* Newton's method on the profile from g0, with the central-difference gradient and Hessian: the
  * profile is close to quadratic about its optimum (on a paper-like 13 x 13 scan within 20 % of it
- * out to four sigma), and the r x r fit's geometry starts within a few sigma of it, so one or two
- * steps reach it in ~20-40 values where the simplex took ~70-110. A step is cut to
+ * out to four sigma), and the r x r fit's geometry starts within a few sigma of it, so one to three
+ * steps reach it in ~40-60 values where the simplex took ~75-110. A step is cut to
  * KG_NEWTON_MAX_STEP and halved until the value falls. Ends when the step is under KG_NEWTON_TOL
  * of its sigma, or when a full step of at most one sigma fell as the quadratic predicted (the
  * Hessian at its start then stands for the optimum's). g, th, f, H, C: the optimum, its
- * hyperparameters and value, the Hessian and its inverse there. 0, or -1 where the Hessian is
- * not positive definite or no step falls (the caller falls back to the simplex). */
+ * hyperparameters and value, the Hessian and its inverse there. 0 (also when no step falls: g is
+ * then the optimum as far as the differences tell), or -1 where the Hessian is not positive
+ * definite or the steps ran out (the caller falls back to the simplex). */
 static int newton_search(struct kg *s, const double g0[3], double g[3], double *th, double *f,
                          double H[9], double C[9], int *iter)
 {
