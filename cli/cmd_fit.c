@@ -60,6 +60,9 @@ static const char usage[] =
     "                      of the sensitivity on a fine grid, the map ipsd stores as the\n"
     "                      calibration; docs/numerics.md \"The kriged map\"); --krige (the\n"
     "                      default) adds it\n"
+    "  --krige-mixture     add kriged_map.mixture: the kriged map's expected error under an\n"
+    "                      equal mixture of the priors of r - 1, r and r + 1 (the expected\n"
+    "                      error an adaptive scan reports and stops on; two more kriged maps)\n"
     "  --threads N         fit the r of the sweep on N threads (1..64; default: the CPUs this\n"
     "                      process may run on, at most " STR(THREADS_DEFAULT_MAX) "); the results do not depend on N\n"
     "  --table             print a report for people instead of JSON\n"
@@ -86,11 +89,12 @@ struct fit_args {
     double wiener_nsr; /* --wiener-nsr X */
     int threads;       /* --threads N */
     int krige;         /* 1 unless --no-krige */
+    int krige_mix;     /* --krige-mixture */
 };
 
 enum { OPT_R = 256, OPT_R_MIN, OPT_R_MAX, OPT_SIGMA, OPT_FTEST, OPT_FTEST_R, OPT_WIENER,
        OPT_METHOD, OPT_NONNEG, OPT_INTERP, OPT_FULL_SCALE, OPT_DESIGN_TOL, OPT_TABLE, OPT_REGION,
-       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_GEOMETRY_MODEL, OPT_PIXELS, OPT_THREADS, OPT_KRIGE, OPT_NO_KRIGE, OPT_HELP };
+       OPT_WIENER_NSR, OPT_FIT_GEOMETRY, OPT_GEOMETRY_R, OPT_GEOMETRY_MODEL, OPT_PIXELS, OPT_THREADS, OPT_KRIGE, OPT_NO_KRIGE, OPT_KRIGE_MIX, OPT_HELP };
 
 static const struct option long_opts[] = {
     {"r", required_argument, NULL, OPT_R},
@@ -115,6 +119,7 @@ static const struct option long_opts[] = {
     {"threads", required_argument, NULL, OPT_THREADS},
     {"krige", no_argument, NULL, OPT_KRIGE},
     {"no-krige", no_argument, NULL, OPT_NO_KRIGE},
+    {"krige-mixture", no_argument, NULL, OPT_KRIGE_MIX},
     {"help", no_argument, NULL, OPT_HELP},
     {NULL, 0, NULL, 0},
 };
@@ -199,6 +204,7 @@ static int one_opt(int val, const char *arg, void *user, err_t *err)
     case OPT_FIT_GEOMETRY: a->fit_geometry = 1; return 0;
     case OPT_KRIGE: a->krige = 1; return 0;
     case OPT_NO_KRIGE: a->krige = 0; return 0;
+    case OPT_KRIGE_MIX: a->krige_mix = 1; return 0;
     case OPT_GEOMETRY_R: return opts_int32("geometry-r", arg, 1, R_LIMIT, &a->geometry_r, err);
     case OPT_GEOMETRY_MODEL:
         if (strcmp(arg, "map") == 0) a->geometry_map_only = 1;
@@ -246,6 +252,8 @@ static int check_args(int argc, char **argv, int first, struct fit_args *a, cons
         return err_set(err, -EINVAL, "--geometry-r needs --fit-geometry");
     if (seen[OPT_GEOMETRY_MODEL - OPT_R] && !a->fit_geometry)
         return err_set(err, -EINVAL, "--geometry-model needs --fit-geometry");
+    if (a->krige_mix && !a->krige)
+        return err_set(err, -EINVAL, "--krige-mixture needs the kriged map: not with --no-krige");
     if (a->all_pixels && a->table)
         return err_set(err, -EINVAL, "--table prints one pixel's report: not with --pixels all");
     if (first >= argc) return err_set(err, -EINVAL, "missing FILE (usage: ips fit FILE [options])");
@@ -321,7 +329,7 @@ static int run_pipeline(const struct fit_args *a, const fit_scan_t *scan, fit_pi
                               .wiener_nsr = a->wiener_nsr, .fit_geometry = a->fit_geometry,
                               .geometry_r = a->geometry_r,
                               .geometry_map_only = a->geometry_map_only, .threads = a->threads,
-                              .krige = a->krige};
+                              .krige = a->krige, .krige_mix = a->krige_mix};
     if ((rc = fit_pipeline_run(scan, &po, NULL, pl, err))) return rc;
     const fit_part_t *parts[] = {&pl->geometry_part, &pl->ftest_part, &pl->wiener_part,
                                  &pl->interp_part};

@@ -73,6 +73,14 @@ typedef struct fit_kriged {
                            alone see nothing inside their cells (krige.c) */
     double *S_cov;      /* F^2 x F^2 from fit_krige_with_cov, else NULL */
     double ms;          /* cost */
+    /* the expected error under the neighbouring priors (fit_krige_mix; mix_n 0: not made) */
+    int mix_n;                /* priors in the mixture: r - 1 (when >= 1), r, r + 1 */
+    int mix_r[3];             /* their r */
+    double mix_map_err[3];    /* the rms of each one's S_err over the pixel */
+    double mix_spread[3];     /* the rms of each one's map minus this map (0 for r itself) */
+    double mix_log_lik[3];    /* each one's restricted log-likelihood (comparable across them) */
+    double mix_weight[3];     /* 1 / K within Occam's window, 0 outside */
+    double mix_err;           /* sqrt(sum over the priors of weight (map_err^2 + spread^2)) */
 } fit_kriged_t;
 
 /* The kriged map of scan's usable points (fit_map's, with opts' noise model and design tol) with
@@ -98,5 +106,30 @@ int fit_krige(const fit_scan_t *scan, int r, const fit_options_t *opts, fit_krig
               err_t *err);
 
 void fit_kriged_free(fit_kriged_t *k);
+
+/* The largest fine grid fit_map_ms_between and fit_krige_mix take (a kriged map's F is at most 46). */
+#define FIT_KRIGE_MIX_GRID_MAX 96
+
+/* Occam's window of fit_krige_mix: a prior whose restricted log-likelihood is this far below the
+ * best of the three is left out (docs/numerics.md "The expected error under the neighbouring
+ * priors"). */
+#define FIT_KRIGE_MIX_WINDOW 20.0
+
+/* The expected error of map (made from scan with opts and the divisor grids of map->r) under an
+ * equal mixture of its prior and those of r - 1 (when >= 1) and r + 1: the maps of the neighbours
+ * are made from the same points, and over the K of them within FIT_KRIGE_MIX_WINDOW of the best
+ * likelihood
+ *     e^2 = (1/K) sum_k [ <S_err_k^2> + <(m_k - m)^2> ]
+ * (<.> the mean over the pixel, m the map kept) is its second moment about the map kept (docs/
+ * numerics.md "The expected error under the neighbouring priors"). Fills map's mix_* fields; a
+ * neighbour whose map cannot be had is left out. 0; -EINVAL (no map), -ENOMEM, -ECANCELED
+ * (opts->stop) with err. The map itself and its S_err are unchanged. */
+int fit_krige_mix(const fit_scan_t *scan, fit_kriged_t *map, const fit_options_t *opts,
+                  err_t *err);
+
+/* The mean over the pixel of (a - b)^2 for two piecewise-constant maps a (fa x fa) and b
+ * (fb x fb), row-major y then x, each cell of equal area: exact, over the common refinement of
+ * the two grids. NaN for a grid outside 1..FIT_KRIGE_MIX_GRID_MAX. */
+double fit_map_ms_between(const double *a, int fa, const double *b, int fb);
 
 #endif

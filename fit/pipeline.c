@@ -329,6 +329,12 @@ static int keep_kriged(struct run *rn, fit_sweep_t *sw, err_t *err)
         return 0;
     }
     if (rc) return err_set(err, rc, "%s", e.msg);
+    /* a mixture that cannot be had leaves the map without it (mix_n 0) */
+    if (rn->o->krige_mix && (rc = fit_krige_mix(rn->scan, &k, &rn->o->fit, &e)) &&
+        (rc == -ENOMEM || rc == -ECANCELED)) {
+        fit_kriged_free(&k);
+        return err_set(err, rc, "%s", e.msg);
+    }
     if (!(sw->kriged = malloc(sizeof *sw->kriged))) {
         fit_kriged_free(&k);
         return err_set(err, -ENOMEM, "out of memory");

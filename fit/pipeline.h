@@ -62,6 +62,9 @@ typedef struct fit_pipeline_opts {
     int krige;             /* also estimate the kriged map of the recommended r (krige.h) into
                               sweep.kriged (0); where it cannot be had (too many points, no
                               signal) sweep.kriged stays NULL and kriged_error says why */
+    int krige_mix;         /* with krige: also its expected error under the neighbouring priors
+                              (fit_krige_mix, the adaptive scan's expected error) into the map's
+                              mix_* fields (0) */
 } fit_pipeline_opts_t;
 
 /* The geometry fit's r before it was picked from the data; kept for callers that name it. */

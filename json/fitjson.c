@@ -194,12 +194,24 @@ json_t *fitjson_kriged(const fit_kriged_t *k, const char *why_not)
     for (int i = 0; levels && i < k->n_levels; i++)
         json_array_append_new(levels, json_pack("{s:i, s:o}", "q", k->level_q[i], "sd",
                                                 fitjson_num(k->level_sd[i])));
-    return json_pack("{s:i, s:i, s:b, s:o, s:o, s:o, s:o, s:o, s:i, s:o, s:o}", "grid", k->grid,
+    json_t *o = json_pack("{s:i, s:i, s:b, s:o, s:o, s:o, s:o, s:o, s:i, s:o, s:o}", "grid", k->grid,
                      "r", k->r, "smooth", k->smooth, "likelihood_ratio", fitjson_num(k->lr),
                      "amplitude", fitjson_num(k->amplitude), "length_um",
                      fitjson_num(k->length_um), "levels", levels, "log_likelihood",
                      fitjson_num(k->log_lik), "evaluations", k->evaluations, "S",
                      fitjson_array(k->S, m), "S_err", fitjson_array(k->S_err, m));
+    if (o && k->mix_n > 0) {
+        json_t *pri = json_array();
+        for (int i = 0; pri && i < k->mix_n; i++)
+            json_array_append_new(pri, json_pack("{s:i, s:o, s:o, s:o, s:o}", "r", k->mix_r[i],
+                                                 "map_err", fitjson_num(k->mix_map_err[i]), "spread",
+                                                 fitjson_num(k->mix_spread[i]), "log_likelihood",
+                                                 fitjson_num(k->mix_log_lik[i]), "weight",
+                                                 fitjson_num(k->mix_weight[i])));
+        json_object_set_new(o, "mixture", json_pack("{s:o, s:o}", "expected_err",
+                                                    fitjson_num(k->mix_err), "priors", pri));
+    }
+    return o;
 }
 
 json_t *fitjson_sweep(const fit_sweep_t *sw, size_t n_points, const fit_options_t *opts,

@@ -61,7 +61,8 @@ json_t *fitjson_shrunk(const fit_shrunk_t *s);
 
 /* The kriged map (fit/krige.h): grid, r, smooth, likelihood_ratio, amplitude, length_um (null
  * without the smooth part), levels [{q, sd}], log_likelihood, evaluations, S, S_err (grid^2
- * each, row-major y then x); with k NULL, {"error": why_not} (null when why_not is NULL or
+ * each, row-major y then x), and mixture {expected_err, priors [{r, map_err, spread, log_likelihood, weight}]} when it was
+ * made (fit_krige_mix); with k NULL, {"error": why_not} (null when why_not is NULL or
  * empty). */
 json_t *fitjson_kriged(const fit_kriged_t *k, const char *why_not);
 

@@ -6,7 +6,10 @@ than the recommended r's map on every scan, by at least a quarter over all; its 
 smallest multiple of the recommended r with at least 24 cells, S has mean 1 and positive S_err;
 a flat pixel (recommended r = 1) gets a flat kriged map without the smooth part; the kriged map
 is there by default (as with --krige) and --no-krige leaves it out; --table prints it as a shaded
-picture with its likelihood ratio (and nothing of it with --no-krige). `ips export --kriged`
+picture with its likelihood ratio (and nothing of it with --no-krige); --krige-mixture leaves S
+and S_err as they are and adds the priors of r - 1, r and r + 1 with equal weights inside the
+window, the recommended r's entry being the map's own S_err, and exits 2 with --no-krige.
+`ips export --kriged`
 writes the document's kriged map as FITS (read back by astropy, an independent reader): its S and
 S_err on the F x F grid, OVERSAMP F, IPSMAP 'kriged', the recommended fit's I0; a document without
 one, or --kriged with --r / --shrunk, exits 2 with one line."""
@@ -100,6 +103,33 @@ with tempfile.TemporaryDirectory() as tmp:
                            capture_output=True, text=True, check=True).stdout
     check("Kriged map" not in plain and "kriged" not in plain.lower(),
           "--table --no-krige: no kriged map")
+
+    # --krige-mixture: the same map, and its expected error under the neighbouring priors
+    mixed = fit(scan, "--r-max", "8", "--krige-mixture")
+    km, kp = mixed["kriged_map"], fit(scan, "--r-max", "8")["kriged_map"]
+    mx = km.get("mixture", {})
+    pri = mx.get("priors", [])
+    post = math.sqrt(sum(e * e for e in km["S_err"]) / len(km["S_err"]))
+    best = max((p["log_likelihood"] for p in pri), default=0)
+    inside = [p for p in pri if p["log_likelihood"] >= best - 20]
+    check(km["S"] == kp["S"] and km["S_err"] == kp["S_err"] and "mixture" not in kp,
+          "--krige-mixture: the same S and S_err, and mixture only when asked")
+    check([p["r"] for p in pri] == [km["r"] - 1, km["r"], km["r"] + 1] and
+          all((p["weight"] > 0) == (p in inside) for p in pri) and
+          abs(sum(p["weight"] for p in pri) - 1) < 1e-12,
+          "--krige-mixture: the priors of r - 1, r and r + 1 (%s), equal weights inside the "
+          "window of 20" % [(p["r"], round(p["log_likelihood"], 1), p["weight"]) for p in pri])
+    own = [p for p in pri if p["r"] == km["r"]]
+    want = math.sqrt(sum(p["map_err"] ** 2 + p["spread"] ** 2 for p in inside) / len(inside))
+    check(own and own[0]["spread"] == 0 and abs(own[0]["map_err"] - post) < 1e-12 * post and
+          abs(mx["expected_err"] - want) < 1e-12 * want,
+          "--krige-mixture: the recommended r's own entry is the map's S_err (%.5f), and "
+          "expected_err %.5f the contract's mean" % (post, mx.get("expected_err", 0)))
+    r = subprocess.run([IPS, "fit", scan, "--no-krige", "--krige-mixture"], capture_output=True,
+                       text=True)
+    check(r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and
+          "--krige-mixture" in r.stderr, "--krige-mixture with --no-krige: exit %d, %r"
+          % (r.returncode, r.stderr.strip()))
 
     # ips export --kriged: the last graded scan's kriged map as FITS
     doc_path, plain_path, out = (os.path.join(tmp, n) for n in ("k.json", "p.json", "k.fits"))

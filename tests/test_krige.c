@@ -181,6 +181,80 @@ static void tilted_pixel(void)
     fit_kriged_free(&k);
 }
 
+/* fit_map_ms_between against hand-worked cases and, for grids 24 and 25, against the centres of
+ * the 600 x 600 grid both divide (each of its cells lies in one cell of either map, so the mean
+ * over those centres is exact). */
+static void ms_between(void)
+{
+    double one[1] = {1}, quad[4] = {1, 1, 1, 3}, half[4] = {0, 1, 0, 1};
+    double third[9] = {0, 1, 1, 0, 1, 1, 0, 1, 1};
+    CHECK(fabs(fit_map_ms_between(one, 1, quad, 2) - 1) < 1e-15);  /* a quarter at 2^2 */
+    CHECK(fabs(fit_map_ms_between(half, 2, third, 3) - 1.0 / 6) < 1e-15); /* x in [1/3, 1/2) */
+    CHECK(fabs(fit_map_ms_between(third, 3, half, 2) - 1.0 / 6) < 1e-15);
+    CHECK(fit_map_ms_between(third, 3, third, 3) == 0);
+    CHECK(isnan(fit_map_ms_between(one, 0, quad, 2)));
+    CHECK(isnan(fit_map_ms_between(one, 1, quad, FIT_KRIGE_MIX_GRID_MAX + 1)));
+    static double a[24 * 24], b[25 * 25];
+    unsigned long long s = 5;
+    for (int i = 0; i < 24 * 24; i++) a[i] = gauss(&s);
+    for (int i = 0; i < 25 * 25; i++) b[i] = gauss(&s);
+    double acc = 0;
+    for (int j = 0; j < 600; j++)
+        for (int i = 0; i < 600; i++) {
+            double d = a[(j * 24 / 600) * 24 + i * 24 / 600] - b[(j * 25 / 600) * 25 + i * 25 / 600];
+            acc += d * d;
+        }
+    double want = acc / (600.0 * 600), got = fit_map_ms_between(a, 24, b, 25);
+    CHECK(fabs(got - want) <= 1e-12 * want);
+}
+
+/* The expected error under the neighbouring priors (fit_krige_mix): a flat pixel's maps are flat
+ * under every prior (no spread; r = 1 has no r - 1). On the tilted pixel and the dead corner it
+ * covers the map's error against the truth and is at most 2.5x it (the r prior's posterior alone
+ * is 1.7-2x it there); on the dead corner, which r = 3's grid holds exactly, the priors of r = 2
+ * and 4 cannot hold it and fall outside Occam's window, so their spread (0.09) stays out. */
+static void mixture(void)
+{
+    static struct scan b;
+    fit_options_t o = shot_read();
+    fit_kriged_t k;
+    err_t e;
+    const fit_scan_t *sc = make_scan(flat, 1, 0, 1, &b);
+    CHECK(fit_krige(sc, 1, &o, &k, &e) == 0);
+    CHECK(fit_krige_mix(sc, &k, &o, &e) == 0);
+    CHECK(k.mix_n == 2 && k.mix_r[0] == 1 && k.mix_r[1] == 2);
+    CHECK(k.mix_spread[0] == 0 && k.mix_spread[1] < 1e-9);
+    fit_kriged_free(&k);
+    struct {
+        truth_fn t;
+        int g, r;
+        unsigned long long seed;
+        const char *name;
+    } cases[] = {{tilt, 24, 6, 11, "tilted pixel"}, {dead_corner, 3, 3, 7, "dead corner"}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        sc = make_scan(cases[c].t, cases[c].g, 1, cases[c].seed, &b);
+        CHECK(fit_krige(sc, cases[c].r, &o, &k, &e) == 0);
+        CHECK(fit_krige_mix(sc, &k, &o, &e) == 0);
+        double rms = map_rms(k.S, k.grid, cases[c].t), post = 0;
+        for (int i = 0; i < k.grid * k.grid; i++) post += k.S_err[i] * k.S_err[i];
+        post = sqrt(post / (k.grid * k.grid));
+        fprintf(stderr, "%s: map %.5f from the truth; expected %.5f under r %d..%d (spreads %.5f "
+                        "%.5f %.5f), %.5f under r = %d alone\n",
+                cases[c].name, rms, k.mix_err, k.mix_r[0], k.mix_r[k.mix_n - 1], k.mix_spread[0],
+                k.mix_spread[1], k.mix_spread[2], post, k.r);
+        CHECK(k.mix_n == 3 && k.mix_r[0] == k.r - 1 && k.mix_r[1] == k.r && k.mix_r[2] == k.r + 1);
+        CHECK(k.mix_spread[1] == 0 && fabs(k.mix_map_err[1] - post) <= 1e-12 * post);
+        CHECK(k.mix_err >= rms && k.mix_err <= 2.5 * rms);
+        if (cases[c].t == dead_corner)
+            CHECK(k.mix_weight[0] == 0 && k.mix_weight[1] == 1 && k.mix_weight[2] == 0 &&
+                  k.mix_spread[0] > 0.05 && fabs(k.mix_err - post) <= 1e-12 * post &&
+                  k.mix_log_lik[0] < k.mix_log_lik[1] - FIT_KRIGE_MIX_WINDOW);
+        else
+            CHECK(k.mix_weight[0] == 1.0 / 3 && k.mix_weight[2] == 1.0 / 3);
+        fit_kriged_free(&k);
+    }
+}
+
 static int stop_now(void *arg)
 {
     (void)arg;
@@ -291,6 +365,8 @@ int main(void)
     flat_pixel();
     piecewise_pixel();
     tilted_pixel();
+    ms_between();
+    mixture();
     covariance();
     plan_unseen_half();
     refusals();
