@@ -15,8 +15,9 @@ above 1.5x). An honest stop has both near 1 and none far above.
 points taken do not depend on the target, only where the scan stops), then for every target of
 0.008..0.025 where each rule would have stopped, and the same figures over all of them. The rules
 use only what the summary's batches say (expected_err, r, smooth): R0 the first plan with e <= T;
-R1 two plans in a row; R2 one plan whose model (r, smooth) is the plan before's; R3 both (what
-fit/adapt_plan.h does); R4 three plans in a row.
+R1 two plans in a row; R2 one plan whose model (r, smooth) is the plan before's; R3 both; R4
+three plans in a row; R5 the first plan with e <= T after the starting raster's (what
+fit/adapt_plan.h does).
 """
 import json
 import os
@@ -46,6 +47,7 @@ RULES = [
      met(bs[k - 1], t) and same(bs[k], bs[k - 1])),
     ("R4 three plans in a row", lambda bs, k, t: k > 1 and all(met(bs[j], t)
                                                               for j in (k - 2, k - 1, k))),
+    ("R5 first plan after the start", lambda bs, k, t: k > 0 and met(bs[k], t)),
 ]
 
 

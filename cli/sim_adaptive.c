@@ -1,7 +1,7 @@
 /* sim_adaptive.c: `ips simulate --adaptive` (sim_adaptive.h): the starting n0 x n0 raster, then
  * plan (fit/adapt_plan.h: the kriged map of the points so far, its expected rms error
  * e = sqrt(tr Sigma / F^2), the next batch where it lowers tr Sigma most), take the batch, and again
- * until e <= target is confirmed by the plan before (the planner's stop rule), the budget is spent
+ * until e <= target after a planned batch (the planner's stop rule), the budget is spent
  * or no candidate helps. The allowed box is the stage's travel seen from the pixel's corner. Each
  * map is scored against the scene's truth as the fidelity harness scores maps
  * (instrument/fidelity.h, fid_map_rms: the rms of the two mean-1 maps over the pixel). */
@@ -46,6 +46,7 @@ static void score(const sim_t *sim, const fit_adapt_step_t *st, json_t *entry)
     double rms = fid_map_rms(st->map.S, st->map.grid, T, m, TRUTH_SAMPLES);
     json_object_set_new(entry, "fitted", json_integer((json_int_t)st->n_fitted));
     json_object_set_new(entry, "expected_err", fitjson_num(st->expected_err));
+    json_object_set_new(entry, "posterior_err", fitjson_num(st->posterior_err));
     json_object_set_new(entry, "target_met", json_boolean(st->target_met));
     json_object_set_new(entry, "rms_err_truth", fitjson_num(rms));
     json_object_set_new(entry, "r", json_integer(st->r));
@@ -80,6 +81,7 @@ int cli_adaptive_run(sim_t *sim, const scan_config_t *cfg, const scan_setup_t *s
                      "stage's travel", ad->start_grid, ad->start_grid);
         goto out;
     }
+    o.start_points = (size_t)n;
     if ((rc = scan_file_new(su, cfg->frames, 0, sf, err))) goto out;
     double path = 0, px = su->pitch_um / 2, py = px; /* the start's path from the centre */
     for (int k = 0; k < n; k++) path += hypot(x[k] - px, y[k] - py), px = x[k], py = y[k];
@@ -89,12 +91,10 @@ int cli_adaptive_run(sim_t *sim, const scan_config_t *cfg, const scan_setup_t *s
     json_array_append_new(batches, batch_entry(sf->scan.n, n, path, NAN));
     fit_adapt_stop_t stop = FIT_ADAPT_GO;
     double last_expected = NAN, last_rms = NAN;
-    fit_adapt_step_t prev = {0}; /* the plan before (its scalars: the stop rule's confirmation) */
-    int planned = 0;
     fit_adapt_cache_t cache = {0}; /* the candidates' design rows, from plan to plan */
     while (stop == FIT_ADAPT_GO) {
         fit_adapt_step_t st;
-        rc = fit_adapt_plan(&sf->scan, &o, planned ? &prev : NULL, &cache, &st, err);
+        rc = fit_adapt_plan(&sf->scan, &o, &cache, &st, err);
         if (rc) {
             fit_adapt_step_free(&st);
             goto out;
@@ -112,7 +112,6 @@ int cli_adaptive_run(sim_t *sim, const scan_config_t *cfg, const scan_setup_t *s
                                       batch_entry(sf->scan.n, st.n, st.path_um, st.predicted_err));
         }
         fit_adapt_step_free(&st);
-        prev = st, planned = 1;
         if (rc) goto out;
     }
     json_object_set_new(root, "start_grid", json_integer(ad->start_grid));

@@ -1,6 +1,6 @@
 /* adapt_plan.c: one planning step of an adaptive scan (adapt_plan.h): the kriged map of the points
- * so far with its posterior covariance Sigma, the expected rms error e = sqrt(tr Sigma / F^2), the
- * stop rule (a target confirmed by the plan before), the candidates' design rows a_j (kept from
+ * so far with its posterior covariance Sigma, its expected rms error under the neighbouring priors
+ * (krige.h, fit_krige_mix), the stop rule (the first plan at the target), the candidates' design rows a_j (kept from
  * plan to plan in a fit_adapt_cache_t while the grid stays) and variances s_j^2 = sigma(B + I0 a_j^T S)^2 / I0^2, the greedy batch (adapt.h) and its travel
  * order (adapt_order.c); and the starting raster and the candidate lattice. */
 #include "fit/adapt_plan.h"
@@ -24,7 +24,8 @@ fit_adapt_opts_t fit_adapt_opts_default(void)
                           .lattice = FIT_ADAPT_LATTICE,
                           .batch = FIT_ADAPT_BATCH,
                           .target_err = FIT_ADAPT_TARGET_ERR,
-                          .max_points = FIT_ADAPT_MAX_POINTS};
+                          .max_points = FIT_ADAPT_MAX_POINTS,
+                          .start_points = FIT_ADAPT_START_GRID * FIT_ADAPT_START_GRID};
     o.fit.noise = FIT_NOISE_SHOT_READ;
     return o;
 }
@@ -218,28 +219,19 @@ static int pick_batch(const fit_scan_t *scan, const fit_adapt_opts_t *o, double 
     for (int i = 0; i < n; i++) out->x_um[i] = bx[perm[i]], out->y_um[i] = by[perm[i]];
     free(bx), free(by);
     out->n = n;
-    out->predicted_err = sqrt(mv[n]);
+    /* the picks lower the posterior's part; the priors' spread is held */
+    out->predicted_err = sqrt(mv[n] + fmax(out->expected_err * out->expected_err -
+                                           out->posterior_err * out->posterior_err, 0));
 out:
     free(cx), free(cy), free(A), free(s2), free(mv), free(picked), free(perm);
     return rc;
 }
 
-/* The target counts when the plan one batch earlier met it too with the same model: right after
- * the likelihood test changes the model (the smooth part dropped, another recommended r), e can
- * be several times below the error against the truth (docs/numerics.md, "An honest stop"). */
-static int target_confirmed(const fit_adapt_step_t *prev, const fit_adapt_step_t *cur,
-                            double target)
-{
-    return cur->target_met && prev && prev->expected_err <= target && prev->r == cur->r &&
-           prev->smooth == cur->smooth;
-}
-
 int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts,
-                   const fit_adapt_step_t *prev, fit_adapt_cache_t *cache, fit_adapt_step_t *out,
-                   err_t *err)
+                   fit_adapt_cache_t *cache, fit_adapt_step_t *out, err_t *err)
 {
     memset(out, 0, sizeof *out);
-    out->expected_err = out->predicted_err = out->path_um = NAN;
+    out->expected_err = out->posterior_err = out->predicted_err = out->path_um = NAN;
     double t0 = clock_mono_ms();
     fit_adapt_opts_t o = opts ? *opts : fit_adapt_opts_default();
     int rc = check_opts(&o, err);
@@ -260,10 +252,13 @@ int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *opts,
     size_t m = (size_t)out->map.grid * out->map.grid;
     double tr = 0;
     for (size_t c = 0; c < m; c++) tr += out->map.S_cov[c * m + c];
-    out->expected_err = sqrt(fmax(tr, 0) / (double)m);
+    out->posterior_err = sqrt(fmax(tr, 0) / (double)m);
+    /* the error a scan reports and stops on: under the neighbouring priors too */
+    if ((rc = fit_krige_mix(&sel.scan, &out->map, &o.fit, err))) goto out;
+    out->expected_err = out->map.mix_err;
     out->target_met = out->expected_err <= o.target_err;
     out->smooth = out->map.smooth;
-    if (target_confirmed(prev, out, o.target_err)) out->stop = FIT_ADAPT_TARGET;
+    if (out->target_met && scan->n > o.start_points) out->stop = FIT_ADAPT_TARGET;
     else if (scan->n >= o.max_points) out->stop = FIT_ADAPT_BUDGET;
     else rc = pick_batch(scan, &o, I0, out->map.S_cov, cache, out, err);
     free(out->map.S_cov);

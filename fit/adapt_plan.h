@@ -6,11 +6,13 @@
  * the points so far (those of the options' region) are fitted as the fit job does, the sweep
  * r = 1..r_max, then the kriged map with the recommended r's divisor grids as its prior
  * (fit_krige_prior_for_sweep), with its posterior covariance Sigma of S over the F x F fine
- * cells (fit_krige_with_cov). The map's expected rms error is
- *     e = sqrt(tr Sigma / F^2),
- * the root of the mean posterior variance over the cells (equal areas). Stop when the target is
- * confirmed (e <= target at this plan and at the plan before, the one batch earlier, with the same
- * model: the same recommended r and the smooth part kept or dropped alike), when the scan holds
+ * cells (fit_krige_with_cov). The root of the mean posterior variance over the cells (equal
+ * areas) is sqrt(tr Sigma / F^2); the map's expected rms error e, which the scan reports and
+ * stops on, is its second moment under an equal mixture of that prior and the priors of r - 1
+ * and r + 1 (fit_krige_mix: the posterior alone does not see the choice of r, and falls several
+ * times below the error against the truth where the choice moves). Stop at the first plan with
+ * e <= target once the scan holds a planned batch beyond its starting raster (the starting
+ * raster's map is where e is least honest: docs/numerics.md "An honest stop"), when the scan holds
  * max_points points, or when no candidate lowers tr Sigma; otherwise the
  * batch is fit_adapt_pick's greedy choice (adapt.h) among the candidates: the nodes
  * (i p / L, j p / L) of a lattice over the pixel (L = lattice) that lie in the region (inside:
@@ -23,7 +25,7 @@
  * batch is then ordered for travel (fit_adapt_order) from the scan's last position.
  *
  * Deterministic: the same points give the same batch (the fits run on the caller's thread), and
- * the same plans before give the same stop, so an interrupted scan resumes by planning again,
+ * so an interrupted scan resumes by planning again,
  * batch boundary after batch boundary, from the points it stored. Pure numerics, no I/O, no
  * globals, thread-safe. */
 #ifndef IPSD_FIT_ADAPT_PLAN_H
@@ -55,6 +57,8 @@ typedef struct fit_adapt_opts {
     int batch;            /* positions a batch, >= 1 (FIT_ADAPT_BATCH) */
     double target_err;    /* stop at an expected rms error <= this, > 0 (FIT_ADAPT_TARGET_ERR) */
     size_t max_points;    /* stop when the scan holds this many points (FIT_ADAPT_MAX_POINTS) */
+    size_t start_points;  /* the starting raster's points: a target stops the scan only once it
+                             holds more, a planned batch at least (FIT_ADAPT_START_GRID^2) */
 } fit_adapt_opts_t;
 
 /* The defaults above. */
@@ -62,7 +66,7 @@ fit_adapt_opts_t fit_adapt_opts_default(void);
 
 typedef enum fit_adapt_stop {
     FIT_ADAPT_GO = 0,      /* a batch to take */
-    FIT_ADAPT_TARGET = 1,  /* the expected error is at or below target_err, confirmed */
+    FIT_ADAPT_TARGET = 1,  /* the expected error is at or below target_err */
     FIT_ADAPT_BUDGET = 2,  /* the scan holds max_points points */
     FIT_ADAPT_NO_GAIN = 3, /* no candidate lowers the posterior variance */
 } fit_adapt_stop_t;
@@ -73,11 +77,15 @@ const char *fit_adapt_stop_name(fit_adapt_stop_t s);
 typedef struct fit_adapt_step {
     fit_adapt_stop_t stop;
     size_t n_fitted;      /* the scan's usable points in the region: what the map fitted */
-    double expected_err;  /* e of the map of the points so far */
-    int target_met;       /* e <= target_err at this plan (a stop needs it confirmed) */
+    double expected_err;  /* e of the map of the points so far, under the neighbouring priors
+                             (fit_krige_mix): what the stop rule reads */
+    double posterior_err; /* the root of the mean posterior variance, sqrt(tr Sigma / F^2), under
+                             the recommended r's prior alone (the rms of map.S_err) */
+    int target_met;       /* e <= target_err at this plan (a stop once past the start) */
     int smooth;           /* the kriged map kept its smooth part (map.smooth, kept after
                              fit_adapt_step_free for the next plan's stop rule) */
-    double predicted_err; /* e expected after the batch (NaN without one) */
+    double predicted_err; /* e expected after the batch: the posterior's part as the picks lower
+                             it, the priors' spread held (NaN without a batch) */
     int n;                /* positions in the batch (0 unless stop is FIT_ADAPT_GO) */
     double *x_um, *y_um;  /* n positions, pixel coordinates, in travel order (owned) */
     double path_um;       /* the stage's path through them from the scan's last position */
@@ -102,16 +110,12 @@ typedef struct fit_adapt_cache {
 void fit_adapt_cache_free(fit_adapt_cache_t *c);
 
 /* One planning step for scan (all points taken so far, in the order taken; positions relative to
- * the pixel's corner) under o (NULL: the defaults). prev is the step planned from the scan's
- * points before its last batch (NULL for the first plan, after the starting raster); only its
- * scalars are read, so it may have been released by fit_adapt_step_free. The target stops the
- * scan only when confirmed: e <= target_err here and in prev, with the same r and smooth; a
- * target met but not confirmed plans a batch as usual (target_met says so). cache (NULL: none)
+ * the pixel's corner) under o (NULL: the defaults). cache (NULL: none)
  * carries the candidates' design rows from plan to plan (it changes no result). 0 with *out
  * (release with fit_adapt_step_free, also after an error); -EINVAL (bad options naming them, too
  * few points for the map, no signal), -ENOMEM, -EDOM (the algebra failed) with err. */
-int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *o, const fit_adapt_step_t *prev,
-                   fit_adapt_cache_t *cache, fit_adapt_step_t *out, err_t *err);
+int fit_adapt_plan(const fit_scan_t *scan, const fit_adapt_opts_t *o, fit_adapt_cache_t *cache,
+                   fit_adapt_step_t *out, err_t *err);
 
 void fit_adapt_step_free(fit_adapt_step_t *s);
 

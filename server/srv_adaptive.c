@@ -1,7 +1,6 @@
 /* srv_adaptive.c: the points of an adaptive scan job (srv_adaptive.h): the starting raster, then
  * plan and measure batch after batch, every plan made from the points as stored (the database's
- * copy, so that a resumed scan plans from exactly what an uninterrupted one planned from) and
- * from the plan before it (the stop rule's confirmation, replayed the same way). */
+ * copy, so that a resumed scan plans from exactly what an uninterrupted one planned from). */
 #include "srv_adaptive.h"
 
 #include <errno.h>
@@ -62,14 +61,13 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
                      "strategy.start_grid: no position of the %dx%d raster is "
                      "within the stage's travel",
                      s->start_grid, s->start_grid);
+    o.start_points = (size_t)(ns > 0 ? ns : 0);
     if (rc == 0) rc = stored(st, sc, &sf, err);
     /* the starting raster, or what of it is not stored yet */
     if (rc == 0 && sf.scan.n < (size_t)ns)
         rc = take(cam, stage, sim, seed, cfg, su, sf.scan.n, count, (size_t)ns - sf.scan.n,
                   x + sf.scan.n, y + sf.scan.n, hooks, err);
     size_t k = (size_t)ns; /* the points the next plan sees: a batch boundary */
-    fit_adapt_step_t prev = {0}; /* the plan before (its scalars: the stop rule's confirmation) */
-    int planned_before = 0;
     fit_adapt_cache_t cache = {0}; /* the candidates' design rows, from plan to plan */
     while (rc == 0) {
         if ((rc = stored(st, sc, &sf, err))) break;
@@ -82,7 +80,7 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
         fit_scan_t prefix = sf.scan;
         prefix.n = k;
         fit_adapt_step_t step;
-        rc = fit_adapt_plan(&prefix, &o, planned_before ? &prev : NULL, &cache, &step, err);
+        rc = fit_adapt_plan(&prefix, &o, &cache, &step, err);
         out->plans++;
         out->plan_ms += step.ms;
         if (rc == 0) {
@@ -104,7 +102,6 @@ int srv_adaptive_capture(storage_t *st, const storage_scan_t *sc, cam_t *cam, st
         }
         int go = step.stop == FIT_ADAPT_GO;
         fit_adapt_step_free(&step);
-        prev = step, planned_before = 1;
         if (!go) break;
     }
     fit_adapt_cache_free(&cache);

@@ -18,8 +18,8 @@
 
 /* How a scan chooses its points ("strategy"): the raster of the scan's raster parameters (the
  * default), or an adaptive scan of the POI (fit/adapt_plan.h: the starting start_grid^2 raster,
- * then batches where the kriged map is least sure until the expected error reaches target_err,
- * confirmed by the plan before, or the scan holds max_points points). Defaults: fit/adapt_plan.h's. */
+ * then batches where the kriged map is least sure until its expected error reaches target_err
+ * after a planned batch, or the scan holds max_points points). Defaults: fit/adapt_plan.h's. */
 typedef struct srv_strategy {
     int adaptive;       /* 0: raster */
     double target_err;  /* > 0 */

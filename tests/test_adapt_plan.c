@@ -10,15 +10,15 @@
  *     margin's count by hand; never outside the box.
  *   - A tilted pixel seen only in its right half (box integrals of the truth, fit/box.h, with
  *     noise of a fixed seed): every position of the first batch lies in the unseen left half;
- *     the same points give the same batch; the expected error is the root of the mean S_err^2 the
- *     kriged map reports; the batch lowers the expected error, and measured (box integrals again)
+ *     the same points give the same batch; the posterior's error is the root of the mean S_err^2
+ *     the kriged map reports and the expected error the map's error under the neighbouring
+ *     priors (krige.h, fit_krige_mix); the batch lowers the expected error, and measured (box integrals again)
  *     the refitted map's expected error lands within a factor 1.5 of the prediction; the
  *     reported path is the sum of the batch's steps from the last point; an allowed box keeps
  *     every position inside it.
- *   - Stop rule: a target met on the first plan is not a stop but a batch planned as usual; met
- *     again on the next plan with the same model it stops (target); not when the plan before
- *     missed it, had another r or kept the smooth part where this one drops it (hand-set plans
- *     before); a full budget stops (budget), a budget of fewer points than a batch shortens it.
+ *   - Stop rule: a target met stops at once (target, no batch) when the scan holds more than its
+ *     starting raster, else plans a batch; one just under the expected error plans a batch; a full budget stops (budget), a budget of fewer points than a batch shortens
+ *     it.
  *   - An honest stop against the truth: a scan of the tilted pixel from the 5 x 5 start, batch
  *     after batch measured by box integrals, stops on a target; the map it stops with is within
  *     1.5x of the target against the tilt itself (rms of the two mean-1 maps over the pixel).
@@ -226,7 +226,7 @@ static void planner(void)
     o.target_err = 1e-4;
     fit_adapt_step_t s1, s2;
     err_t err = {{0}};
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s1, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s1, &err) == 0);
     CHECK(s1.stop == FIT_ADAPT_GO && s1.n == 9 && s1.n_fitted == 36);
     int left = 1;
     for (int k = 0; k < s1.n; k++) left &= s1.x_um[k] < P / 2;
@@ -234,16 +234,20 @@ static void planner(void)
     fprintf(stderr, "half-seen tilt: expected error %.4f, predicted after 9 picks %.4f (r = %d, "
             "F = %d, %.0f ms)\n", s1.expected_err, s1.predicted_err, s1.r, s1.map.grid, s1.ms);
     /* the same points, the same batch */
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
     CHECK(s2.n == s1.n && !memcmp(s1.x_um, s2.x_um, sizeof(double) * (size_t)s1.n) &&
           !memcmp(s1.y_um, s2.y_um, sizeof(double) * (size_t)s1.n) &&
           s1.expected_err == s2.expected_err);
     fit_adapt_step_free(&s2);
-    /* the expected error is the root of the mean S_err^2 of the map */
+    /* the posterior's error is the root of the mean S_err^2 of the map; the expected error, under
+     * the neighbouring priors, is the map's mixture error and at least the kept prior's share */
     size_t m = (size_t)s1.map.grid * s1.map.grid;
     double v = 0;
     for (size_t c = 0; c < m; c++) v += s1.map.S_err[c] * s1.map.S_err[c];
-    CHECK(fabs(s1.expected_err - sqrt(v / (double)m)) < 1e-9 * s1.expected_err);
+    CHECK(fabs(s1.posterior_err - sqrt(v / (double)m)) < 1e-9 * s1.posterior_err);
+    CHECK(s1.map.mix_n >= 2 && s1.expected_err == s1.map.mix_err);
+    fprintf(stderr, "half-seen tilt: posterior %.4f, under r %d..%d %.4f\n", s1.posterior_err,
+            s1.map.mix_r[0], s1.map.mix_r[s1.map.mix_n - 1], s1.expected_err);
     CHECK(s1.predicted_err < s1.expected_err);
     /* the path from the last point taken */
     double L = 0, x0 = b.x[b.sc.n - 1], y0 = b.y[b.sc.n - 1];
@@ -252,7 +256,7 @@ static void planner(void)
     CHECK(fabs(L - s1.path_um) < 1e-12 * L);
     /* measured: the refitted map's expected error near the prediction */
     for (int k = 0; k < s1.n; k++) measure(&b, s1.x_um[k], s1.y_um[k]);
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
     fprintf(stderr, "after the batch: expected error %.4f (predicted %.4f)\n", s2.expected_err,
             s1.predicted_err);
     CHECK(s2.expected_err < s1.expected_err);
@@ -261,44 +265,38 @@ static void planner(void)
     /* an allowed box: every position in it */
     const double box[4] = {0.5, 2.0, 1.0, 4.0};
     memcpy(o.box_um, box, sizeof box);
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
     int in_box = s2.n == 9;
     for (int k = 0; k < s2.n; k++)
         in_box &= s2.x_um[k] >= 0.5 && s2.x_um[k] <= 2.0 && s2.y_um[k] >= 1.0 && s2.y_um[k] <= 4.0;
     CHECK(in_box);
     fit_adapt_step_free(&s2);
 
-    /* the stop rule: a target is confirmed by the plan before, with the same model */
+    /* the stop rule: the first plan at the target stops, with no batch, once the scan holds more
+     * than its starting raster */
     o = fit_adapt_opts_default();
     o.target_err = 1.0; /* a mean-1 map's error is far below its mean */
-    fit_adapt_step_t first;
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &first, &err) == 0);
-    CHECK(first.stop == FIT_ADAPT_GO && first.target_met && first.n == 9 &&
-          first.expected_err <= 1.0);
-    fit_adapt_step_free(&first);
-    CHECK(fit_adapt_plan(&b.sc, &o, &first, NULL, &s2, &err) == 0);
-    CHECK(s2.stop == FIT_ADAPT_TARGET && s2.n == 0 && s2.expected_err <= 1.0);
+    CHECK(b.sc.n > o.start_points);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
+    CHECK(s2.stop == FIT_ADAPT_TARGET && s2.target_met && s2.n == 0 && s2.expected_err <= 1.0);
     fit_adapt_step_free(&s2);
-    fit_adapt_step_t before = first; /* the plan before, set by hand */
-    before.expected_err = 1.5;       /* missed the target */
-    CHECK(fit_adapt_plan(&b.sc, &o, &before, NULL, &s2, &err) == 0);
+    o.start_points = b.sc.n; /* the points so far are all the start: a batch first */
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
     CHECK(s2.stop == FIT_ADAPT_GO && s2.target_met && s2.n == 9);
     fit_adapt_step_free(&s2);
-    before = first, before.r = first.r + 1; /* another recommended r */
-    CHECK(fit_adapt_plan(&b.sc, &o, &before, NULL, &s2, &err) == 0);
-    CHECK(s2.stop == FIT_ADAPT_GO && s2.n == 9);
-    fit_adapt_step_free(&s2);
-    before = first, before.smooth = !first.smooth; /* the smooth part kept / dropped otherwise */
-    CHECK(fit_adapt_plan(&b.sc, &o, &before, NULL, &s2, &err) == 0);
-    CHECK(s2.stop == FIT_ADAPT_GO && s2.n == 9);
+    o.start_points = fit_adapt_opts_default().start_points;
+    double e_now = s2.expected_err;
+    o.target_err = e_now * (1 - 1e-9); /* just under this map's expected error */
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
+    CHECK(s2.stop == FIT_ADAPT_GO && !s2.target_met && s2.n == 9 && s2.expected_err == e_now);
     fit_adapt_step_free(&s2);
     o.target_err = 1e-4;
     o.max_points = b.sc.n;
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
     CHECK(s2.stop == FIT_ADAPT_BUDGET && s2.n == 0 && s2.expected_err > 1e-4);
     fit_adapt_step_free(&s2);
     o.max_points = b.sc.n + 4;
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s2, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s2, &err) == 0);
     CHECK(s2.stop == FIT_ADAPT_GO && s2.n == 4);
     fit_adapt_step_free(&s2);
     fit_adapt_step_free(&s1);
@@ -349,14 +347,14 @@ static void honest_stop(void)
     fit_adapt_opts_t o = fit_adapt_opts_default();
     o.target_err = TILT_TARGET;
     o.max_points = NMAX;
-    fit_adapt_step_t s, prev = {0}, ref;
+    fit_adapt_step_t s, ref;
     fit_adapt_cache_t cache = {0};
     err_t err = {{0}};
     int plans = 0, met_before = 0, same = 1;
     for (;;) {
-        CHECK(fit_adapt_plan(&b.sc, &o, plans ? &prev : NULL, &cache, &s, &err) == 0);
+        CHECK(fit_adapt_plan(&b.sc, &o, &cache, &s, &err) == 0);
         /* the same plan without the cache: the same batch, bit for bit */
-        CHECK(fit_adapt_plan(&b.sc, &o, plans ? &prev : NULL, NULL, &ref, &err) == 0);
+        CHECK(fit_adapt_plan(&b.sc, &o, NULL, &ref, &err) == 0);
         same &= same_batch(&s, &ref);
         fit_adapt_step_free(&ref);
         plans++;
@@ -364,21 +362,20 @@ static void honest_stop(void)
         for (int k = 0; k < s.n; k++) measure(&b, s.x_um[k], s.y_um[k]);
         met_before = s.target_met;
         fit_adapt_step_free(&s);
-        prev = s;
     }
     double rms = rms_vs_tilt(s.map.S, s.map.grid);
     fprintf(stderr, "tilt to target %.4f: stopped (%s) at %zu points after %d plans, expected "
             "error %.4f, against the tilt %.4f\n", TILT_TARGET, fit_adapt_stop_name(s.stop),
             b.sc.n, plans, s.expected_err, rms);
-    CHECK(s.stop == FIT_ADAPT_TARGET && met_before && plans >= 2);
+    CHECK(s.stop == FIT_ADAPT_TARGET && s.target_met && !met_before && plans >= 2);
     CHECK(rms <= 1.5 * TILT_TARGET);
     CHECK(same && cache.A && cache.grid == s.map.grid);
     fit_adapt_step_free(&s);
     /* other candidates (a coarser lattice): the cache is rebuilt, the batch again the uncached */
     o.target_err = 1e-4;
     o.lattice = 20;
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &cache, &s, &err) == 0);
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &ref, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, &cache, &s, &err) == 0);
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &ref, &err) == 0);
     CHECK(s.n == 9 && same_batch(&s, &ref) && cache.nc == 19 * 19);
     fit_adapt_step_free(&s);
     fit_adapt_step_free(&ref);
@@ -394,15 +391,15 @@ static void bad_options(void)
     err_t err = {{0}};
     fit_adapt_opts_t o = fit_adapt_opts_default();
     o.batch = 0;
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s, &err) == -EINVAL && strstr(err.msg, "batch"));
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s, &err) == -EINVAL && strstr(err.msg, "batch"));
     fit_adapt_step_free(&s);
     o = fit_adapt_opts_default();
     o.target_err = 0;
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s, &err) == -EINVAL && strstr(err.msg, "target_err"));
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s, &err) == -EINVAL && strstr(err.msg, "target_err"));
     fit_adapt_step_free(&s);
     o = fit_adapt_opts_default();
     o.box_um[0] = 4, o.box_um[1] = 3;
-    CHECK(fit_adapt_plan(&b.sc, &o, NULL, NULL, &s, &err) == -EINVAL && strstr(err.msg, "box"));
+    CHECK(fit_adapt_plan(&b.sc, &o, NULL, &s, &err) == -EINVAL && strstr(err.msg, "box"));
     fit_adapt_step_free(&s);
 }
 

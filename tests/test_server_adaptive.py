@@ -20,9 +20,10 @@
   against 0.038 and 0.039).
 - Progress events of the scan carry phase "adaptive" and the expected error.
 - A cancel (the scan held after 10 points) ends the scan and keeps its points.
-- A target reached early (0.05), the scan killed after 30 points: it resumes and stops on the
-  target (confirmed by the plan one batch later, so after 34 points at least) where the same scan
-  uninterrupted stops, with the same points.
+- A target met after the first batch (the lowest expected error after the first plan of the same
+  scan run with no target, read from its events), the scan killed after 30 points: it resumes
+  and stops on the target at the first plan that meets it, where the same scan uninterrupted
+  stops, with the same points.
 - The scan list (GET /api/scans) says how each scan takes its points: the strategy as requested
   with the defaults of docs/api.md filled in (target_err 0.01, max_points 300, batch 9,
   start_grid 5), {"kind": "raster"} for a raster scan, also when the request named none; the
@@ -273,12 +274,31 @@ def test(c, t, argv, daemons):
 
 
 def check_target_resume(c, d, db, sensor):
-    """A target the map reaches early (0.05): killed mid-way through its first batch, the scan
+    """A target the map reaches after its first batch: the same scan with no target, watched by
+    an event stream, gives each plan's expected error, and the target is the lowest after the
+    first plan (so the first plan misses it). Killed mid-way through its first batch, the scan
     resumes, replays its plans and stops on the target where the same scan run uninterrupted
-    does, with the same points; a target counts only when the plan one batch later confirms it,
-    so it stops after one batch at least."""
-    loose = dict(STRATEGY, target_err=0.05)
-    req = dict(scan_request(sensor), poi={"col": 110, "row": 110}, strategy=loose)
+    does, with the same points, at the first plan whose expected error is at or under it."""
+    poi = {"col": 110, "row": 110}
+    d.start()
+    ev = EventStream(d.port)
+    r = d.post("/api/scans", dict(scan_request(sensor), poi=poi,
+                                  strategy=dict(STRATEGY, target_err=1e-6)))
+    j = r.json()["job"]["id"]
+    c.ok(d.wait_job(j, "done"), "the probe scan with no target is done")
+    c.ok(ipsd_http.wait_for(lambda: any(e["id"] == j and e["state"] == "done"
+                                        for e in ev.events())), "its done event")
+    plans = []  # each plan's expected error, once (every point's event repeats the last plan's)
+    for e in ev.events():
+        if e["id"] == j and "expected_err" in e and (not plans or plans[-1] != e["expected_err"]):
+            plans.append(e["expected_err"])
+    ev.close()
+    d.stop_term()
+    target = min(plans[1:])
+    c.ok(len(plans) >= 3 and target < plans[0],
+         "the probe's plans: %s; the target %.5f is met after the first" % (plans, target))
+    first = min(25 + 9 * next(k for k, e in enumerate(plans) if e <= target), 49)
+    req = dict(scan_request(sensor), poi=poi, strategy=dict(STRATEGY, target_err=target))
     d.start(failpoints="scan.point=hold@30;scan.point=crash@30")
     r = d.post("/api/scans", req)
     s4, j4 = r.json()["scan"]["id"], r.json()["job"]["id"]
@@ -293,10 +313,11 @@ def check_target_resume(c, d, db, sensor):
     p4, setup4 = points(db, s4)
     p5, setup5 = points(db, s5)
     a4, a5 = setup4["adaptive"], setup5["adaptive"]
-    print("target 0.05: the resumed scan stopped (%s) at %d points, expected error %.4f"
-          % (a4["stop"], len(p4), a4["expected_err"]))
-    c.ok(a4["stop"] == "target" and a4["expected_err"] <= 0.05 and 34 <= len(p4) < 49,
-         "stopped on the target 0.05 after one batch at least: %r, %d points" % (a4, len(p4)))
+    print("target %.5f: the resumed scan stopped (%s) at %d points, expected error %.5f"
+          % (target, a4["stop"], len(p4), a4["expected_err"]))
+    c.ok(a4["stop"] == "target" and a4["expected_err"] <= target and len(p4) == first,
+         "stopped on the target at the first plan that met it (%d points): %r, %d points"
+         % (first, a4, len(p4)))
     c.eq((a4["stop"], a4["points"], len(p4)), (a5["stop"], a5["points"], len(p5)),
          "the resumed scan stopped where the uninterrupted one did")
     c.eq(p4, p5, "with the same positions and values")
