@@ -1,6 +1,6 @@
 /* sim_adaptive.c: `ips simulate --adaptive` (sim_adaptive.h): the starting n0 x n0 raster, then
- * plan (fit/adapt_plan.h: the kriged map of the points so far, its expected rms error
- * e = sqrt(tr Sigma / F^2), the next batch where it lowers tr Sigma most), take the batch, and again
+ * plan (fit/adapt_plan.h: the kriged map of the points so far, its expected rms error e under the
+ * neighbouring priors, the next batch where it lowers tr Sigma most), take the batch, and again
  * until e <= target after a planned batch (the planner's stop rule), the budget is spent
  * or no candidate helps. The allowed box is the stage's travel seen from the pixel's corner. Each
  * map is scored against the scene's truth as the fidelity harness scores maps

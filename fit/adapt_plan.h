@@ -24,9 +24,9 @@
  * whose predicted signal reaches full scale is left out, as the fit would leave it out). The
  * batch is then ordered for travel (fit_adapt_order) from the scan's last position.
  *
- * Deterministic: the same points give the same batch (the fits run on the caller's thread), and
- * so an interrupted scan resumes by planning again,
- * batch boundary after batch boundary, from the points it stored. Pure numerics, no I/O, no
+ * Deterministic: the same points give the same batch and the same stop (the fits run on the
+ * caller's thread), so an interrupted scan resumes by planning again, batch boundary after batch
+ * boundary, from the points it stored. Pure numerics, no I/O, no
  * globals, thread-safe. */
 #ifndef IPSD_FIT_ADAPT_PLAN_H
 #define IPSD_FIT_ADAPT_PLAN_H
@@ -83,7 +83,7 @@ typedef struct fit_adapt_step {
                              the recommended r's prior alone (the rms of map.S_err) */
     int target_met;       /* e <= target_err at this plan (a stop once past the start) */
     int smooth;           /* the kriged map kept its smooth part (map.smooth, kept after
-                             fit_adapt_step_free for the next plan's stop rule) */
+                             fit_adapt_step_free for the scan's reports) */
     double predicted_err; /* e expected after the batch: the posterior's part as the picks lower
                              it, the priors' spread held (NaN without a batch) */
     int n;                /* positions in the batch (0 unless stop is FIT_ADAPT_GO) */
