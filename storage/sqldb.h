@@ -96,9 +96,10 @@ int sqldb_process_setup(void);
 const char *sqldb_rc_text(sqldb_rc_t rc);
 
 /* PostgreSQL's notifications, on a connection of sqldb_pg_open that ran LISTEN: waits up to
- * timeout_ms for the server to say something and returns how many notifications arrived (0: none
- * in that time), or -EIO when the connection is lost. -ENOTSUP on another driver. */
-int sqldb_pg_wait_notify(sqldb_t *db, int timeout_ms);
+ * timeout_ms for the server to say something and returns how many notifications arrived whose
+ * payload is not ignore (NULL: all; 0: none in that time), *ignored (NULL: not wanted) getting
+ * how many that were, or -EIO when the connection is lost. -ENOTSUP on another driver. */
+int sqldb_pg_wait_notify(sqldb_t *db, int timeout_ms, const char *ignore, int *ignored);
 
 /* The SQLite connection under db (sqlite3 *), NULL for another driver: for what only SQLite
  * does (its online backup, WAL checkpoint, page counts). */

@@ -628,8 +628,9 @@ static const struct sqldb_ops pg_ops = {
     .checkpoint = pg_checkpoint,
 };
 
-int sqldb_pg_wait_notify(sqldb_t *db, int timeout_ms)
+int sqldb_pg_wait_notify(sqldb_t *db, int timeout_ms, const char *ignore, int *ignored)
 {
+    if (ignored) *ignored = 0;
     if (!db || db->ops != &pg_ops) return -ENOTSUP;
     pg_t *p = DB(db);
     int sock = PQsocket(p->c);
@@ -643,7 +644,9 @@ int sqldb_pg_wait_notify(sqldb_t *db, int timeout_ms)
     }
     PGnotify *note;
     while ((note = PQnotifies(p->c))) {
-        n++;
+        int skip = ignore && note->extra && strcmp(note->extra, ignore) == 0;
+        n += !skip;
+        if (ignored) *ignored += skip;
         PQfreemem(note);
     }
     return n;

@@ -360,7 +360,7 @@ int stg_commit(storage_t *st, err_t *err)
     int ret = 0;
     /* a shared database: the other instances hear of a calibration when this commits */
     if (st->calib_dirty && sqldb_dialect(st->db) == SQLDB_POSTGRES &&
-        sqldb_exec(st->db, stg_pg_notify) != SQLDB_OK)
+        sqldb_exec(st->db, st->gate ? stg_gate_notify_sql(st->gate) : stg_pg_notify) != SQLDB_OK)
         ret = stg_error(st, SQLDB_IOERR, err, "announcing a calibration");
     if (ret == 0) ret = run_fixed(st, STG_COMMIT, err, "committing");
     if (ret) {

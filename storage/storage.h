@@ -55,7 +55,9 @@ void storage_set_gate(storage_t *st, storage_gate_t *g);
 /* The calibration generation of the gate's database: a counter that grows after every committed
  * transaction (of a handle sharing the gate) that stored a calibration; read before a read, it
  * tells a cache of calibration replies whether what it holds may be stale. -ENOTSUP without a
- * gate (then changes cannot be seen: do not cache). Writes by other processes are not counted. */
+ * gate (then changes cannot be seen: do not cache); -EBUSY while a transaction that stored a
+ * calibration has not ended (do not cache: what is read may be about to change). Writes by other
+ * processes are not counted. */
 int storage_calib_generation(storage_t *st, uint64_t *gen);
 
 /* The storage's health as the gate saw it ("Storage faults"): every handle sharing the

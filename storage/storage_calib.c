@@ -200,7 +200,7 @@ int stg_calib_insert(storage_t *st, const storage_calib_t *c, int64_t *id, err_t
                 (long long)c->scan_id, (long long)c->fit_id);
     if (ret == 0) {
         *id = new_id;
-        st->calib_dirty = 1; /* the commit counts it (storage_calib_generation) */
+        stg_gate_calib_written(st); /* the generation is odd until the transaction ends */
     }
 out:
     free(s);

@@ -35,6 +35,8 @@ struct storage_gate {
     char fault_file[PATH_MAX]; /* test hook: "" none */
     long long max_pages;       /* test hook: 0 none */
     struct stg_listener *listener; /* a shared database's calibrations (storage_listen.c) */
+    char token[64];      /* this gate's name in its notifications (its own are not heard) */
+    char notify_sql[96]; /* NOTIFY ipsd_calibrations, 'token' */
 };
 
 int storage_gate_new(storage_gate_t **out)
@@ -44,8 +46,18 @@ int storage_gate_new(storage_gate_t **out)
     pthread_mutex_init(&g->mu, NULL);
     pthread_cond_init(&g->cv, NULL);
     pthread_mutex_init(&g->health_mu, NULL);
+    /* unique among the instances sharing a database: the host's process id, the gate's address
+     * and the wall clock (a token made of digits and hex letters needs no quoting) */
+    snprintf(g->token, sizeof g->token, "%ld-%lx-%lld", (long)getpid(), (unsigned long)(uintptr_t)g,
+             (long long)clock_wall_ms());
+    snprintf(g->notify_sql, sizeof g->notify_sql, "NOTIFY ipsd_calibrations, '%s'", g->token);
     *out = g;
     return 0;
+}
+
+const char *stg_gate_notify_sql(const storage_gate_t *g)
+{
+    return g->notify_sql;
 }
 
 void storage_gate_free(storage_gate_t *g)
@@ -152,7 +164,7 @@ int stg_gate_injected(storage_t *st)
 int storage_gate_listen(storage_gate_t *g, const char *target, err_t *err)
 {
     if (!g || g->listener || !sqldb_is_postgres_uri(target)) return 0;
-    return stg_listener_start(&g->calib_gen, target, &g->listener, err);
+    return stg_listener_start(&g->calib_gen, target, g->token, &g->listener, err);
 }
 
 int storage_calib_generation(storage_t *st, uint64_t *gen)
@@ -162,7 +174,19 @@ int storage_calib_generation(storage_t *st, uint64_t *gen)
     if (sqldb_dialect(st->db) == SQLDB_POSTGRES && !stg_listener_listening(st->gate->listener))
         return -ENOTSUP;
     *gen = atomic_load(&st->gate->calib_gen);
-    return 0;
+    return *gen & 1 ? -EBUSY : 0; /* odd: a calibration is being written */
+}
+
+/* The generation is a sequence lock: even while no calibration write is in flight, odd from the
+ * first calibration a transaction stores until it commits or rolls back (one writer at a time
+ * passes the gate). A reader that finds it odd neither uses nor fills the cache, so no reply
+ * read before a commit is served after it: between the COMMIT and the count after it, a reader
+ * that finds the job done must not get the entry of the calibration before (a stale read seen
+ * in test_server_calib_cache on a busy machine). */
+void stg_gate_calib_written(storage_t *st)
+{
+    if (st->gate && !st->calib_dirty) atomic_fetch_add(&st->gate->calib_gen, 1);
+    st->calib_dirty = 1;
 }
 
 void stg_gate_committed(storage_t *st)
@@ -196,7 +220,9 @@ int stg_gate_enter(storage_t *st)
 void stg_gate_leave(storage_t *st)
 {
     storage_gate_t *g = st->gate;
-    st->calib_dirty = 0; /* committed (counted already) or rolled back */
+    /* committed (counted already), or rolled back: the generation even again */
+    if (g && st->calib_dirty) atomic_fetch_add(&g->calib_gen, 1);
+    st->calib_dirty = 0;
     if (!g || !st->gate_held) return;
     st->gate_held = 0;
     pthread_mutex_lock(&g->mu);

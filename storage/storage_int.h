@@ -142,8 +142,8 @@ struct storage {
 /* storage_listen.c: the thread that LISTENs for other instances' calibrations on a shared
  * PostgreSQL database and moves the gate's calibration generation *gen for each. */
 struct stg_listener;
-int stg_listener_start(atomic_uint_least64_t *gen, const char *uri, struct stg_listener **out,
-                       err_t *err);
+int stg_listener_start(atomic_uint_least64_t *gen, const char *uri, const char *own_token,
+                       struct stg_listener **out, err_t *err);
 int stg_listener_listening(const struct stg_listener *l);
 void stg_listener_stop(struct stg_listener *l);
 
@@ -151,8 +151,17 @@ void stg_listener_stop(struct stg_listener *l);
  * returns 0 or -EDEADLK when this thread holds the gate through another handle. */
 int stg_gate_enter(storage_t *st);
 void stg_gate_leave(storage_t *st);
-/* After COMMIT succeeded: counts a calibration change when the transaction stored one. */
+/* A calibration stored in the open write transaction: the gate's calibration generation turns
+ * odd (storage_calib_generation answers -EBUSY: no caching) until it ends. */
+void stg_gate_calib_written(storage_t *st);
+/* After COMMIT succeeded: counts a calibration change when the transaction stored one (the
+ * generation even again). */
 void stg_gate_committed(storage_t *st);
+/* The NOTIFY a transaction of this gate's handles sends when it stores a calibration on a shared
+ * PostgreSQL database: its payload is the gate's token, which the gate's own listener ignores
+ * (stg_gate_committed has counted the change already; hearing it again, late, would empty the
+ * reply cache once more for nothing). */
+const char *stg_gate_notify_sql(const storage_gate_t *g);
 /* The gate's health (storage.h): a storage fault (code -ENOSPC, -EROFS or -EIO, message msg;
  * for -ENOSPC the database's pages and free pages then, -1 unknown), or a write that committed.
  * No-ops without a gate. */

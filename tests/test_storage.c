@@ -946,6 +946,36 @@ static void test_fit_store_unit(void)
 
 static void check_calib_search(storage_t *st, int64_t a, const int64_t *ids, int64_t t2);
 
+/* The calibration generation (storage.h) is a sequence lock: even between writes, moved by 2 by
+ * each transaction that stored a calibration (odd inside it), not moved by one that failed before
+ * storing; without a gate there is none. On PostgreSQL a gate answers only while its listener
+ * listens, which this test does not start. */
+static void test_calib_generation(void)
+{
+    storage_t *st = open_db("calibgen.db");
+    int64_t sensor = make_sensor(st, "IMX-G", "1");
+    uint64_t g0, g1, g2;
+    CHECK(storage_calib_generation(st, &g0) == -ENOTSUP);
+    storage_gate_t *gate = NULL;
+    CHECK(storage_gate_new(&gate) == 0);
+    storage_set_gate(st, gate);
+    if (pg_uri) {
+        CHECK(storage_calib_generation(st, &g0) == -ENOTSUP);
+    } else {
+        CHECK(storage_calib_generation(st, &g0) == 0 && g0 % 2 == 0);
+        put_calib(st, sensor, 3, 4, 1.0, "ok");
+        CHECK(storage_calib_generation(st, &g1) == 0 && g1 == g0 + 2);
+        double S[4] = {1, 1, 1, 1}, E[4] = {0.1, 0.1, 0.1, 0.1};
+        storage_calib_t bad = {.sensor_id = sensor + 1000, .pixel_col = 3, .pixel_row = 4, .r = 2,
+                               .S = S, .S_err = E, .status = "ok", .noise_model = "paper"};
+        int64_t id = 0;
+        CHECK(storage_calib_put(st, &bad, &id, NULL) != 0); /* no such sensor */
+        CHECK(storage_calib_generation(st, &g2) == 0 && g2 == g1);
+    }
+    storage_close(st);
+    storage_gate_free(gate);
+}
+
 static void test_calibrations(void)
 {
     storage_t *st = open_db("calib.db");
@@ -1815,6 +1845,28 @@ static void test_pg_tls(const char *uri_file)
 /* PostgreSQL: the version table, a reopen that changes nothing, a newer schema refused with
  * nothing written, a URI that is not one, a wrong password (not in the message), and a writer
  * that waits past the busy timeout for another instance's write transaction. */
+/* A gate's listener hears the calibrations of other instances, not its own (storage_listen.c):
+ * on a connection that LISTENs, a notification whose payload is the ignored token (the gate's own)
+ * is taken but not counted, one with another payload (another instance's gate) is counted. A
+ * channel of its own, so that the other tests' instances sharing the server do not count here. */
+static void test_pg_notify_own(void)
+{
+    sqldb_t *db = NULL;
+    err_t err = {{0}};
+    CHECK(sqldb_pg_open(db_path("pgnotify"), &db, &err) == 0);
+    CHECK(db && sqldb_exec(db, "LISTEN ipsd_test_notify") == SQLDB_OK);
+    CHECK(raw_exec("pgnotify", "NOTIFY ipsd_test_notify, 'own-7'") == SQLITE_OK);
+    CHECK(raw_exec("pgnotify", "NOTIFY ipsd_test_notify, 'other-9'") == SQLITE_OK);
+    int counted = 0, ignored = 0, ig, n = 0;
+    /* both committed: each wait takes what has arrived, until both are in (or 30 s pass) */
+    for (int k = 0; k < 300 && counted + ignored < 2 && n >= 0; k++) {
+        n = sqldb_pg_wait_notify(db, 100, "own-7", &ig);
+        if (n >= 0) counted += n, ignored += ig;
+    }
+    CHECK(n >= 0 && counted == 1 && ignored == 1);
+    sqldb_close(db);
+}
+
 static void test_pg_open(void)
 {
     const char *tables = "SELECT count(*) FROM information_schema.tables WHERE table_schema = "
@@ -1904,6 +1956,7 @@ int main(int argc, char **argv)
         uri[strcspn(uri, "\r\n")] = '\0';
         pg_uri = uri;
         test_pg_open();
+        test_pg_notify_own();
         test_pg_tls(argv[2]);
         test_sensor_scan_roundtrip();
         test_frame_roundtrip();
@@ -1919,6 +1972,7 @@ int main(int argc, char **argv)
         test_fit_store_done();
         test_fit_store_unit();
         test_calibrations();
+        test_calib_generation();
         test_pagination();
         test_promote();
         test_setup_release_upload();
@@ -1948,6 +2002,7 @@ int main(int argc, char **argv)
     test_fit_store_done();
     test_fit_store_unit();
     test_calibrations();
+    test_calib_generation();
     test_pagination();
     test_migrate_v1();
     test_promote();
