@@ -49,6 +49,7 @@ storage.c sqldb_sqlite.c
 sqldb.c sqldb_sqlite.c
 sqldb.c sqldb_pg.c
 storage_calib.c storage.c
+storage_calib.c storage_gate.c
 storage_calib.c storage_sensor.c
 storage_compose.c storage.c
 storage_compose.c storage_calib.c
